@@ -1,0 +1,80 @@
+//! One error type for the whole core. Every variant names what was wrong and where, so the
+//! command line and the Blender add-on can show it as is.
+
+use std::path::PathBuf;
+
+/// Everything that can go wrong in the core, each with a specific message.
+#[derive(Debug, thiserror::Error)]
+pub enum RelumeError {
+    #[error("I/O error on {path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("scene file {path}: {message}")]
+    SceneFormat { path: PathBuf, message: String },
+    #[error("scene file {path} has format version {found}; this build reads version {supported}")]
+    SceneVersion {
+        path: PathBuf,
+        found: u32,
+        supported: u32,
+    },
+    #[error("non-finite value (NaN or Inf) in {what}")]
+    NonFinite { what: String },
+    #[error("{what}: index {index} is out of range (there are {len})")]
+    IndexOutOfRange {
+        what: String,
+        index: u64,
+        len: usize,
+    },
+    #[error("the scene is empty: {0}")]
+    EmptyScene(String),
+    #[error("invalid {what}: {message}")]
+    InvalidValue { what: String, message: String },
+    #[error("stack file {path}: {message}")]
+    StackFormat { path: PathBuf, message: String },
+    #[error("stack file {path} is truncated or damaged: {message}")]
+    StackTruncated { path: PathBuf, message: String },
+    #[error("stack file {path} has stack format version {found}; this build reads version {supported}")]
+    StackVersion {
+        path: PathBuf,
+        found: u32,
+        supported: u32,
+    },
+    #[error("{path} is not a Relume transfer stack: {message}")]
+    StackForeign { path: PathBuf, message: String },
+    #[error("the stack was baked from another scene (stack hash {stack_hash}, scene hash {scene_hash}): rebake it")]
+    StackStale {
+        stack_hash: String,
+        scene_hash: String,
+    },
+    #[error("the bake was cancelled")]
+    Cancelled,
+    #[error("materials: {0}")]
+    Materials(String),
+    #[error("BRDF basis: {0}")]
+    Basis(String),
+    #[error("image {path}: {message}")]
+    Image { path: PathBuf, message: String },
+}
+
+/// Result with [`RelumeError`].
+pub type Result<T, E = RelumeError> = std::result::Result<T, E>;
+
+impl RelumeError {
+    /// Wraps an `std::io::Error` with the path it concerned.
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        RelumeError::Io {
+            path: path.into(),
+            source,
+        }
+    }
+    /// Shorthand for [`RelumeError::InvalidValue`].
+    pub fn invalid(what: impl Into<String>, message: impl Into<String>) -> Self {
+        RelumeError::InvalidValue {
+            what: what.into(),
+            message: message.into(),
+        }
+    }
+}

@@ -1,0 +1,1 @@
+//! Ray tracing and sampling: BVH, camera rays, light and hemisphere sampling.

@@ -1,0 +1,1 @@
+//! Plain image files (relit images, textures, environments). HELPER B: implement.

@@ -1,0 +1,32 @@
+//! Relume's pure core: no Python, no Blender, no GPU.
+//!
+//! The method is Sun, Zhou & Shi 2008 ("Real-time global illumination rendering with
+//! dynamic materials"): the BRDF of every editable region is written in a small basis
+//! (diffuse + PCA of Blinn–Phong lobes), a path tracer splits the radiance reaching the eye by
+//! path signature — the (region, basis) pairs met along the path — into the layers of a
+//! *transfer stack*, and a relight is a weighted sum of those layers whose weights are
+//! products of per-region basis coefficients.
+//!
+//! Module map (one concept per file):
+//! - [`scene`]: the scene model, its versioned JSON file, validation.
+//! - [`brdf`]: Blinn–Phong, the PCA basis, the Principled mapping.
+//! - [`geometry`]: BVH (obvhs), sampling helpers, camera rays, light sampling.
+//! - [`bake`]: path signatures, the bake integrator, the reference renderer, progress/cancel.
+//! - [`stack`]: the transfer stack in memory and as one OpenEXR file.
+//! - [`relight`]: the CPU relight (the reference for the GPU one).
+//! - [`materials`]: material edits (JSON) applied at relight time.
+
+pub mod bake;
+pub mod brdf;
+pub mod error;
+pub mod geometry;
+pub mod image_io;
+pub mod materials;
+pub mod relight;
+pub mod scene;
+pub mod stack;
+
+pub use error::{RelumeError, Result};
+
+/// Scene-linear Rec.709 RGB, the colour space of Cycles and of every Relume image.
+pub type Rgb = glam::Vec3;

@@ -1,0 +1,1 @@
+//! Material edits applied at relight time. HELPER D: implement.

@@ -1,0 +1,1 @@
+//! The CPU relight. HELPER D: implement.

@@ -1,0 +1,1 @@
+//! The stack as one OpenEXR file. HELPER B: implement.
