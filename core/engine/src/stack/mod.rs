@@ -46,6 +46,8 @@ pub struct StackHeader {
 pub struct RegionInfo {
     pub name: String,
     pub editable: bool,
+    /// The material at bake time: baked in for a fixed region, the default of an editable one.
+    pub material: crate::brdf::MaterialSpec,
     /// The basis of an editable region (rebuilt deterministically from this on load).
     pub basis: Option<BasisConfig>,
 }
