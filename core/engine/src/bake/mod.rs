@@ -1,3 +1,221 @@
 //! The bake: one path-tracing pass that fills every layer of the transfer stack.
+//!
+//! For each pixel and eye sample, the integrator ([`integrator`]) gives radiance per slot
+//! (direct) and per slot pair (one bounce); a tile accumulates them densely, then hands every
+//! layer that received anything to the whole-image layer store. At the end a layer whose
+//! three channels are bit-identical everywhere (its paths met no colour: Table 1's grey
+//! layers) is stored with one channel, an all-zero layer is dropped, and the rest are RGB.
 
+pub mod bench;
+pub mod context;
+pub mod integrator;
+pub mod progress;
+pub mod reference;
+pub mod settings;
 pub mod signature;
+pub mod tiles;
+pub mod vertex_brdf;
+
+use serde::Serialize;
+use std::sync::Mutex;
+use std::time::Instant;
+
+use crate::scene::{hash::scene_hash, Scene};
+use crate::stack::{Layer, RegionInfo, StackHeader, TransferStack, STACK_FORMAT_VERSION};
+use crate::{Result, Rgb};
+use context::BakeContext;
+use integrator::{trace_eye_sample, CountingTracer, PathSink};
+use progress::Progress;
+pub use settings::{BakeSettings, IndirectSampling};
+use signature::LayerKey;
+use vertex_brdf::BasisBrdf;
+
+/// What a bake did, for the command line's JSON and the add-on's status.
+#[derive(Clone, Debug, Serialize)]
+pub struct BakeReport {
+    /// Whole bake, wall clock.
+    pub seconds: f64,
+    /// Validation, basis and BVH build.
+    pub setup_seconds: f64,
+    /// Path tracing and layer assembly.
+    pub trace_seconds: f64,
+    /// Rays per second of `trace_seconds`.
+    pub rays: u64,
+    pub rays_per_second: f64,
+    pub width: u32,
+    pub height: u32,
+    pub triangles: usize,
+    pub degenerate_triangles: usize,
+    pub warnings: Vec<String>,
+    /// Layers the slots allow (world + slots + slot pairs).
+    pub layers_possible: usize,
+    pub layers_grey: usize,
+    pub layers_rgb: usize,
+    /// Layers no path reached (e.g. a region never seen from another): not stored.
+    pub layers_empty: usize,
+    pub sample_bytes: usize,
+}
+
+/// Accumulates one tile densely: layer-major, then pixel, then RGB.
+struct TileSink<'a> {
+    buf: &'a mut [f32],
+    pixel: usize,
+    tile_pixels: usize,
+    slots: usize,
+}
+
+impl TileSink<'_> {
+    #[inline]
+    fn add(&mut self, layer: usize, v: Rgb) {
+        let i = (layer * self.tile_pixels + self.pixel) * 3;
+        self.buf[i] += v.x;
+        self.buf[i + 1] += v.y;
+        self.buf[i + 2] += v.z;
+    }
+}
+
+impl PathSink for TileSink<'_> {
+    #[inline]
+    fn world(&mut self, v: Rgb) {
+        self.add(0, v);
+    }
+    #[inline]
+    fn direct(&mut self, slot: u32, v: Rgb) {
+        self.add(1 + slot as usize, v);
+    }
+    #[inline]
+    fn bounce(&mut self, eye: u32, bounce: u32, v: Rgb) {
+        let s = self.slots;
+        self.add(1 + s + eye as usize * s + bounce as usize, v);
+    }
+}
+
+/// The key of dense layer index `layer` for `ctx`'s slots.
+pub fn layer_key(ctx: &BakeContext, layer: usize) -> LayerKey {
+    let s = ctx.slot_count();
+    if layer == 0 {
+        LayerKey::new(vec![])
+    } else if layer <= s {
+        LayerKey::new(vec![ctx.slot_vertex[layer - 1]])
+    } else {
+        let pair = layer - 1 - s;
+        LayerKey::new(vec![ctx.slot_vertex[pair / s], ctx.slot_vertex[pair % s]])
+    }
+}
+
+/// Bakes `scene` into a transfer stack. `progress` reports and cancels from other threads.
+pub fn bake(scene: &Scene, settings: &BakeSettings, progress: &Progress) -> Result<(TransferStack, BakeReport)> {
+    let start = Instant::now();
+    let (ctx, validation) = BakeContext::new(scene, settings)?;
+    let setup_seconds = start.elapsed().as_secs_f64();
+    let trace_start = Instant::now();
+    let res = ctx.resolution;
+    let (width, height) = (res.width as usize, res.height as usize);
+    let layer_count = ctx.layer_count();
+    let slots = ctx.slot_count();
+    let store: Vec<Mutex<Vec<f32>>> = (0..layer_count).map(|_| Mutex::new(Vec::new())).collect();
+    let rays = std::sync::atomic::AtomicU64::new(0);
+    let brdf = BasisBrdf { ctx: &ctx };
+
+    tiles::run_tiles(res, settings.threads, progress, |tile| {
+        let tp = tile.pixels();
+        let mut buf = vec![0.0f32; layer_count * tp * 3];
+        let mut tracer = CountingTracer::default();
+        for ty in 0..tile.height {
+            if progress.is_cancelled() {
+                return false;
+            }
+            for tx in 0..tile.width {
+                let mut sink = TileSink { buf: &mut buf, pixel: (ty * tile.width + tx) as usize, tile_pixels: tp, slots };
+                for s in 0..settings.spp {
+                    trace_eye_sample(&ctx, &brdf, &mut sink, &mut tracer, tile.x0 + tx, tile.y0 + ty, s);
+                }
+            }
+        }
+        rays.fetch_add(tracer.rays, std::sync::atomic::Ordering::Relaxed);
+        for (layer, slot) in store.iter().enumerate() {
+            let part = &buf[layer * tp * 3..(layer + 1) * tp * 3];
+            if part.iter().all(|v| *v == 0.0) {
+                continue;
+            }
+            let mut image = slot.lock().unwrap_or_else(|e| e.into_inner());
+            if image.is_empty() {
+                *image = vec![0.0; width * height * 3];
+            }
+            for ty in 0..tile.height as usize {
+                let src = &part[ty * tile.width as usize * 3..(ty + 1) * tile.width as usize * 3];
+                let row = (tile.y0 as usize + ty) * width + tile.x0 as usize;
+                image[row * 3..row * 3 + src.len()].copy_from_slice(src);
+            }
+        }
+        true
+    })?;
+
+    let inv_spp = 1.0 / settings.spp as f32;
+    let mut layers = Vec::new();
+    let (mut grey, mut rgb, mut empty) = (0, 0, 0);
+    for (index, slot) in store.into_iter().enumerate() {
+        let mut image = slot.into_inner().unwrap_or_else(|e| e.into_inner());
+        if image.is_empty() || image.iter().all(|v| *v == 0.0) {
+            empty += 1;
+            continue;
+        }
+        image.iter_mut().for_each(|v| *v *= inv_spp);
+        let key = layer_key(&ctx, index);
+        let is_grey = image.chunks_exact(3).all(|c| c[0] == c[1] && c[1] == c[2]);
+        if is_grey {
+            let y: Vec<f32> = image.chunks_exact(3).map(|c| c[0]).collect();
+            layers.push(Layer::from_f32(key, 1, &y, settings.precision));
+            grey += 1;
+        } else {
+            layers.push(Layer::from_f32(key, 3, &image, settings.precision));
+            rgb += 1;
+        }
+    }
+    let header = StackHeader {
+        format_version: STACK_FORMAT_VERSION,
+        width: res.width,
+        height: res.height,
+        camera: scene.camera.clone(),
+        spp: settings.spp,
+        light_samples: settings.light_samples,
+        bounces: settings.bounces,
+        sampling: settings.sampling.name().into(),
+        seed: settings.seed,
+        regions: scene
+            .regions
+            .iter()
+            .map(|r| RegionInfo {
+                name: r.name.clone(),
+                editable: r.editable,
+                material: r.material.clone(),
+                basis: r.editable.then(|| context::basis_config_for(&settings.basis, r.ns_range)),
+            })
+            .collect(),
+        lights: scene.lights.clone(),
+        scene_hash: scene_hash(scene),
+        precision: settings.precision,
+    };
+    let stack = TransferStack { header, layers };
+    let trace_seconds = trace_start.elapsed().as_secs_f64();
+    let seconds = start.elapsed().as_secs_f64();
+    let rays = rays.into_inner();
+    let report = BakeReport {
+        seconds,
+        rays,
+        setup_seconds,
+        trace_seconds,
+        rays_per_second: rays as f64 / trace_seconds.max(1e-9),
+        width: res.width,
+        height: res.height,
+        triangles: validation.triangles,
+        degenerate_triangles: validation.degenerate_triangles,
+        warnings: validation.warnings,
+        layers_possible: layer_count,
+        layers_grey: grey,
+        layers_rgb: rgb,
+        layers_empty: empty,
+        sample_bytes: stack.sample_bytes(),
+    };
+    Ok((stack, report))
+}

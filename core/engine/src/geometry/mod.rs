@@ -1,1 +1,8 @@
-//! Ray tracing and sampling: BVH, camera rays, light and hemisphere sampling.
+//! Ray tracing and sampling: BVH, camera rays, light and hemisphere sampling, textures.
+
+pub mod bvh;
+pub mod camera;
+pub mod environment;
+pub mod lights;
+pub mod sampling;
+pub mod texture;

@@ -1,1 +1,101 @@
-//! The scene file. (lead)
+//! The scene file: JSON, versioned, documented in `docs/scene-format.md`.
+//!
+//! `{"format": "relume-scene", "version": 1, <the fields of [`Scene`]>}`. The Blender
+//! exporter writes it, the `relume` command line reads it. Images given by path (albedo
+//! textures, environment maps) are OpenEXR files relative to the scene file; loading makes
+//! them inline so that a loaded [`Scene`] is self-contained.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use super::{ImageRef, Scene, World};
+use crate::{RelumeError, Result};
+
+/// The `format` value of every scene file.
+pub const SCENE_FORMAT: &str = "relume-scene";
+/// The scene file version this build reads and writes.
+pub const SCENE_VERSION: u32 = 1;
+
+#[derive(Serialize, Deserialize)]
+struct SceneFile {
+    format: String,
+    version: u32,
+    #[serde(flatten)]
+    scene: Scene,
+}
+
+#[derive(Deserialize)]
+struct Probe {
+    format: Option<String>,
+    version: Option<u32>,
+}
+
+/// Reads, parses and resolves a scene file (not yet validated: see
+/// [`super::validate::validate_scene`]).
+pub fn load_scene(path: &Path) -> Result<Scene> {
+    let text = std::fs::read_to_string(path).map_err(|e| RelumeError::io(path, e))?;
+    let dir = path.parent().unwrap_or(Path::new("."));
+    parse_scene(&text, path, dir)
+}
+
+/// Parses scene JSON; `path` names it in errors, `dir` resolves relative image paths.
+pub fn parse_scene(text: &str, path: &Path, dir: &Path) -> Result<Scene> {
+    let fail = |message: String| RelumeError::SceneFormat {
+        path: path.to_path_buf(),
+        message,
+    };
+    let probe: Probe = serde_json::from_str(text).map_err(|e| fail(format!("not valid JSON: {e}")))?;
+    match probe.format.as_deref() {
+        Some(SCENE_FORMAT) => {}
+        Some(other) => return Err(fail(format!("format is \"{other}\", expected \"{SCENE_FORMAT}\""))),
+        None => return Err(fail(format!("no \"format\": \"{SCENE_FORMAT}\" key: not a Relume scene file"))),
+    }
+    match probe.version {
+        Some(SCENE_VERSION) => {}
+        Some(found) => {
+            return Err(RelumeError::SceneVersion {
+                path: path.to_path_buf(),
+                found,
+                supported: SCENE_VERSION,
+            })
+        }
+        None => return Err(fail("no \"version\" key".into())),
+    }
+    let file: SceneFile = serde_json::from_str(text).map_err(|e| fail(e.to_string()))?;
+    let mut scene = file.scene;
+    for region in &mut scene.regions {
+        if let Some(img) = &mut region.albedo_texture {
+            resolve_image(img, dir)?;
+        }
+    }
+    if let World::Equirect { image, .. } = &mut scene.world {
+        resolve_image(image, dir)?;
+    }
+    Ok(scene)
+}
+
+fn resolve_image(img: &mut ImageRef, dir: &Path) -> Result<()> {
+    if let ImageRef::Path { path } = img {
+        let full = dir.join(&*path);
+        let (width, height, rgb) = crate::image_io::read_rgb_exr(&full)?;
+        *img = ImageRef::Inline { width, height, rgb };
+    }
+    Ok(())
+}
+
+/// Writes `scene` as a version-1 scene file (atomically: temp file + rename).
+pub fn save_scene(path: &Path, scene: &Scene) -> Result<()> {
+    let file = SceneFile {
+        format: SCENE_FORMAT.into(),
+        version: SCENE_VERSION,
+        scene: scene.clone(),
+    };
+    let text = serde_json::to_string(&file).map_err(|e| RelumeError::SceneFormat {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    let tmp = path.with_extension("json.tmp");
+    std::fs::write(&tmp, text).map_err(|e| RelumeError::io(&tmp, e))?;
+    std::fs::rename(&tmp, path).map_err(|e| RelumeError::io(path, e))
+}

@@ -1,1 +1,270 @@
-//! Validation. (lead)
+//! Scene validation: a clear, specific error for bad input, and a report of what was
+//! tolerated (degenerate triangles skipped, warnings) — never a crash and never a silent fix.
+
+use serde::Serialize;
+
+use super::{ImageRef, Light, Scene, World};
+use crate::brdf::MaterialSpec;
+use crate::{RelumeError, Result};
+
+/// What validation tolerated.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct ValidationReport {
+    /// Triangles with (numerically) zero area: skipped by the bake.
+    pub degenerate_triangles: usize,
+    /// Triangles the bake will use.
+    pub triangles: usize,
+    /// Human-readable warnings (no light, no editable region, Kd + Ks > 1, …).
+    pub warnings: Vec<String>,
+}
+
+/// A triangle is degenerate when the sine of its largest angle's complement is below this:
+/// |e1 × e2| ≤ 1e-7·|e1|·|e2| (or an edge of length 0). Slivers above it are kept.
+pub const DEGENERATE_SINE: f32 = 1e-7;
+
+fn finite(what: impl FnOnce() -> String, values: &[f32]) -> Result<()> {
+    if values.iter().all(|v| v.is_finite()) {
+        Ok(())
+    } else {
+        Err(RelumeError::NonFinite { what: what() })
+    }
+}
+
+/// Whether the triangle (a, b, c) is degenerate (see [`DEGENERATE_SINE`]).
+pub fn is_degenerate(a: glam::Vec3, b: glam::Vec3, c: glam::Vec3) -> bool {
+    let e1 = b - a;
+    let e2 = c - a;
+    let cross = e1.cross(e2).length();
+    let scale = e1.length() * e2.length();
+    !(cross > DEGENERATE_SINE * scale) || !cross.is_finite()
+}
+
+/// Checks every value of `scene`; returns what was tolerated.
+pub fn validate_scene(scene: &Scene) -> Result<ValidationReport> {
+    let mut report = ValidationReport::default();
+    if scene.regions.is_empty() {
+        return Err(RelumeError::EmptyScene("no region (material)".into()));
+    }
+    if scene.triangle_count() == 0 {
+        return Err(RelumeError::EmptyScene("no triangle in any mesh".into()));
+    }
+    let res = scene.resolution;
+    if res.width == 0 || res.height == 0 || res.width > 65536 || res.height > 65536 {
+        return Err(RelumeError::invalid(
+            "resolution",
+            format!("{}×{} (each side must be 1…65536)", res.width, res.height),
+        ));
+    }
+    for (ri, region) in scene.regions.iter().enumerate() {
+        validate_material(&format!("region {ri} \"{}\" material", region.name), &region.material)?;
+        if let Some(img) = &region.albedo_texture {
+            validate_image(&format!("region \"{}\" albedo texture", region.name), img)?;
+        }
+        if let Some([lo, hi]) = region.ns_range {
+            if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo) {
+                return Err(RelumeError::invalid(
+                    format!("region \"{}\" ns_range", region.name),
+                    format!("[{lo}, {hi}] (need 0 < min < max, finite)"),
+                ));
+            }
+        }
+        let bp = region.material.to_blinn_phong();
+        if (0..3).any(|c| bp.kd[c] + bp.ks[c] > 1.0 + 1e-6) {
+            report.warnings.push(format!(
+                "region \"{}\": Kd + Ks > 1 in some channel: the material reflects more than it receives",
+                region.name
+            ));
+        }
+    }
+    for (mi, mesh) in scene.meshes.iter().enumerate() {
+        let name = if mesh.name.is_empty() { format!("mesh {mi}") } else { format!("mesh {mi} \"{}\"", mesh.name) };
+        let nv = mesh.positions.len();
+        finite(|| format!("{name} positions"), mesh.positions.as_flattened())?;
+        if let Some(n) = &mesh.normals {
+            if n.len() != nv {
+                return Err(RelumeError::invalid(format!("{name} normals"), format!("{} normals for {nv} vertices", n.len())));
+            }
+            finite(|| format!("{name} normals"), n.as_flattened())?;
+        }
+        if let Some(uv) = &mesh.uvs {
+            if uv.len() != nv {
+                return Err(RelumeError::invalid(format!("{name} uvs"), format!("{} uvs for {nv} vertices", uv.len())));
+            }
+            finite(|| format!("{name} uvs"), uv.as_flattened())?;
+        }
+        if let Some(tr) = &mesh.triangle_regions {
+            if tr.len() != mesh.indices.len() {
+                return Err(RelumeError::invalid(
+                    format!("{name} triangle_regions"),
+                    format!("{} entries for {} triangles", tr.len(), mesh.indices.len()),
+                ));
+            }
+        }
+        for (t, tri) in mesh.indices.iter().enumerate() {
+            for &i in tri {
+                if i as usize >= nv {
+                    return Err(RelumeError::IndexOutOfRange {
+                        what: format!("{name} triangle {t} vertex index"),
+                        index: i as u64,
+                        len: nv,
+                    });
+                }
+            }
+            let r = mesh.region_of(t);
+            if r as usize >= scene.regions.len() {
+                return Err(RelumeError::IndexOutOfRange {
+                    what: format!("{name} triangle {t} region"),
+                    index: r as u64,
+                    len: scene.regions.len(),
+                });
+            }
+            let p = |k: usize| glam::Vec3::from(mesh.positions[tri[k] as usize]);
+            if is_degenerate(p(0), p(1), p(2)) {
+                report.degenerate_triangles += 1;
+            } else {
+                report.triangles += 1;
+            }
+        }
+    }
+    if report.triangles == 0 {
+        return Err(RelumeError::EmptyScene(format!(
+            "all {} triangles are degenerate (zero area)",
+            report.degenerate_triangles
+        )));
+    }
+    let mut emits = false;
+    for (li, light) in scene.lights.iter().enumerate() {
+        emits |= validate_light(li, light)?;
+    }
+    match &scene.world {
+        World::Color { color, strength } => {
+            finite(|| "world colour".into(), &[color[0], color[1], color[2], *strength])?;
+            if color.iter().any(|c| *c < 0.0) || *strength < 0.0 {
+                return Err(RelumeError::invalid("world", "negative colour or strength"));
+            }
+            emits |= color.iter().any(|c| *c > 0.0) && *strength > 0.0;
+        }
+        World::Equirect { image, strength } => {
+            validate_image("world environment image", image)?;
+            finite(|| "world strength".into(), &[*strength])?;
+            if *strength < 0.0 {
+                return Err(RelumeError::invalid("world", "negative strength"));
+            }
+            emits |= *strength > 0.0;
+        }
+    }
+    if !emits {
+        report.warnings.push("the scene has no light and a black world: every image will be black".into());
+    }
+    if !scene.regions.iter().any(|r| r.editable) {
+        report.warnings.push("no region is editable: a relight can change nothing".into());
+    }
+    validate_camera(scene)?;
+    Ok(report)
+}
+
+fn validate_material(what: &str, m: &MaterialSpec) -> Result<()> {
+    match m {
+        MaterialSpec::BlinnPhong(b) => {
+            finite(|| what.to_string(), &[b.kd[0], b.kd[1], b.kd[2], b.ks[0], b.ks[1], b.ks[2], b.ns])?;
+            if b.kd.iter().chain(b.ks.iter()).any(|v| *v < 0.0) {
+                return Err(RelumeError::invalid(what, "Kd and Ks must be ≥ 0"));
+            }
+            if b.ns <= 0.0 {
+                return Err(RelumeError::invalid(what, format!("ns = {} (must be > 0)", b.ns)));
+            }
+        }
+        MaterialSpec::Principled(p) => {
+            let c = p.base_color;
+            finite(|| what.to_string(), &[c[0], c[1], c[2], p.metallic, p.roughness, p.ior, p.specular_ior_level])?;
+        }
+    }
+    Ok(())
+}
+
+fn validate_image(what: &str, img: &ImageRef) -> Result<()> {
+    match img {
+        ImageRef::Inline { width, height, rgb } => {
+            let expect = *width as usize * *height as usize * 3;
+            if *width == 0 || *height == 0 || rgb.len() != expect {
+                return Err(RelumeError::invalid(
+                    what,
+                    format!("{width}×{height} needs {expect} RGB values, has {}", rgb.len()),
+                ));
+            }
+            finite(|| what.to_string(), rgb)?;
+            if rgb.iter().any(|v| *v < 0.0) {
+                return Err(RelumeError::invalid(what, "negative values"));
+            }
+            Ok(())
+        }
+        ImageRef::Path { path } => Err(RelumeError::invalid(what, format!("image {path} was not loaded"))),
+    }
+}
+
+/// Returns whether the light emits anything.
+fn validate_light(li: usize, light: &Light) -> Result<bool> {
+    let what = || format!("light {li}");
+    let nonzero = |v: &[f32; 3]| glam::Vec3::from(*v).length_squared() > 0.0;
+    let (power, color) = match light {
+        Light::Point { position, power, color, radius } => {
+            finite(what, &[position[0], position[1], position[2], *power, *radius])?;
+            if *radius < 0.0 {
+                return Err(RelumeError::invalid(what(), "negative radius"));
+            }
+            (*power, *color)
+        }
+        Light::Spot { position, direction, power, color, radius, spot_size, spot_blend } => {
+            finite(what, &[position[0], position[1], position[2], direction[0], direction[1], direction[2], *power, *radius, *spot_size, *spot_blend])?;
+            if !nonzero(direction) {
+                return Err(RelumeError::invalid(what(), "spot direction is zero"));
+            }
+            if !(*spot_size > 0.0 && *spot_size <= std::f32::consts::PI) || !(0.0..=1.0).contains(spot_blend) || *radius < 0.0 {
+                return Err(RelumeError::invalid(what(), "spot_size must be in (0, π], spot_blend in [0, 1], radius ≥ 0"));
+            }
+            (*power, *color)
+        }
+        Light::Sun { direction, strength, color, angle } => {
+            finite(what, &[direction[0], direction[1], direction[2], *strength, *angle])?;
+            if !nonzero(direction) {
+                return Err(RelumeError::invalid(what(), "sun direction is zero"));
+            }
+            if !(0.0..std::f32::consts::PI).contains(angle) {
+                return Err(RelumeError::invalid(what(), "sun angle must be in [0, π)"));
+            }
+            (*strength, *color)
+        }
+        Light::Area { position, axis_u, axis_v, size_x, size_y, power, color, .. } => {
+            finite(what, &[position[0], position[1], position[2], axis_u[0], axis_u[1], axis_u[2], axis_v[0], axis_v[1], axis_v[2], *size_x, size_y.unwrap_or(1.0), *power])?;
+            let u = glam::Vec3::from(*axis_u);
+            let v = glam::Vec3::from(*axis_v);
+            if u.cross(v).length() < 1e-6 * u.length() * v.length() || u.length() == 0.0 {
+                return Err(RelumeError::invalid(what(), "area light axes are zero or parallel"));
+            }
+            if *size_x <= 0.0 || size_y.is_some_and(|s| s <= 0.0) {
+                return Err(RelumeError::invalid(what(), "area light size must be > 0"));
+            }
+            (*power, *color)
+        }
+    };
+    finite(what, &color)?;
+    if power < 0.0 || color.iter().any(|c| *c < 0.0) {
+        return Err(RelumeError::invalid(what(), "negative power or colour"));
+    }
+    Ok(power > 0.0 && color.iter().any(|c| *c > 0.0))
+}
+
+fn validate_camera(scene: &Scene) -> Result<()> {
+    let c = &scene.camera;
+    finite(|| "camera matrix".into(), c.matrix_world.as_flattened())?;
+    finite(|| "camera".into(), &[c.lens_mm, c.sensor_width_mm, c.sensor_height_mm, c.shift_x, c.shift_y, c.ortho_scale, c.clip_start])?;
+    let m = crate::geometry::camera::matrix_from_rows(&c.matrix_world);
+    let (x, y, z) = (m.x_axis.truncate(), m.y_axis.truncate(), m.z_axis.truncate());
+    if x.cross(y).length() < 1e-8 || z.length() < 1e-8 {
+        return Err(RelumeError::invalid("camera matrix", "degenerate rotation (zero or parallel axes)"));
+    }
+    if c.lens_mm <= 0.0 || c.sensor_width_mm <= 0.0 || c.sensor_height_mm <= 0.0 || c.ortho_scale <= 0.0 {
+        return Err(RelumeError::invalid("camera", "lens, sensor sizes and ortho_scale must be > 0"));
+    }
+    Ok(())
+}

@@ -1,0 +1,185 @@
+//! What a bake and its reference render share: geometry, camera, lights, and per region its
+//! BRDF model and the *slots* — the (region, basis) pairs a path vertex can take.
+//!
+//! Slots are numbered editable region by editable region (each with its basis count), then
+//! one slot for the fixed region R̂. A layer is a sequence of slots.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use crate::bake::settings::{BakeSettings, IndirectSampling, MAX_BOUNCES};
+use crate::bake::signature::PathVertex;
+use crate::brdf::{BasisConfig, BlinnPhong, BrdfBasis};
+use crate::geometry::{bvh::SceneGeometry, camera::CameraRays, lights::LightSet, texture::Texture};
+use crate::scene::{validate::validate_scene, validate::ValidationReport, Resolution, Scene};
+use crate::{RelumeError, Result};
+
+/// Most bases one region may use: bounds the per-vertex scratch arrays.
+pub const MAX_BASES: usize = 32;
+
+/// How a region reflects.
+#[derive(Clone)]
+pub enum RegionModel {
+    /// Editable region number `index`, in the basis `basis`.
+    Editable { index: u16, basis: Arc<BrdfBasis> },
+    /// Part of the fixed region R̂ with this BRDF.
+    Fixed { material: BlinnPhong },
+}
+
+/// A region ready for the integrator.
+#[derive(Clone)]
+pub struct PreparedRegion {
+    pub name: String,
+    pub model: RegionModel,
+    /// Albedo texture on the diffuse part.
+    pub texture: Option<Texture>,
+    /// First slot and slot count of this region.
+    pub first_slot: u32,
+    pub slot_count: u32,
+    /// Exponents of the Blinn–Phong lobes in the mixture sampling pdf.
+    pub mixture_lobes: Vec<f32>,
+}
+
+/// Everything fixed for a bake.
+pub struct BakeContext {
+    pub geometry: SceneGeometry,
+    pub camera: CameraRays,
+    pub lights: LightSet,
+    pub regions: Vec<PreparedRegion>,
+    /// Path vertex of every slot.
+    pub slot_vertex: Vec<PathVertex>,
+    pub resolution: Resolution,
+    pub settings: BakeSettings,
+    pub clip_end: f32,
+}
+
+impl BakeContext {
+    /// Validates `scene` and prepares it for `settings`.
+    pub fn new(scene: &Scene, settings: &BakeSettings) -> Result<(BakeContext, ValidationReport)> {
+        if settings.spp == 0 || settings.light_samples == 0 || settings.indirect_samples == 0 {
+            return Err(RelumeError::invalid("bake settings", "spp, light samples and indirect samples must be ≥ 1"));
+        }
+        if settings.bounces > MAX_BOUNCES {
+            return Err(RelumeError::invalid(
+                "bake settings",
+                format!("{} bounces asked; this build bakes 0 or {MAX_BOUNCES}", settings.bounces),
+            ));
+        }
+        let mut report = validate_scene(scene)?;
+        let resolution = settings.resolution.unwrap_or(scene.resolution);
+        if resolution.width == 0 || resolution.height == 0 {
+            return Err(RelumeError::invalid("resolution", "zero size"));
+        }
+        let mut bases: HashMap<String, Arc<BrdfBasis>> = HashMap::new();
+        let mut regions = Vec::with_capacity(scene.regions.len());
+        let mut slot_vertex = Vec::new();
+        let mut editable_index = 0u16;
+        for region in &scene.regions {
+            let texture = region.albedo_texture.as_ref().and_then(Texture::from_ref);
+            let material = region.material.to_blinn_phong();
+            if region.editable {
+                let cfg = basis_config_for(&settings.basis, region.ns_range);
+                let key = serde_json::to_string(&cfg).unwrap_or_default();
+                let basis = match bases.get(&key) {
+                    Some(b) => b.clone(),
+                    None => {
+                        let b = Arc::new(BrdfBasis::build(&cfg)?);
+                        bases.insert(key, b.clone());
+                        b
+                    }
+                };
+                let count = basis.count();
+                if count > MAX_BASES {
+                    return Err(RelumeError::Basis(format!("{count} bases for region \"{}\" (at most {MAX_BASES})", region.name)));
+                }
+                let first_slot = slot_vertex.len() as u32;
+                for b in 0..count {
+                    slot_vertex.push(PathVertex::Editable { region: editable_index, basis: b as u16 });
+                }
+                let (lo, hi) = (cfg.ns_min, cfg.ns_max);
+                regions.push(PreparedRegion {
+                    name: region.name.clone(),
+                    model: RegionModel::Editable { index: editable_index, basis },
+                    texture,
+                    first_slot,
+                    slot_count: count as u32,
+                    mixture_lobes: (0..4).map(|k| lo * (hi / lo).powf(k as f32 / 3.0)).collect(),
+                });
+                editable_index += 1;
+            } else {
+                let lobes = if material.ks.iter().any(|k| *k > 0.0) { vec![material.ns] } else { vec![] };
+                regions.push(PreparedRegion {
+                    name: region.name.clone(),
+                    model: RegionModel::Fixed { material },
+                    texture,
+                    first_slot: u32::MAX,
+                    slot_count: 1,
+                    mixture_lobes: lobes,
+                });
+            }
+        }
+        let fixed_slot = slot_vertex.len() as u32;
+        slot_vertex.push(PathVertex::Fixed);
+        for r in &mut regions {
+            if let RegionModel::Fixed { .. } = r.model {
+                r.first_slot = fixed_slot;
+            }
+        }
+        if settings.sampling == IndirectSampling::Uniform {
+            for r in &mut regions {
+                r.mixture_lobes.clear();
+            }
+        }
+        let geometry = SceneGeometry::build(scene);
+        report.triangles = geometry.triangle_count();
+        let camera = CameraRays::new(&scene.camera, resolution);
+        let clip_end = if scene.camera.clip_end > 0.0 { scene.camera.clip_end } else { f32::INFINITY };
+        Ok((
+            BakeContext {
+                geometry,
+                camera,
+                lights: LightSet::new(scene),
+                regions,
+                slot_vertex,
+                resolution,
+                settings: settings.clone(),
+                clip_end,
+            },
+            report,
+        ))
+    }
+
+    /// Number of slots (editable bases + 1 fixed).
+    pub fn slot_count(&self) -> usize {
+        self.slot_vertex.len()
+    }
+
+    /// Layers a bake with these slots can fill: the world, one per slot, and with one bounce
+    /// one per (eye slot, bounce slot) pair.
+    pub fn layer_count(&self) -> usize {
+        let s = self.slot_count();
+        1 + s + if self.settings.bounces >= 1 { s * s } else { 0 }
+    }
+
+    /// Editable regions' bases, in editable order.
+    pub fn editable_bases(&self) -> Vec<Arc<BrdfBasis>> {
+        self.regions
+            .iter()
+            .filter_map(|r| match &r.model {
+                RegionModel::Editable { basis, .. } => Some(basis.clone()),
+                RegionModel::Fixed { .. } => None,
+            })
+            .collect()
+    }
+}
+
+/// The basis configuration for a region: the bake default, with the region's own ns range
+/// when it declares one.
+pub fn basis_config_for(default: &BasisConfig, ns_range: Option<[f32; 2]>) -> BasisConfig {
+    let mut cfg = default.clone();
+    if let Some([lo, hi]) = ns_range {
+        cfg.ns_min = lo;
+        cfg.ns_max = hi;
+    }
+    cfg
+}

@@ -1,0 +1,197 @@
+//! The path integrator shared by the bake and the reference render.
+//!
+//! One eye sample: camera ray → eye hit x′ (region R′) → direct light at x′ for every value
+//! the vertex BRDF gives → one (or more) indirect direction(s) → secondary hit x″ (region R₁)
+//! → direct light at x″ for every value there → the product of the two goes to the pair of
+//! slots. What "a value" is depends on [`VertexBrdf`]: one per basis of the region for the
+//! bake, the one true BRDF for the reference. Random numbers are drawn in the same order
+//! whatever the BRDF, so a relit bake and a reference with the same seed see the same paths.
+
+use glam::{Vec2, Vec3};
+use std::f32::consts::PI;
+
+use crate::bake::context::{BakeContext, MAX_BASES};
+use crate::bake::settings::IndirectSampling;
+use crate::geometry::bvh::SurfaceHit;
+use crate::geometry::sampling::{blinn_phong_half_vector, blinn_phong_pdf, cosine_hemisphere, to_world, uniform_hemisphere, SampleStream};
+use crate::Rgb;
+
+/// The BRDF values at a path vertex, one per slot of its region.
+pub trait VertexBrdf: Sync {
+    /// Writes the BRDF values (no cosine) for region `region` into `out` and returns the
+    /// first slot they belong to and how many there are.
+    fn eval(&self, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3, out: &mut [Rgb; MAX_BASES]) -> (u32, usize);
+}
+
+/// Where the integrator puts radiance.
+pub trait PathSink {
+    /// The world seen directly through the pixel.
+    fn world(&mut self, value: Rgb);
+    /// Direct light reflected at the eye vertex through slot `slot`.
+    fn direct(&mut self, slot: u32, value: Rgb);
+    /// Light reflected at the bounce vertex through `bounce_slot`, then at the eye vertex
+    /// through `eye_slot`.
+    fn bounce(&mut self, eye_slot: u32, bounce_slot: u32, value: Rgb);
+}
+
+/// Ray queries, counted (and recordable for throughput measurements).
+pub trait Tracer {
+    fn intersect(&mut self, ctx: &BakeContext, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<SurfaceHit>;
+    fn occluded(&mut self, ctx: &BakeContext, origin: Vec3, dir: Vec3, tmax: f32) -> bool;
+}
+
+/// The plain tracer: counts rays.
+#[derive(Default, Clone, Copy, Debug)]
+pub struct CountingTracer {
+    pub rays: u64,
+}
+
+impl Tracer for CountingTracer {
+    #[inline]
+    fn intersect(&mut self, ctx: &BakeContext, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<SurfaceHit> {
+        self.rays += 1;
+        ctx.geometry.intersect(origin, dir, tmin, tmax)
+    }
+    #[inline]
+    fn occluded(&mut self, ctx: &BakeContext, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
+        self.rays += 1;
+        ctx.geometry.occluded(origin, dir, tmax)
+    }
+}
+
+/// Traces eye sample number `sample` of pixel (`px`, `py`).
+pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(ctx: &BakeContext, brdf: &B, sink: &mut S, tracer: &mut T, px: u32, py: u32, sample: u32) {
+    let settings = &ctx.settings;
+    let pixel = py as u64 * ctx.resolution.width as u64 + px as u64;
+    let mut stream = SampleStream::new(settings.seed, pixel, sample);
+    let (jx, jy) = stream.next2();
+    let (origin, dir) = ctx.camera.ray(px as f32 + jx, py as f32 + jy);
+    let Some(hit) = tracer.intersect(ctx, origin, dir, 0.0, ctx.clip_end) else {
+        sink.world(ctx.lights.environment.radiance(dir));
+        return;
+    };
+    let wo = -dir;
+    let mut values = [Rgb::ZERO; MAX_BASES];
+    direct_light(ctx, brdf, tracer, &hit, wo, &mut stream, &mut values, |slot, v| sink.direct(slot, v));
+    if settings.bounces == 0 {
+        return;
+    }
+    let region = &ctx.regions[hit.region as usize];
+    let n = hit.shading_normal;
+    let inv_indirect = 1.0 / settings.indirect_samples as f32;
+    let mut eye_values = [Rgb::ZERO; MAX_BASES];
+    let mut bounce_light = [Rgb::ZERO; MAX_BASES];
+    for _ in 0..settings.indirect_samples {
+        let Some((wi, pdf)) = sample_indirect(settings.sampling, &region.mixture_lobes, n, wo, &mut stream) else {
+            continue;
+        };
+        let cos_i = n.dot(wi);
+        if cos_i <= 0.0 || hit.geometric_normal.dot(wi) <= 0.0 || !(pdf > 0.0) {
+            continue;
+        }
+        let Some(hit2) = tracer.intersect(ctx, ctx.geometry.offset(hit.position, hit.geometric_normal), wi, 0.0, f32::INFINITY) else {
+            continue;
+        };
+        let (eye_first, eye_count) = brdf.eval(hit.region, hit.uv, n, wi, wo, &mut eye_values);
+        let weight = cos_i / pdf * inv_indirect;
+        bounce_light.fill(Rgb::ZERO);
+        let mut bounce_first = 0u32;
+        let mut bounce_count = 0usize;
+        direct_light(ctx, brdf, tracer, &hit2, -wi, &mut stream, &mut values, |slot, v| {
+            if bounce_count == 0 {
+                bounce_first = slot;
+            }
+            let k = (slot - bounce_first) as usize;
+            bounce_light[k] += v;
+            bounce_count = bounce_count.max(k + 1);
+        });
+        for e in 0..eye_count {
+            let fe = eye_values[e] * weight;
+            if fe == Rgb::ZERO {
+                continue;
+            }
+            for (b, light) in bounce_light.iter().enumerate().take(bounce_count) {
+                sink.bounce(eye_first + e as u32, bounce_first + b as u32, fe * *light);
+            }
+        }
+    }
+}
+
+/// Direct light at `hit` towards `wo`: for every emitter and light sample, every BRDF value
+/// of the vertex times cos θ times radiance/pdf, averaged over the light samples; each
+/// (slot, value) goes to `emit`. Consumes 2 random numbers per light sample always.
+#[allow(clippy::too_many_arguments)]
+fn direct_light<B: VertexBrdf, T: Tracer>(
+    ctx: &BakeContext,
+    brdf: &B,
+    tracer: &mut T,
+    hit: &SurfaceHit,
+    wo: Vec3,
+    stream: &mut SampleStream,
+    values: &mut [Rgb; MAX_BASES],
+    mut emit: impl FnMut(u32, Rgb),
+) {
+    let n = hit.shading_normal;
+    let ng = hit.geometric_normal;
+    let samples = ctx.settings.light_samples;
+    let inv = 1.0 / samples as f32;
+    let origin = ctx.geometry.offset(hit.position, ng);
+    for light in 0..ctx.lights.len() {
+        for _ in 0..samples {
+            let (u1, u2) = stream.next2();
+            let Some(s) = ctx.lights.sample(light, hit.position, n, u1, u2) else {
+                continue;
+            };
+            let cos = n.dot(s.wi);
+            if cos <= 0.0 || ng.dot(s.wi) <= 0.0 || s.radiance_over_pdf == Rgb::ZERO {
+                continue;
+            }
+            let tmax = if s.distance.is_finite() { s.distance * (1.0 - 1e-4) } else { f32::INFINITY };
+            if tracer.occluded(ctx, origin, s.wi, tmax) {
+                continue;
+            }
+            let (first, count) = brdf.eval(hit.region, hit.uv, n, s.wi, wo, values);
+            let li = s.radiance_over_pdf * (cos * inv);
+            for (k, v) in values.iter().enumerate().take(count) {
+                emit(first + k as u32, *v * li);
+            }
+        }
+    }
+}
+
+/// Draws an indirect direction at a vertex with normal `n`: uniform (the paper) or the
+/// cosine + lobes mixture. Returns the direction and its solid-angle pdf; consumes 2
+/// (uniform) or 3 (mixture) random numbers always.
+pub fn sample_indirect(sampling: IndirectSampling, lobes: &[f32], n: Vec3, wo: Vec3, stream: &mut SampleStream) -> Option<(Vec3, f32)> {
+    match sampling {
+        IndirectSampling::Uniform => {
+            let (u1, u2) = stream.next2();
+            Some((to_world(n, uniform_hemisphere(u1, u2)), 1.0 / (2.0 * PI)))
+        }
+        IndirectSampling::Mixture => {
+            let pick = stream.next();
+            let (u1, u2) = stream.next2();
+            let cos_weight = if lobes.is_empty() { 1.0 } else { 0.5 };
+            let lobe_weight = (1.0 - cos_weight) / lobes.len().max(1) as f32;
+            let wi = if pick < cos_weight || lobes.is_empty() {
+                to_world(n, cosine_hemisphere(u1, u2))
+            } else {
+                let k = (((pick - cos_weight) / (1.0 - cos_weight)) * lobes.len() as f32) as usize;
+                let h = to_world(n, blinn_phong_half_vector(u1, u2, lobes[k.min(lobes.len() - 1)]));
+                2.0 * wo.dot(h) * h - wo
+            };
+            let cos = n.dot(wi);
+            if cos <= 0.0 {
+                return None;
+            }
+            let mut pdf = cos_weight * cos / PI;
+            let h = (wi + wo).normalize_or_zero();
+            if h != Vec3::ZERO {
+                for &ns in lobes {
+                    pdf += lobe_weight * blinn_phong_pdf(n.dot(h), wo.dot(h), ns);
+                }
+            }
+            Some((wi, pdf))
+        }
+    }
+}

@@ -1,0 +1,89 @@
+//! The reference renderer: the bake's sampler and seeds, with given materials instead of
+//! basis functions, summed into one image. `relight(bake(S), M) − reference(S, M)` then
+//! isolates what the stack adds: the basis error (true BRDF) or nothing but storage
+//! rounding (projected BRDF).
+
+use std::sync::Mutex;
+
+use crate::bake::context::BakeContext;
+use crate::bake::integrator::{trace_eye_sample, CountingTracer, PathSink};
+use crate::bake::progress::Progress;
+use crate::bake::settings::BakeSettings;
+use crate::bake::tiles::run_tiles;
+use crate::bake::vertex_brdf::MaterialBrdf;
+use crate::brdf::BlinnPhong;
+use crate::scene::Scene;
+use crate::{Result, Rgb};
+
+/// Which BRDF the reference evaluates for editable regions.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ReferenceBrdf {
+    /// The true, un-projected Blinn–Phong.
+    True,
+    /// Its reconstruction in the stack's basis (what a relight can at best reproduce).
+    Projected,
+}
+
+struct PixelSink(Rgb);
+
+impl PathSink for PixelSink {
+    fn world(&mut self, v: Rgb) {
+        self.0 += v;
+    }
+    fn direct(&mut self, _: u32, v: Rgb) {
+        self.0 += v;
+    }
+    fn bounce(&mut self, _: u32, _: u32, v: Rgb) {
+        self.0 += v;
+    }
+}
+
+/// A rendered image: RGBA f32, rows top to bottom.
+#[derive(Clone, Debug)]
+pub struct RgbaImage {
+    pub width: u32,
+    pub height: u32,
+    pub rgba: Vec<f32>,
+}
+
+/// Renders `scene` with `materials` for its editable regions (in scene order of the
+/// editable regions) using exactly the bake's paths for `settings`.
+pub fn render_reference(scene: &Scene, settings: &BakeSettings, materials: &[BlinnPhong], brdf: ReferenceBrdf, progress: &Progress) -> Result<RgbaImage> {
+    let (ctx, _) = BakeContext::new(scene, settings)?;
+    render_with_context(&ctx, materials, brdf, progress)
+}
+
+/// As [`render_reference`], with a prepared context.
+pub fn render_with_context(ctx: &BakeContext, materials: &[BlinnPhong], brdf: ReferenceBrdf, progress: &Progress) -> Result<RgbaImage> {
+    let res = ctx.resolution;
+    let width = res.width as usize;
+    let vertex = MaterialBrdf::new(ctx, materials.to_vec(), brdf == ReferenceBrdf::Projected)?;
+    let image = Mutex::new(vec![0.0f32; width * res.height as usize * 4]);
+    let inv_spp = 1.0 / ctx.settings.spp as f32;
+    run_tiles(res, ctx.settings.threads, progress, |tile| {
+        let mut tracer = CountingTracer::default();
+        let mut out = vec![0.0f32; tile.pixels() * 4];
+        for ty in 0..tile.height {
+            if progress.is_cancelled() {
+                return false;
+            }
+            for tx in 0..tile.width {
+                let mut sink = PixelSink(Rgb::ZERO);
+                for s in 0..ctx.settings.spp {
+                    trace_eye_sample(ctx, &vertex, &mut sink, &mut tracer, tile.x0 + tx, tile.y0 + ty, s);
+                }
+                let c = sink.0 * inv_spp;
+                let i = (ty * tile.width + tx) as usize * 4;
+                out[i..i + 4].copy_from_slice(&[c.x, c.y, c.z, 1.0]);
+            }
+        }
+        let mut img = image.lock().unwrap_or_else(|e| e.into_inner());
+        for ty in 0..tile.height as usize {
+            let row = (tile.y0 as usize + ty) * width + tile.x0 as usize;
+            let src = &out[ty * tile.width as usize * 4..(ty + 1) * tile.width as usize * 4];
+            img[row * 4..row * 4 + src.len()].copy_from_slice(src);
+        }
+        true
+    })?;
+    Ok(RgbaImage { width: res.width, height: res.height, rgba: image.into_inner().unwrap_or_else(|e| e.into_inner()) })
+}

@@ -1,0 +1,72 @@
+//! Bake settings.
+
+use serde::{Deserialize, Serialize};
+
+use crate::brdf::BasisConfig;
+use crate::scene::Resolution;
+use crate::stack::Precision;
+
+/// How indirect directions are drawn at the eye hit. Both are unbiased and share one sample
+/// set across all layers, so the layers' noise stays correlated.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum IndirectSampling {
+    /// Uniform over the hemisphere, as in the paper (pdf 1/2π).
+    Uniform,
+    /// A mixture: ½ cosine-weighted + ½ spread over Blinn–Phong lobes covering the region's
+    /// ns range (4 exponents, log-spaced), its pdf evaluated exactly.
+    Mixture,
+}
+
+impl IndirectSampling {
+    /// The name written in stack headers.
+    pub fn name(self) -> &'static str {
+        match self {
+            IndirectSampling::Uniform => "uniform",
+            IndirectSampling::Mixture => "mixture",
+        }
+    }
+}
+
+/// Everything that controls a bake (and the reference render that mirrors it).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct BakeSettings {
+    /// Eye samples per pixel (anti-aliasing; the eye region is in the layer key).
+    pub spp: u32,
+    /// Samples per light (and for the world) at every shading point.
+    pub light_samples: u32,
+    /// Indirect directions per eye hit.
+    pub indirect_samples: u32,
+    /// 0: direct light only; 1: one indirect bounce (the paper).
+    pub bounces: u32,
+    pub sampling: IndirectSampling,
+    pub seed: u64,
+    /// Overrides the scene's resolution.
+    pub resolution: Option<Resolution>,
+    pub precision: Precision,
+    /// Basis of editable regions that declare no ns range of their own.
+    pub basis: BasisConfig,
+    /// Worker threads (0: all cores). The result does not depend on it.
+    pub threads: usize,
+}
+
+impl Default for BakeSettings {
+    fn default() -> Self {
+        BakeSettings {
+            spp: 16,
+            light_samples: 4,
+            indirect_samples: 1,
+            bounces: 1,
+            sampling: IndirectSampling::Uniform,
+            seed: 0,
+            resolution: None,
+            precision: Precision::F16,
+            basis: BasisConfig::default(),
+            threads: 0,
+        }
+    }
+}
+
+/// Highest bounce count this build bakes. More bounces need longer signatures, which the
+/// layer keys already allow; the integrator stops at one.
+pub const MAX_BOUNCES: u32 = 1;

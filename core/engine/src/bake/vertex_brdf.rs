@@ -1,0 +1,116 @@
+//! The three BRDFs a path vertex can have: the bake's basis values, the true Blinn–Phong
+//! (reference), and the basis reconstruction of given materials (projected reference).
+
+use glam::{Vec2, Vec3};
+use std::f32::consts::FRAC_1_PI;
+
+use crate::bake::context::{BakeContext, PreparedRegion, RegionModel, MAX_BASES};
+use crate::bake::integrator::VertexBrdf;
+use crate::brdf::{blinn_phong::lobe, BlinnPhong};
+use crate::{RelumeError, Result, Rgb};
+
+#[inline]
+fn cos_half_angle(n: Vec3, wi: Vec3, wo: Vec3) -> f32 {
+    let h = (wi + wo).normalize_or_zero();
+    n.dot(h)
+}
+
+#[inline]
+fn albedo_at(region: &PreparedRegion, uv: Vec2) -> Rgb {
+    match &region.texture {
+        Some(t) => t.lookup(uv.x, uv.y),
+        None => Rgb::ONE,
+    }
+}
+
+/// The true Blinn–Phong value of `m` with the diffuse part scaled by `albedo`.
+#[inline]
+pub fn blinn_phong_value(m: &BlinnPhong, albedo: Rgb, cos_delta: f32) -> Rgb {
+    Rgb::from(m.kd) * albedo * FRAC_1_PI + Rgb::from(m.ks) * lobe(m.ns as f64, cos_delta as f64) as f32
+}
+
+/// The bake: every basis function of an editable region (the diffuse one times the albedo
+/// texture), or the whole fixed BRDF ρ̂.
+pub struct BasisBrdf<'a> {
+    pub ctx: &'a BakeContext,
+}
+
+impl VertexBrdf for BasisBrdf<'_> {
+    #[inline]
+    fn eval(&self, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3, out: &mut [Rgb; MAX_BASES]) -> (u32, usize) {
+        let r = &self.ctx.regions[region as usize];
+        let cos_delta = cos_half_angle(n, wi, wo);
+        match &r.model {
+            RegionModel::Editable { basis, .. } => {
+                let count = basis.count();
+                let mut scratch = [0.0f32; MAX_BASES];
+                basis.eval(cos_delta, &mut scratch[..count]);
+                for (o, s) in out.iter_mut().zip(scratch.iter()).take(count) {
+                    *o = Rgb::splat(*s);
+                }
+                if r.texture.is_some() {
+                    out[0] *= albedo_at(r, uv);
+                }
+                (r.first_slot, count)
+            }
+            RegionModel::Fixed { material } => {
+                out[0] = blinn_phong_value(material, albedo_at(r, uv), cos_delta);
+                (r.first_slot, 1)
+            }
+        }
+    }
+}
+
+/// The reference: given materials for the editable regions (in editable order), evaluated
+/// exactly (`projected == false`) or through the basis (`projected == true`, isolating
+/// everything but the basis error). Every value goes to slot 0.
+pub struct MaterialBrdf<'a> {
+    ctx: &'a BakeContext,
+    materials: Vec<BlinnPhong>,
+    /// Basis coefficients per editable region (projected mode).
+    coefficients: Option<Vec<Vec<Rgb>>>,
+}
+
+impl<'a> MaterialBrdf<'a> {
+    /// Materials of the editable regions, in editable order.
+    pub fn new(ctx: &'a BakeContext, materials: Vec<BlinnPhong>, projected: bool) -> Result<Self> {
+        let bases = ctx.editable_bases();
+        if materials.len() != bases.len() {
+            return Err(RelumeError::Materials(format!(
+                "{} materials given for {} editable regions",
+                materials.len(),
+                bases.len()
+            )));
+        }
+        let coefficients = projected.then(|| bases.iter().zip(&materials).map(|(b, m)| b.material_coefficients(m)).collect());
+        Ok(MaterialBrdf { ctx, materials, coefficients })
+    }
+}
+
+impl VertexBrdf for MaterialBrdf<'_> {
+    #[inline]
+    fn eval(&self, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3, out: &mut [Rgb; MAX_BASES]) -> (u32, usize) {
+        let r = &self.ctx.regions[region as usize];
+        let cos_delta = cos_half_angle(n, wi, wo);
+        out[0] = match &r.model {
+            RegionModel::Fixed { material } => blinn_phong_value(material, albedo_at(r, uv), cos_delta),
+            RegionModel::Editable { index, basis } => {
+                let e = *index as usize;
+                match &self.coefficients {
+                    None => blinn_phong_value(&self.materials[e], albedo_at(r, uv), cos_delta),
+                    Some(coefs) => {
+                        let count = basis.count();
+                        let mut scratch = [0.0f32; MAX_BASES];
+                        basis.eval(cos_delta, &mut scratch[..count]);
+                        let mut v = coefs[e][0] * scratch[0] * albedo_at(r, uv);
+                        for i in 1..count {
+                            v += coefs[e][i] * scratch[i];
+                        }
+                        v
+                    }
+                }
+            }
+        };
+        (0, 1)
+    }
+}

@@ -1,0 +1,206 @@
+//! Light sampling in Cycles' units.
+//!
+//! - Point: radiant intensity I = P/(4π) W/sr (× colour); a radius r > 0 samples a disk of
+//!   radius r facing the shading point (a sphere light seen from outside, approximately).
+//! - Spot: the point light of the same power, masked by Cycles' smoothstep cone
+//!   (t = (cos θ − cos ½size)/((1 − cos ½size)·blend)).
+//! - Sun: irradiance S W/m² on a surface facing it; an angular diameter α spreads it
+//!   uniformly over a cone of half-angle α/2 (radiance S/(π sin²(α/2))).
+//! - Area: one-sided Lambertian, radiance L = P/(π·A) along −(u × v), sampled uniformly on
+//!   its surface (square, rectangle, disk, ellipse; size is the full width).
+//! - World: radiance from every direction, sampled cosine-weighted around the normal.
+//!
+//! Every sample returns incident radiance divided by the solid-angle pdf, so an estimator
+//! is f·cos θ·`radiance_over_pdf` whatever the light.
+
+use glam::Vec3;
+use std::f32::consts::PI;
+
+use super::environment::Environment;
+use super::sampling::{concentric_disk, cosine_hemisphere, frame, to_world, uniform_cone};
+use crate::scene::{AreaShape, Light, Scene};
+use crate::Rgb;
+
+/// One light sample at a shading point.
+#[derive(Clone, Copy, Debug)]
+pub struct LightSample {
+    /// Unit direction from the shading point towards the light.
+    pub wi: Vec3,
+    /// Distance to the sampled point (infinite for the sun and the world).
+    pub distance: f32,
+    /// Incident radiance / solid-angle pdf.
+    pub radiance_over_pdf: Rgb,
+}
+
+#[derive(Clone, Debug)]
+enum Emitter {
+    Point { position: Vec3, intensity: Rgb, radius: f32, spot: Option<Spot> },
+    Sun { to_light: Vec3, cos_half: f32, radiance_over_pdf: Rgb },
+    Area { centre: Vec3, u: Vec3, v: Vec3, normal: Vec3, half_u: f32, half_v: f32, elliptic: bool, radiance_times_area: Rgb },
+    World,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Spot {
+    axis: Vec3,
+    cos_half: f32,
+    smooth: f32,
+}
+
+/// The lights of a scene (and the world when it emits), ready for sampling.
+#[derive(Clone, Debug)]
+pub struct LightSet {
+    emitters: Vec<Emitter>,
+    /// The world's radiance (also for rays that escape).
+    pub environment: Environment,
+}
+
+impl LightSet {
+    /// Prepares the scene's lights; the world is one more emitter when it is not black.
+    pub fn new(scene: &Scene) -> LightSet {
+        let mut emitters: Vec<Emitter> = scene.lights.iter().filter_map(prepare).collect();
+        let environment = Environment::new(&scene.world);
+        if !environment.is_black() {
+            emitters.push(Emitter::World);
+        }
+        LightSet { emitters, environment }
+    }
+
+    /// Number of emitters sampled at every shading point.
+    pub fn len(&self) -> usize {
+        self.emitters.len()
+    }
+
+    /// Whether nothing emits.
+    pub fn is_empty(&self) -> bool {
+        self.emitters.is_empty()
+    }
+
+    /// Samples emitter `index` from point `p` with (shading) normal `n`; `None` when the
+    /// sample carries no light (outside a spot cone, behind an area light, …).
+    pub fn sample(&self, index: usize, p: Vec3, n: Vec3, u1: f32, u2: f32) -> Option<LightSample> {
+        match &self.emitters[index] {
+            Emitter::Point { position, intensity, radius, spot } => {
+                let mut target = *position;
+                if *radius > 0.0 {
+                    let axis = (p - *position).normalize_or_zero();
+                    if axis != Vec3::ZERO {
+                        let (t, b) = frame(axis);
+                        let (dx, dy) = concentric_disk(u1, u2);
+                        target += (t * dx + b * dy) * *radius;
+                    }
+                }
+                let d = target - p;
+                let dist2 = d.length_squared();
+                if !(dist2 > 0.0) {
+                    return None;
+                }
+                let dist = dist2.sqrt();
+                let wi = d / dist;
+                let mut li = *intensity / dist2;
+                if let Some(s) = spot {
+                    let cos = (-wi).dot(s.axis);
+                    let mask = if s.smooth > 0.0 {
+                        let t = ((cos - s.cos_half) / s.smooth).clamp(0.0, 1.0);
+                        t * t * (3.0 - 2.0 * t)
+                    } else if cos > s.cos_half {
+                        1.0
+                    } else {
+                        0.0
+                    };
+                    if mask <= 0.0 {
+                        return None;
+                    }
+                    li *= mask;
+                }
+                Some(LightSample { wi, distance: dist, radiance_over_pdf: li })
+            }
+            Emitter::Sun { to_light, cos_half, radiance_over_pdf } => {
+                let wi = if *cos_half < 1.0 { to_world(*to_light, uniform_cone(u1, u2, *cos_half)) } else { *to_light };
+                Some(LightSample { wi, distance: f32::INFINITY, radiance_over_pdf: *radiance_over_pdf })
+            }
+            Emitter::Area { centre, u, v, normal, half_u, half_v, elliptic, radiance_times_area } => {
+                let (a, b) = if *elliptic { concentric_disk(u1, u2) } else { (2.0 * u1 - 1.0, 2.0 * u2 - 1.0) };
+                let q = *centre + *u * (a * half_u) + *v * (b * half_v);
+                let d = q - p;
+                let dist2 = d.length_squared();
+                if !(dist2 > 0.0) {
+                    return None;
+                }
+                let dist = dist2.sqrt();
+                let wi = d / dist;
+                let cos_light = -wi.dot(*normal);
+                if cos_light <= 0.0 {
+                    return None;
+                }
+                Some(LightSample { wi, distance: dist, radiance_over_pdf: *radiance_times_area * (cos_light / dist2) })
+            }
+            Emitter::World => {
+                let local = cosine_hemisphere(u1, u2);
+                if local.z <= 1e-7 {
+                    return None;
+                }
+                let wi = to_world(n, local);
+                let li = self.environment.radiance(wi);
+                Some(LightSample { wi, distance: f32::INFINITY, radiance_over_pdf: li * (PI / local.z) })
+            }
+        }
+    }
+}
+
+fn prepare(light: &Light) -> Option<Emitter> {
+    match light {
+        Light::Point { position, power, color, radius } => Some(Emitter::Point {
+            position: Vec3::from(*position),
+            intensity: Rgb::from(*color) * (*power / (4.0 * PI)),
+            radius: *radius,
+            spot: None,
+        }),
+        Light::Spot { position, direction, power, color, radius, spot_size, spot_blend } => {
+            let cos_half = (0.5 * spot_size).cos();
+            Some(Emitter::Point {
+                position: Vec3::from(*position),
+                intensity: Rgb::from(*color) * (*power / (4.0 * PI)),
+                radius: *radius,
+                spot: Some(Spot {
+                    axis: Vec3::from(*direction).normalize(),
+                    cos_half,
+                    smooth: (1.0 - cos_half) * spot_blend,
+                }),
+            })
+        }
+        Light::Sun { direction, strength, color, angle } => {
+            let half = 0.5 * angle;
+            let cos_half = half.cos();
+            // Irradiance S from a uniform disk of half-angle h: L = S/(π sin²h); ∫ L dω over the
+            // cone = L·2π(1 − cos h) = S·2/(1 + cos h) → S as h → 0.
+            let factor = if half > 1e-6 { 2.0 / (1.0 + cos_half) } else { 1.0 };
+            Some(Emitter::Sun {
+                to_light: -Vec3::from(*direction).normalize(),
+                cos_half: if half > 1e-6 { cos_half } else { 1.0 },
+                radiance_over_pdf: Rgb::from(*color) * (*strength * factor),
+            })
+        }
+        Light::Area { position, axis_u, axis_v, shape, size_x, size_y, power, color } => {
+            let u = Vec3::from(*axis_u).normalize();
+            let v = Vec3::from(*axis_v).normalize();
+            let (sx, sy) = match shape {
+                AreaShape::Square | AreaShape::Disk => (*size_x, *size_x),
+                AreaShape::Rectangle | AreaShape::Ellipse => (*size_x, size_y.unwrap_or(*size_x)),
+            };
+            let elliptic = matches!(shape, AreaShape::Disk | AreaShape::Ellipse);
+            let area = if elliptic { PI * sx * sy / 4.0 } else { sx * sy };
+            // L = P/(π A); the area pdf is 1/A, so radiance/pdf (before cos/d²) is L·A = P/π.
+            Some(Emitter::Area {
+                centre: Vec3::from(*position),
+                u,
+                v,
+                normal: -u.cross(v).normalize(),
+                half_u: 0.5 * sx,
+                half_v: 0.5 * sy,
+                elliptic,
+                radiance_times_area: Rgb::from(*color) * (*power / PI) * if area > 0.0 { 1.0 } else { 0.0 },
+            })
+        }
+    }
+}

@@ -1,0 +1,131 @@
+//! Small scenes built in code for the physics tests (the assets/ scenes are for demos and
+//! benchmarks; these stay tiny so debug-build tests run in seconds).
+#![allow(dead_code)]
+
+use relume_engine::brdf::{BlinnPhong, MaterialSpec};
+use relume_engine::scene::*;
+
+pub fn bp(kd: f32, ks: f32, ns: f32) -> MaterialSpec {
+    MaterialSpec::BlinnPhong(BlinnPhong { kd: [kd; 3], ks: [ks; 3], ns })
+}
+
+pub fn bp_rgb(kd: [f32; 3], ks: [f32; 3], ns: f32) -> MaterialSpec {
+    MaterialSpec::BlinnPhong(BlinnPhong { kd, ks, ns })
+}
+
+pub fn region(name: &str, editable: bool, material: MaterialSpec) -> Region {
+    Region { name: name.into(), editable, material, albedo_texture: None, ns_range: None }
+}
+
+/// A quad (two triangles) with corners a, b, c, d counter-clockwise seen from its front.
+pub fn quad(name: &str, a: [f32; 3], b: [f32; 3], c: [f32; 3], d: [f32; 3], region: u32) -> Mesh {
+    Mesh {
+        name: name.into(),
+        positions: vec![a, b, c, d],
+        normals: None,
+        uvs: Some(vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]),
+        indices: vec![[0, 1, 2], [0, 2, 3]],
+        region,
+        triangle_regions: None,
+    }
+}
+
+/// A UV sphere with smooth normals.
+pub fn sphere(name: &str, centre: [f32; 3], radius: f32, rings: u32, segments: u32, region: u32) -> Mesh {
+    let mut positions = Vec::new();
+    let mut normals = Vec::new();
+    for i in 0..=rings {
+        let theta = std::f32::consts::PI * i as f32 / rings as f32;
+        for j in 0..=segments {
+            let phi = 2.0 * std::f32::consts::PI * j as f32 / segments as f32;
+            let n = [theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos()];
+            positions.push([centre[0] + radius * n[0], centre[1] + radius * n[1], centre[2] + radius * n[2]]);
+            normals.push(n);
+        }
+    }
+    let mut indices = Vec::new();
+    let w = segments + 1;
+    for i in 0..rings {
+        for j in 0..segments {
+            let (a, b, c, d) = (i * w + j, i * w + j + 1, (i + 1) * w + j + 1, (i + 1) * w + j);
+            if i != 0 {
+                indices.push([a, d, b]);
+            }
+            if i != rings - 1 {
+                indices.push([b, d, c]);
+            }
+        }
+    }
+    Mesh { name: name.into(), positions, normals: Some(normals), uvs: None, indices, region, triangle_regions: None }
+}
+
+/// A camera at `eye` looking at `target` (Z up), Blender conventions.
+pub fn look_at(eye: [f32; 3], target: [f32; 3], lens_mm: f32) -> Camera {
+    let e = glam::Vec3::from(eye);
+    let f = (glam::Vec3::from(target) - e).normalize();
+    let up = if f.cross(glam::Vec3::Z).length() < 1e-4 { glam::Vec3::Y } else { glam::Vec3::Z };
+    let x = f.cross(up).normalize();
+    let y = x.cross(f);
+    let z = -f;
+    Camera {
+        projection: Projection::Perspective,
+        matrix_world: [[x.x, y.x, z.x, e.x], [x.y, y.y, z.y, e.y], [x.z, y.z, z.z, e.z], [0.0, 0.0, 0.0, 1.0]],
+        lens_mm,
+        sensor_width_mm: 36.0,
+        sensor_height_mm: 24.0,
+        sensor_fit: SensorFit::Auto,
+        shift_x: 0.0,
+        shift_y: 0.0,
+        ortho_scale: 6.0,
+        clip_start: 1e-3,
+        clip_end: 1e6,
+    }
+}
+
+/// A Cornell-like box, open towards −Y, with an area light under the ceiling: regions
+/// 0 "White walls" (editable), 1 "Object" (editable sphere), 2 "Red" and 3 "Green" (fixed).
+pub fn cornell(size: u32) -> Scene {
+    let s = 1.0;
+    let meshes = vec![
+        quad("floor", [-s, -s, -s], [s, -s, -s], [s, s, -s], [-s, s, -s], 0),
+        quad("ceiling", [-s, -s, s], [-s, s, s], [s, s, s], [s, -s, s], 0),
+        quad("back", [-s, s, -s], [s, s, -s], [s, s, s], [-s, s, s], 0),
+        quad("left", [-s, -s, -s], [-s, s, -s], [-s, s, s], [-s, -s, s], 2),
+        quad("right", [s, -s, -s], [s, -s, s], [s, s, s], [s, s, -s], 3),
+        sphere("object", [0.0, 0.2, -0.55], 0.45, 16, 32, 1),
+    ];
+    Scene {
+        meshes,
+        regions: vec![
+            region("White walls", true, bp(0.3, 0.3, 5.0)),
+            region("Object", true, bp(0.2, 0.4, 5.0)),
+            region("Red", false, bp_rgb([0.6, 0.05, 0.05], [0.0; 3], 1.0)),
+            region("Green", false, bp_rgb([0.05, 0.5, 0.05], [0.0; 3], 1.0)),
+        ],
+        lights: vec![Light::Area {
+            position: [0.0, 0.0, 0.98],
+            axis_u: [1.0, 0.0, 0.0],
+            axis_v: [0.0, 1.0, 0.0],
+            shape: AreaShape::Square,
+            size_x: 0.5,
+            size_y: None,
+            power: 40.0,
+            color: [1.0, 1.0, 1.0],
+        }],
+        world: World::Color { color: [0.0; 3], strength: 1.0 },
+        camera: look_at([0.0, -3.9, 0.0], [0.0, 0.0, 0.0], 35.0),
+        resolution: Resolution { width: size, height: size },
+    }
+}
+
+/// A smooth sphere alone in a uniform white world (a white furnace).
+pub fn furnace(material: MaterialSpec, editable: bool, size: u32) -> Scene {
+    Scene {
+        meshes: vec![sphere("ball", [0.0, 0.0, 0.0], 1.0, 24, 48, 0)],
+        regions: vec![region("Ball", editable, material)],
+        lights: vec![],
+        world: World::Color { color: [1.0; 3], strength: 1.0 },
+        camera: look_at([0.0, -4.0, 0.0], [0.0, 0.0, 0.0], 50.0),
+        resolution: Resolution { width: size, height: size },
+    }
+}
