@@ -1,1 +1,52 @@
-fn main() {}
+//! `relume`: bake a scene into a transfer stack, relight it, render references, compare
+//! images, inspect the BRDF basis, and measure speed — for farms, tests and benchmarks.
+//!
+//! Every command prints a human summary, or one JSON object on stdout with `--json`.
+//! Progress goes to stderr as a bar when stderr is a terminal. Ctrl-C cancels a bake
+//! cleanly (no file is written). Errors exit with status 1 and a specific message.
+
+mod commands;
+mod options;
+mod progress_bar;
+
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(name = "relume", version, about = "Bake global illumination once, relight materials in milliseconds")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Bake a scene file into a transfer stack (one OpenEXR file).
+    Bake(commands::bake::Args),
+    /// Relight a stack with materials from a JSON file.
+    Relight(commands::relight::Args),
+    /// Render the same paths as a bake with given materials (true or projected BRDF).
+    Reference(commands::reference::Args),
+    /// Compare two images: relative L2, RMSE, max abs difference (B is the reference).
+    Compare(commands::compare::Args),
+    /// Build the BRDF basis and report its reconstruction error.
+    Basis(commands::basis::Args),
+    /// Benchmarks that print figures.
+    #[command(subcommand)]
+    Bench(commands::bench::Bench),
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Bake(a) => commands::bake::run(a),
+        Command::Relight(a) => commands::relight::run(a),
+        Command::Reference(a) => commands::reference::run(a),
+        Command::Compare(a) => commands::compare::run(a),
+        Command::Basis(a) => commands::basis::run(a),
+        Command::Bench(b) => commands::bench::run(b),
+    };
+    if let Err(e) = result {
+        eprintln!("relume: error: {e}");
+        std::process::exit(1);
+    }
+}

@@ -1,5 +1,6 @@
 //! The transfer stack: every layer of a bake, in memory, and its OpenEXR file ([`exr_file`]).
 
+pub mod bases;
 pub mod exr_file;
 
 use serde::{Deserialize, Serialize};

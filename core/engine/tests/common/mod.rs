@@ -121,7 +121,7 @@ pub fn cornell(size: u32) -> Scene {
 /// A smooth sphere alone in a uniform white world (a white furnace).
 pub fn furnace(material: MaterialSpec, editable: bool, size: u32) -> Scene {
     Scene {
-        meshes: vec![sphere("ball", [0.0, 0.0, 0.0], 1.0, 24, 48, 0)],
+        meshes: vec![sphere("ball", [0.0, 0.0, 0.0], 1.0, 48, 96, 0)],
         regions: vec![region("Ball", editable, material)],
         lights: vec![],
         world: World::Color { color: [1.0; 3], strength: 1.0 },

@@ -1,0 +1,127 @@
+//! `relume bench bake SCENE` and `relume bench relight STACK.exr`: figures, as JSON.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Instant;
+
+use clap::Subcommand;
+use relume_engine::bake::bench::bench_bake;
+use relume_engine::materials::{resolve_materials, MaterialsFile};
+use relume_engine::relight::{bandwidth::measure_read_bandwidth, CpuRelighter};
+use relume_engine::scene::file::load_scene;
+use relume_engine::stack::{bases::StackBases, exr_file::read_stack};
+use relume_engine::{RelumeError, Rgb};
+use serde_json::json;
+
+use crate::options::BakeOptions;
+
+#[derive(Subcommand)]
+pub enum Bench {
+    /// Effective bake rays/s against raw obvhs closest-hit/occlusion rays/s on the same rays.
+    Bake {
+        scene: PathBuf,
+        #[command(flatten)]
+        options: BakeOptions,
+        #[arg(long)]
+        json: bool,
+    },
+    /// Full and incremental relight times against the memory-bandwidth bound.
+    Relight {
+        stack: PathBuf,
+        /// Timed repetitions (the median is reported).
+        #[arg(long, default_value_t = 20)]
+        repeats: usize,
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+pub fn run(bench: Bench) -> Result<(), RelumeError> {
+    match bench {
+        Bench::Bake { scene, options, json } => {
+            let scene = load_scene(&scene)?;
+            let figures = bench_bake(&scene, &options.settings()?)?;
+            if json {
+                super::print_json(&figures);
+            } else {
+                println!(
+                    "bake: {:.2} Mrays/s effective, raw obvhs {:.2} Mrays/s on the same rays: {:.0} %",
+                    figures.effective_rays_per_second / 1e6,
+                    figures.raw_rays_per_second / 1e6,
+                    figures.ratio * 100.0
+                );
+            }
+            Ok(())
+        }
+        Bench::Relight { stack, repeats, json } => bench_relight(&stack, repeats.max(1), json),
+    }
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    v[v.len() / 2]
+}
+
+fn bench_relight(path: &PathBuf, repeats: usize, json: bool) -> Result<(), RelumeError> {
+    let stack = read_stack(path)?;
+    let materials = resolve_materials(&stack.header.regions, &MaterialsFile { regions: Default::default() })?;
+    let bases = StackBases::from_header(&stack.header)?;
+    let coefs = bases.coefficients(&materials)?;
+    let (width, height, layers, stack_bytes) = (stack.header.width, stack.header.height, stack.layers.len(), stack.sample_bytes());
+    let mut relighter = CpuRelighter::new(Arc::new(stack))?;
+    relighter.relight(&coefs)?;
+    let mut full = Vec::with_capacity(repeats);
+    let mut full_bytes = 0;
+    for i in 0..repeats {
+        let mut c = coefs.clone();
+        // Perturb the weights so no step can be skipped as unchanged.
+        for region in &mut c {
+            for v in region.iter_mut() {
+                *v *= 1.0 + 1e-3 * (i % 7) as f32;
+            }
+        }
+        let t = Instant::now();
+        relighter.relight(&c)?;
+        full.push(t.elapsed().as_secs_f64() * 1e3);
+        full_bytes = relighter.last_stats().bytes_read;
+    }
+    let mut incremental = Vec::new();
+    let mut incremental_bytes = 0;
+    if !coefs.is_empty() {
+        for i in 0..repeats {
+            let c: Vec<Rgb> = coefs[0].iter().map(|v| *v * (1.0 + 1e-3 * (i % 5 + 1) as f32)).collect();
+            let t = Instant::now();
+            relighter.relight_region(0, &c)?;
+            incremental.push(t.elapsed().as_secs_f64() * 1e3);
+            incremental_bytes = relighter.last_stats().bytes_read;
+        }
+    }
+    let bandwidth = measure_read_bandwidth((256usize << 20).max(2 * stack_bytes), 5);
+    let bound_ms = full_bytes as f64 / (bandwidth * 1e9) * 1e3;
+    let full_ms = median(full);
+    let incremental_ms = if incremental.is_empty() { f64::NAN } else { median(incremental) };
+    let figures = json!({
+        "command": "bench relight",
+        "device": "cpu",
+        "threads": rayon::current_num_threads(),
+        "width": width,
+        "height": height,
+        "layers": layers,
+        "stack_sample_bytes": stack_bytes,
+        "full_ms": full_ms,
+        "full_bytes_read": full_bytes,
+        "incremental_ms": incremental_ms,
+        "incremental_bytes_read": incremental_bytes,
+        "bandwidth_gb_s": bandwidth,
+        "bandwidth_bound_ms": bound_ms,
+        "full_over_bound": full_ms / bound_ms,
+        "incremental_over_full": incremental_ms / full_ms,
+    });
+    if json {
+        super::print_json(&figures);
+    } else {
+        println!("{}", serde_json::to_string_pretty(&figures).unwrap_or_default());
+    }
+    Ok(())
+}
+
