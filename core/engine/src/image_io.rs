@@ -67,7 +67,9 @@ where
         let mut w = BufWriter::with_capacity(1 << 20, file);
         write(&mut w)?;
         w.flush().map_err(|e| RelumeError::io(path, e))?;
-        let file = w.into_inner().map_err(|e| RelumeError::io(path, e.into_error()))?;
+        let file = w
+            .into_inner()
+            .map_err(|e| RelumeError::io(path, e.into_error()))?;
         file.sync_all().map_err(|e| RelumeError::io(path, e))?;
         let bytes = file.metadata().map_err(|e| RelumeError::io(path, e))?.len();
         drop(file);
@@ -78,7 +80,11 @@ where
         Ok(bytes) => {
             #[cfg(unix)]
             if let Some(dir) = path.parent() {
-                let dir = if dir.as_os_str().is_empty() { Path::new(".") } else { dir };
+                let dir = if dir.as_os_str().is_empty() {
+                    Path::new(".")
+                } else {
+                    dir
+                };
                 if let Ok(d) = File::open(dir) {
                     let _ = d.sync_all();
                 }
@@ -210,15 +216,22 @@ pub fn read_rgb_exr(path: &Path) -> Result<(u32, u32, Vec<f32>)> {
                 let Some(chs) = picked else { continue };
                 let (w, h) = (layer.size.width(), layer.size.height());
                 let n = w * h;
-                let cols: Vec<Vec<f32>> =
-                    chs.iter().map(|c| c.sample_data.values_as_f32().collect()).collect();
+                let cols: Vec<Vec<f32>> = chs
+                    .iter()
+                    .map(|c| c.sample_data.values_as_f32().collect())
+                    .collect();
                 if cols.iter().any(|c| c.len() != n) {
-                    return Err(image_err(path, "a channel has a sample count other than width × height"));
+                    return Err(image_err(
+                        path,
+                        "a channel has a sample count other than width × height",
+                    ));
                 }
-                let mut rgb = Vec::with_capacity(n * 3);
-                for p in 0..n {
-                    rgb.extend_from_slice(&[cols[0][p], cols[1][p], cols[2][p]]);
-                }
+                let rgb: Vec<f32> = cols[0]
+                    .iter()
+                    .zip(&cols[1])
+                    .zip(&cols[2])
+                    .flat_map(|((&r, &g), &b)| [r, g, b])
+                    .collect();
                 return Ok((w as u32, h as u32, rgb));
             }
         }
@@ -230,7 +243,10 @@ pub fn read_rgb_exr(path: &Path) -> Result<(u32, u32, Vec<f32>)> {
         .collect();
     Err(image_err(
         path,
-        format!("no layer has R, G, B or Y channels (channels: {})", names.join(", ")),
+        format!(
+            "no layer has R, G, B or Y channels (channels: {})",
+            names.join(", ")
+        ),
     ))
 }
 
@@ -241,7 +257,9 @@ pub fn srgb_oetf(v: f32) -> f32 {
     if v.is_nan() || v <= 0.0 {
         return 0.0;
     }
-    let v = v.min(1.0);
+    if v >= 1.0 {
+        return 1.0; // the formula gives 0.99999994 in f32
+    }
     if v <= 0.003_130_8 {
         12.92 * v
     } else {
@@ -252,17 +270,30 @@ pub fn srgb_oetf(v: f32) -> f32 {
 /// Writes scene-linear RGBA as an 8-bit sRGB PNG (RGBA, sRGB chunk set), atomically.
 /// RGB is multiplied by 2^`exposure`, clamped to [0, 1] and sRGB-encoded; alpha is clamped
 /// and stored linearly (PNG alpha is never gamma-encoded). NaN becomes 0, +∞ full white.
-pub fn write_png_srgb(path: &Path, width: u32, height: u32, rgba: &[f32], exposure: f32) -> Result<()> {
+pub fn write_png_srgb(
+    path: &Path,
+    width: u32,
+    height: u32,
+    rgba: &[f32],
+    exposure: f32,
+) -> Result<()> {
     check_len(path, width, height, 4, rgba.len())?;
     if !exposure.is_finite() {
-        return Err(RelumeError::invalid("exposure", format!("{exposure} is not finite")));
+        return Err(RelumeError::invalid(
+            "exposure",
+            format!("{exposure} is not finite"),
+        ));
     }
     let gain = exposure.exp2();
     let to_u8 = |v: f32| (v * 255.0 + 0.5) as u8; // v in [0, 1]
     let bytes: Vec<u8> = rgba
         .chunks_exact(4)
         .flat_map(|p| {
-            let a = if p[3].is_nan() { 0.0 } else { p[3].clamp(0.0, 1.0) };
+            let a = if p[3].is_nan() {
+                0.0
+            } else {
+                p[3].clamp(0.0, 1.0)
+            };
             [
                 to_u8(srgb_oetf(p[0] * gain)),
                 to_u8(srgb_oetf(p[1] * gain)),
@@ -311,17 +342,28 @@ pub fn compare_rgb(a: &[f32], b: &[f32], channels: usize) -> Result<ImageDiff> {
     if a.len() != b.len() {
         return Err(RelumeError::invalid(
             "image comparison",
-            format!("sizes differ: {} values against {} in the reference", a.len(), b.len()),
+            format!(
+                "sizes differ: {} values against {} in the reference",
+                a.len(),
+                b.len()
+            ),
         ));
     }
-    if a.len() % channels != 0 {
+    if !a.len().is_multiple_of(channels) {
         return Err(RelumeError::invalid(
             "image comparison",
-            format!("{} values is not a whole number of {channels}-channel pixels", a.len()),
+            format!(
+                "{} values is not a whole number of {channels}-channel pixels",
+                a.len()
+            ),
         ));
     }
     let (mut d2, mut b2, mut max_abs) = (0.0f64, 0.0f64, 0.0f64);
-    for (i, (pa, pb)) in a.chunks_exact(channels).zip(b.chunks_exact(channels)).enumerate() {
+    for (i, (pa, pb)) in a
+        .chunks_exact(channels)
+        .zip(b.chunks_exact(channels))
+        .enumerate()
+    {
         for c in 0..3 {
             for (img, v) in [("image", pa[c]), ("reference", pb[c])] {
                 if !v.is_finite() {
@@ -344,7 +386,11 @@ pub fn compare_rgb(a: &[f32], b: &[f32], channels: usize) -> Result<ImageDiff> {
     } else {
         f64::INFINITY
     };
-    let rmse = if pixels > 0 { (d2 / (pixels as f64 * 3.0)).sqrt() } else { 0.0 };
+    let rmse = if pixels > 0 {
+        (d2 / (pixels as f64 * 3.0)).sqrt()
+    } else {
+        0.0
+    };
     Ok(ImageDiff {
         rel_l2,
         rmse,

@@ -6,7 +6,9 @@ use exr::prelude::{self as x, ReadChannels as _, ReadLayers as _, WritableImage 
 use relume_engine::bake::signature::{LayerKey, PathVertex};
 use relume_engine::brdf::{BlinnPhong, MaterialSpec};
 use relume_engine::scene::{Camera, Light, Projection, SensorFit};
-use relume_engine::stack::exr_file::{check_scene_hash, read_stack, read_stack_header, write_stack};
+use relume_engine::stack::exr_file::{
+    check_scene_hash, read_stack, read_stack_header, write_stack,
+};
 use relume_engine::stack::{
     Layer, LayerSamples, Precision, RegionInfo, StackHeader, TransferStack, STACK_FORMAT_VERSION,
 };
@@ -75,10 +77,14 @@ fn header(width: u32, height: u32, precision: Precision) -> StackHeader {
 
 /// Deterministic values with a wide range: 1e-6 … 1e4 magnitudes, a few negatives, zeros.
 fn values(n: usize, seed: u64) -> Vec<f32> {
-    let mut s = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+    let mut s = seed
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
     (0..n)
         .map(|i| {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             let u = (s >> 40) as f32 / (1u64 << 24) as f32; // [0, 1)
             match i % 7 {
                 0 => 0.0,
@@ -92,28 +98,58 @@ fn values(n: usize, seed: u64) -> Vec<f32> {
 fn keys() -> Vec<(LayerKey, u32)> {
     let e = |region, basis| PathVertex::Editable { region, basis };
     vec![
-        (LayerKey::new(vec![]), 3),                                   // World
-        (LayerKey { path: vec![], light_group: 2 }, 3),               // G2_World
-        (LayerKey::new(vec![PathVertex::Fixed]), 3),                  // F
-        (LayerKey::new(vec![e(0, 0)]), 3),                            // E0b0
-        (LayerKey::new(vec![e(0, 2)]), 1),                            // E0b2: grey
-        (LayerKey::new(vec![e(0, 2), e(1, 0)]), 1),                   // E0b2_E1b0
-        (LayerKey::new(vec![e(1, 3), PathVertex::Fixed]), 3),         // E1b3_F
-        (LayerKey { path: vec![e(0, 1)], light_group: 1 }, 1),        // G1_E0b1
-        (LayerKey { path: vec![PathVertex::Fixed, e(12, 5)], light_group: 65535 }, 3),
+        (LayerKey::new(vec![]), 3), // World
+        (
+            LayerKey {
+                path: vec![],
+                light_group: 2,
+            },
+            3,
+        ), // G2_World
+        (LayerKey::new(vec![PathVertex::Fixed]), 3), // F
+        (LayerKey::new(vec![e(0, 0)]), 3), // E0b0
+        (LayerKey::new(vec![e(0, 2)]), 1), // E0b2: grey
+        (LayerKey::new(vec![e(0, 2), e(1, 0)]), 1), // E0b2_E1b0
+        (LayerKey::new(vec![e(1, 3), PathVertex::Fixed]), 3), // E1b3_F
+        (
+            LayerKey {
+                path: vec![e(0, 1)],
+                light_group: 1,
+            },
+            1,
+        ), // G1_E0b1
+        (
+            LayerKey {
+                path: vec![PathVertex::Fixed, e(12, 5)],
+                light_group: 65535,
+            },
+            3,
+        ),
     ]
 }
 
 fn stack(width: u32, height: u32, precision: Precision) -> TransferStack {
     let n = (width * height) as usize;
-    let scales = [1.0f32, 3.051_757_8e-5, 0.123_456_79, 7.1e4, 1.0e-30, 2.5, 0.333_333_34, 9.9e-3, 42.0];
+    let scales = [
+        1.0f32,
+        3.051_757_8e-5,
+        0.123_456_79,
+        7.1e4,
+        1.0e-30,
+        2.5,
+        0.333_333_34,
+        9.9e-3,
+        42.0,
+    ];
     let layers = keys()
         .into_iter()
         .enumerate()
         .map(|(i, (key, channels))| {
             let v = values(n * channels as usize, i as u64);
             let samples = match precision {
-                Precision::F16 => LayerSamples::F16(v.iter().map(|&s| half::f16::from_f32(s)).collect()),
+                Precision::F16 => {
+                    LayerSamples::F16(v.iter().map(|&s| half::f16::from_f32(s)).collect())
+                }
                 Precision::F32 => LayerSamples::F32(v),
             };
             Layer {
@@ -162,7 +198,18 @@ fn round_trip_f16_and_f32_exactly() {
             assert_eq!(read_stack_header(&path).unwrap(), s.header);
         }
     }
-    assert_eq!(others(dir.path(), &["s_F16_7x5.exr", "s_F16_3x37.exr", "s_F32_7x5.exr", "s_F32_3x37.exr"]), Vec::<String>::new());
+    assert_eq!(
+        others(
+            dir.path(),
+            &[
+                "s_F16_7x5.exr",
+                "s_F16_3x37.exr",
+                "s_F32_7x5.exr",
+                "s_F32_3x37.exr"
+            ]
+        ),
+        Vec::<String>::new()
+    );
 }
 
 #[test]
@@ -184,12 +231,18 @@ fn generic_exr_reader_sees_blender_style_channels() {
     let image = x::read_all_data_from_file(&path).unwrap();
     assert_eq!(image.layer_data.len(), 1, "one part");
     let layer = &image.layer_data[0];
-    let names: Vec<String> = layer.channel_data.list.iter().map(|c| c.name.to_string()).collect();
+    let names: Vec<String> = layer
+        .channel_data
+        .list
+        .iter()
+        .map(|c| c.name.to_string())
+        .collect();
     let mut expected: Vec<String> = keys()
         .iter()
         .flat_map(|(k, c)| {
             let sfx: &[&str] = if *c == 1 { &["Y"] } else { &["R", "G", "B"] };
-            sfx.iter().map(move |s| format!("{}.Transfer.{s}", k.layer_name()))
+            sfx.iter()
+                .map(move |s| format!("{}.Transfer.{s}", k.layer_name()))
         })
         .collect();
     expected.sort();
@@ -201,21 +254,50 @@ fn generic_exr_reader_sees_blender_style_channels() {
     assert_eq!(layer.encoding.blocks, x::Blocks::ScanLines);
     assert_eq!((layer.size.width(), layer.size.height()), (5, 3));
     let dw = image.attributes.display_window;
-    assert_eq!((dw.position.x(), dw.position.y(), dw.size.width(), dw.size.height()), (0, 0, 5, 3));
+    assert_eq!(
+        (
+            dw.position.x(),
+            dw.position.y(),
+            dw.size.width(),
+            dw.size.height()
+        ),
+        (0, 0, 5, 3)
+    );
     for c in &layer.channel_data.list {
-        assert!(matches!(c.sample_data, x::Levels::Singular(x::FlatSamples::F16(_))), "{}", c.name);
+        assert!(
+            matches!(c.sample_data, x::Levels::Singular(x::FlatSamples::F16(_))),
+            "{}",
+            c.name
+        );
     }
-    for a in ["relume/header", "relume/format_version", "relume/scene_hash", "relume/layers"] {
-        assert!(layer.attributes.other.contains_key(&x::Text::from(a)), "{a}");
+    for a in [
+        "relume/header",
+        "relume/format_version",
+        "relume/scene_hash",
+        "relume/layers",
+    ] {
+        assert!(
+            layer.attributes.other.contains_key(&x::Text::from(a)),
+            "{a}"
+        );
     }
     assert_eq!(
         layer.attributes.other[&x::Text::from("relume/format_version")],
         x::AttributeValue::I32(STACK_FORMAT_VERSION as i32)
     );
     // Raw samples are stored (before scale): pixel 1 of World's G channel.
-    let g = layer.channel_data.list.iter().find(|c| c.name.to_string() == "World.Transfer.G").unwrap();
-    let x::Levels::Singular(x::FlatSamples::F16(gv)) = &g.sample_data else { unreachable!() };
-    let LayerSamples::F16(world) = &s.layers[0].samples else { unreachable!() };
+    let g = layer
+        .channel_data
+        .list
+        .iter()
+        .find(|c| c.name.to_string() == "World.Transfer.G")
+        .unwrap();
+    let x::Levels::Singular(x::FlatSamples::F16(gv)) = &g.sample_data else {
+        unreachable!()
+    };
+    let LayerSamples::F16(world) = &s.layers[0].samples else {
+        unreachable!()
+    };
     assert_eq!(gv[1], world[3 + 1]);
 }
 
@@ -236,13 +318,19 @@ fn truncated_files_are_stack_truncated() {
     for len in [0, 3, 10, full.len() / 2, full.len() - 100, full.len() - 1] {
         std::fs::write(&cut, &full[..len]).unwrap();
         let r = read_stack(&cut);
-        assert!(matches!(r, Err(RelumeError::StackTruncated { .. })), "cut at {len}: {r:?}");
+        assert!(
+            matches!(r, Err(RelumeError::StackTruncated { .. })),
+            "cut at {len}: {r:?}"
+        );
     }
     // The meta data is in the first few KiB: cut inside it, the header read fails too.
     for len in [0, 10, 200] {
         std::fs::write(&cut, &full[..len]).unwrap();
         let r = read_stack_header(&cut);
-        assert!(matches!(r, Err(RelumeError::StackTruncated { .. })), "cut at {len}: {r:?}");
+        assert!(
+            matches!(r, Err(RelumeError::StackTruncated { .. })),
+            "cut at {len}: {r:?}"
+        );
     }
 }
 
@@ -251,12 +339,18 @@ fn foreign_files_are_refused() {
     let dir = tmp();
     let text = dir.path().join("notes.exr");
     std::fs::write(&text, "just some text, not an image at all").unwrap();
-    for r in [read_stack(&text).map(|_| ()), read_stack_header(&text).map(|_| ())] {
+    for r in [
+        read_stack(&text).map(|_| ()),
+        read_stack_header(&text).map(|_| ()),
+    ] {
         assert!(matches!(r, Err(RelumeError::StackForeign { .. })), "{r:?}");
     }
     let plain = dir.path().join("plain.exr");
     relume_engine::image_io::write_rgba_exr(&plain, 2, 2, &[0.5; 16]).unwrap();
-    for r in [read_stack(&plain).map(|_| ()), read_stack_header(&plain).map(|_| ())] {
+    for r in [
+        read_stack(&plain).map(|_| ()),
+        read_stack_header(&plain).map(|_| ()),
+    ] {
         let err = r.unwrap_err();
         assert!(matches!(err, RelumeError::StackForeign { .. }), "{err:?}");
         assert!(err.to_string().contains("relume/header"), "{err}");
@@ -268,7 +362,10 @@ fn check_scene_hash_detects_stale_stacks() {
     let h = header(2, 2, Precision::F16);
     check_scene_hash(&h, "3f2a9c0e1b7d4455").unwrap();
     match check_scene_hash(&h, "0000") {
-        Err(RelumeError::StackStale { stack_hash, scene_hash }) => {
+        Err(RelumeError::StackStale {
+            stack_hash,
+            scene_hash,
+        }) => {
             assert_eq!(stack_hash, "3f2a9c0e1b7d4455");
             assert_eq!(scene_hash, "0000");
         }
@@ -280,7 +377,12 @@ type FlatLayer = x::Layer<x::AnyChannels<x::FlatSamples>>;
 
 /// Writes a valid stack, lets `edit` change its part (attributes, channels) with the exr API
 /// and writes it back: the way to make files that are wrong in one precise respect.
-fn tampered(dir: &Path, name: &str, precision: Precision, edit: impl FnOnce(&mut FlatLayer)) -> PathBuf {
+fn tampered(
+    dir: &Path,
+    name: &str,
+    precision: Precision,
+    edit: impl FnOnce(&mut FlatLayer),
+) -> PathBuf {
     let path = dir.join(name);
     write_stack(&path, &stack(4, 3, precision)).unwrap();
     let mut image = x::read()
@@ -292,13 +394,19 @@ fn tampered(dir: &Path, name: &str, precision: Precision, edit: impl FnOnce(&mut
         .from_file(&path)
         .unwrap();
     edit(&mut image.layer_data[0]);
-    image.layer_data[0].channel_data.list.sort_by_key(|c| c.name.clone());
+    image.layer_data[0]
+        .channel_data
+        .list
+        .sort_by_key(|c| c.name.clone());
     image.write().to_file(&path).unwrap();
     path
 }
 
 fn set_text(l: &mut FlatLayer, attr: &str, value: &str) {
-    l.attributes.other.insert(x::Text::from(attr), x::AttributeValue::Text(x::Text::from_slice_unchecked(value.as_bytes())));
+    l.attributes.other.insert(
+        x::Text::from(attr),
+        x::AttributeValue::Text(x::Text::from_slice_unchecked(value.as_bytes())),
+    );
 }
 
 fn get_text(l: &FlatLayer, attr: &str) -> String {
@@ -329,15 +437,23 @@ fn the_untampered_helper_file_reads() {
 fn other_format_version_is_stack_version() {
     let dir = tmp();
     let p = tampered(dir.path(), "v.exr", Precision::F16, |l| {
-        l.attributes
-            .other
-            .insert(x::Text::from("relume/format_version"), x::AttributeValue::I32(2));
+        l.attributes.other.insert(
+            x::Text::from("relume/format_version"),
+            x::AttributeValue::I32(2),
+        );
         // A future version may lay the header out differently: not even parsed.
         set_text(l, "relume/header", "{\"future\": true}");
     });
-    for r in [read_stack(&p).map(|_| ()), read_stack_header(&p).map(|_| ())] {
+    for r in [
+        read_stack(&p).map(|_| ()),
+        read_stack_header(&p).map(|_| ()),
+    ] {
         match r {
-            Err(RelumeError::StackVersion { found: 2, supported, .. }) => assert_eq!(supported, STACK_FORMAT_VERSION),
+            Err(RelumeError::StackVersion {
+                found: 2,
+                supported,
+                ..
+            }) => assert_eq!(supported, STACK_FORMAT_VERSION),
             other => panic!("{other:?}"),
         }
     }
@@ -349,16 +465,23 @@ fn missing_header_attribute_is_foreign() {
     let p = tampered(dir.path(), "f.exr", Precision::F16, |l| {
         l.attributes.other.remove(&x::Text::from("relume/header"));
     });
-    assert!(matches!(read_stack_header(&p), Err(RelumeError::StackForeign { .. })));
+    assert!(matches!(
+        read_stack_header(&p),
+        Err(RelumeError::StackForeign { .. })
+    ));
 }
 
 #[test]
 fn damaged_header_and_attributes_are_stack_format() {
     let dir = tmp();
-    let p = tampered(dir.path(), "a.exr", Precision::F16, |l| set_text(l, "relume/header", "{not json"));
+    let p = tampered(dir.path(), "a.exr", Precision::F16, |l| {
+        set_text(l, "relume/header", "{not json")
+    });
     assert_format(read_stack_header(&p), "not a stack header");
 
-    let p = tampered(dir.path(), "b.exr", Precision::F16, |l| set_text(l, "relume/scene_hash", "ffff"));
+    let p = tampered(dir.path(), "b.exr", Precision::F16, |l| {
+        set_text(l, "relume/scene_hash", "ffff")
+    });
     assert_format(read_stack(&p), "relume/scene_hash");
 
     let p = tampered(dir.path(), "c.exr", Precision::F16, |l| {
@@ -373,9 +496,10 @@ fn damaged_header_and_attributes_are_stack_format() {
     assert_format(read_stack(&p), "relume/layers is missing");
 
     let p = tampered(dir.path(), "e.exr", Precision::F16, |l| {
-        l.attributes
-            .other
-            .insert(x::Text::from("relume/format_version"), x::AttributeValue::F32(1.0));
+        l.attributes.other.insert(
+            x::Text::from("relume/format_version"),
+            x::AttributeValue::F32(1.0),
+        );
     });
     assert_format(read_stack_header(&p), "not an i32");
 }
@@ -400,7 +524,9 @@ fn layer_list_and_channels_must_match() {
     let dir = tmp();
     // A channel gone.
     let p = tampered(dir.path(), "m.exr", Precision::F16, |l| {
-        l.channel_data.list.retain(|c| c.name.to_string() != "F.Transfer.G");
+        l.channel_data
+            .list
+            .retain(|c| c.name.to_string() != "F.Transfer.G");
     });
     assert_format(read_stack(&p), "F.Transfer.G");
     // An extra channel.
@@ -412,15 +538,22 @@ fn layer_list_and_channels_must_match() {
     assert_format(read_stack(&p), "Extra.Transfer.Y");
     // A grey layer listed as RGB: its Y channel belongs to no listed layer.
     let p = tampered(dir.path(), "g.exr", Precision::F16, |l| {
-        let layers = get_text(l, "relume/layers")
-            .replace("{\"name\":\"E0b2\",\"channels\":1", "{\"name\":\"E0b2\",\"channels\":3");
+        let layers = get_text(l, "relume/layers").replace(
+            "{\"name\":\"E0b2\",\"channels\":1",
+            "{\"name\":\"E0b2\",\"channels\":3",
+        );
         set_text(l, "relume/layers", &layers);
     });
-    assert_format(read_stack(&p), "E0b2.Transfer.Y is in the file but no layer");
+    assert_format(
+        read_stack(&p),
+        "E0b2.Transfer.Y is in the file but no layer",
+    );
     // An impossible channel count.
     let p = tampered(dir.path(), "k.exr", Precision::F16, |l| {
-        let layers = get_text(l, "relume/layers")
-            .replace("{\"name\":\"E0b2\",\"channels\":1", "{\"name\":\"E0b2\",\"channels\":2");
+        let layers = get_text(l, "relume/layers").replace(
+            "{\"name\":\"E0b2\",\"channels\":1",
+            "{\"name\":\"E0b2\",\"channels\":2",
+        );
         set_text(l, "relume/layers", &layers);
     });
     assert_format(read_stack(&p), "E0b2 has 2 channels");
@@ -503,9 +636,17 @@ fn write_validates_and_touches_no_file_on_error() {
 
     for (s, needle) in bad {
         assert_format(write_stack(&path, &s), needle);
-        assert_eq!(std::fs::read(&path).unwrap(), before, "{needle}: the good file changed");
+        assert_eq!(
+            std::fs::read(&path).unwrap(),
+            before,
+            "{needle}: the good file changed"
+        );
     }
-    assert_eq!(others(dir.path(), &["good.exr"]), Vec::<String>::new(), "temp files left");
+    assert_eq!(
+        others(dir.path(), &["good.exr"]),
+        Vec::<String>::new(),
+        "temp files left"
+    );
 }
 
 #[test]
@@ -526,8 +667,15 @@ fn unwritable_places_give_io_and_keep_the_old_file() {
     std::fs::write(target.join("inside"), "keep").unwrap();
     let r = write_stack(&target, &s);
     assert!(matches!(r, Err(RelumeError::Io { .. })), "{r:?}");
-    assert_eq!(std::fs::read_to_string(target.join("inside")).unwrap(), "keep");
-    assert_eq!(others(dir.path(), &["plain", "taken.exr"]), Vec::<String>::new(), "temp files left");
+    assert_eq!(
+        std::fs::read_to_string(target.join("inside")).unwrap(),
+        "keep"
+    );
+    assert_eq!(
+        others(dir.path(), &["plain", "taken.exr"]),
+        Vec::<String>::new(),
+        "temp files left"
+    );
 
     // A read-only directory, where permissions are enforced (not as root).
     #[cfg(unix)]
@@ -568,10 +716,17 @@ fn timing_100_layers_512_f16() {
             .map(|j| {
                 let p = j / 3;
                 let (px, py) = ((p % 512) as f32 / 512.0, (p / 512) as f32 / 512.0);
-                (0.2 + px * py + 0.05 * (i as f32 * 0.1 + px * 6.0).sin()) * (1.0 + 0.02 * noise[j].clamp(-1.0, 1.0))
+                (0.2 + px * py + 0.05 * (i as f32 * 0.1 + px * 6.0).sin())
+                    * (1.0 + 0.02 * noise[j].clamp(-1.0, 1.0))
             })
             .collect();
-        let key = LayerKey::new(vec![PathVertex::Editable { region: i / 10, basis: i % 10 }, PathVertex::Fixed]);
+        let key = LayerKey::new(vec![
+            PathVertex::Editable {
+                region: i / 10,
+                basis: i % 10,
+            },
+            PathVertex::Fixed,
+        ]);
         layers.push(Layer::from_f32(key, 3, &v, Precision::F16));
     }
     let s = TransferStack {

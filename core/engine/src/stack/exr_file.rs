@@ -83,7 +83,10 @@ fn precision_of(samples: &LayerSamples) -> Precision {
 /// Index and value of the first non-finite sample, if any.
 fn first_non_finite(samples: &LayerSamples) -> Option<(usize, f32)> {
     match samples {
-        LayerSamples::F16(v) => v.iter().position(|s| !s.is_finite()).map(|i| (i, v[i].to_f32())),
+        LayerSamples::F16(v) => v
+            .iter()
+            .position(|s| !s.is_finite())
+            .map(|i| (i, v[i].to_f32())),
         LayerSamples::F32(v) => v.iter().position(|s| !s.is_finite()).map(|i| (i, v[i])),
     }
 }
@@ -95,13 +98,19 @@ fn check_layer(path: &Path, header: &StackHeader, layer: &Layer) -> Result<()> {
     if layer.channels != 1 && layer.channels != 3 {
         return Err(format_err(
             path,
-            format!("layer {name} has {} channels; a layer has 1 (grey) or 3 (RGB)", layer.channels),
+            format!(
+                "layer {name} has {} channels; a layer has 1 (grey) or 3 (RGB)",
+                layer.channels
+            ),
         ));
     }
     if !(layer.scale.is_finite() && layer.scale > 0.0) {
         return Err(format_err(
             path,
-            format!("layer {name} has scale {}; a scale is finite and > 0", layer.scale),
+            format!(
+                "layer {name} has scale {}; a scale is finite and > 0",
+                layer.scale
+            ),
         ));
     }
     let expected = header.width as usize * header.height as usize * layer.channels as usize;
@@ -156,10 +165,16 @@ fn validate_for_write(path: &Path, stack: &TransferStack) -> Result<String> {
         ));
     }
     if h.width == 0 || h.height == 0 {
-        return Err(format_err(path, format!("size {}×{} is empty", h.width, h.height)));
+        return Err(format_err(
+            path,
+            format!("size {}×{} is empty", h.width, h.height),
+        ));
     }
     if stack.layers.is_empty() {
-        return Err(format_err(path, "the stack has no layer (an OpenEXR file needs a channel)"));
+        return Err(format_err(
+            path,
+            "the stack has no layer (an OpenEXR file needs a channel)",
+        ));
     }
     let json = serde_json::to_string(h)
         .map_err(|e| format_err(path, format!("header does not serialise: {e}")))?;
@@ -175,7 +190,10 @@ fn validate_for_write(path: &Path, stack: &TransferStack) -> Result<String> {
     let mut seen = HashSet::new();
     for layer in &stack.layers {
         if !seen.insert(layer.key.layer_name()) {
-            return Err(format_err(path, format!("layer {} appears twice", layer.key.layer_name())));
+            return Err(format_err(
+                path,
+                format!("layer {} appears twice", layer.key.layer_name()),
+            ));
         }
         check_layer(path, h, layer)?;
     }
@@ -215,8 +233,12 @@ pub fn write_stack(path: &Path, stack: &TransferStack) -> Result<u64> {
         let c = layer.channels as usize;
         for (k, suffix) in channel_suffixes(layer.channels).iter().enumerate() {
             let samples = match &layer.samples {
-                LayerSamples::F16(v) => x::FlatSamples::F16((0..pixels).map(|p| v[p * c + k]).collect()),
-                LayerSamples::F32(v) => x::FlatSamples::F32((0..pixels).map(|p| v[p * c + k]).collect()),
+                LayerSamples::F16(v) => {
+                    x::FlatSamples::F16((0..pixels).map(|p| v[p * c + k]).collect())
+                }
+                LayerSamples::F32(v) => {
+                    x::FlatSamples::F32((0..pixels).map(|p| v[p * c + k]).collect())
+                }
             };
             list.push(x::AnyChannel::new(
                 x::Text::from_slice_unchecked(format!("{name}.{PASS}.{suffix}").as_bytes()),
@@ -227,15 +249,21 @@ pub fn write_stack(path: &Path, stack: &TransferStack) -> Result<u64> {
     let channels = x::AnyChannels::sort(list);
 
     let text = |s: &str| x::AttributeValue::Text(x::Text::from_slice_unchecked(s.as_bytes()));
-    let mut attributes = x::LayerAttributes::default();
-    attributes.software_name = Some(x::Text::from_slice_unchecked(
-        concat!("Relume ", env!("CARGO_PKG_VERSION")).as_bytes(),
-    ));
-    let other = &mut attributes.other;
+    let mut other = std::collections::HashMap::new();
     other.insert(x::Text::from(ATTR_HEADER), text(&header_json));
-    other.insert(x::Text::from(ATTR_FORMAT_VERSION), x::AttributeValue::I32(STACK_FORMAT_VERSION as i32));
+    other.insert(
+        x::Text::from(ATTR_FORMAT_VERSION),
+        x::AttributeValue::I32(STACK_FORMAT_VERSION as i32),
+    );
     other.insert(x::Text::from(ATTR_SCENE_HASH), text(&h.scene_hash));
     other.insert(x::Text::from(ATTR_LAYERS), text(&layers_json));
+    let attributes = x::LayerAttributes {
+        software_name: Some(x::Text::from_slice_unchecked(
+            concat!("Relume ", env!("CARGO_PKG_VERSION")).as_bytes(),
+        )),
+        other,
+        ..Default::default()
+    };
 
     // Image::from_layer sets display window = data window = width × height at (0, 0), as
     // Blender expects of a render.
@@ -269,7 +297,9 @@ fn map_exr_err(path: &Path, e: x::Error, in_pixels: bool) -> RelumeError {
         message: m,
     };
     match e {
-        x::Error::Io(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => truncated(io.to_string()),
+        x::Error::Io(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+            truncated(io.to_string())
+        }
         x::Error::Io(io) => RelumeError::io(path, io),
         x::Error::Invalid(m) if m == EXR_EOF_MESSAGE => truncated(format!("bytes missing ({m})")),
         x::Error::Invalid(m) if m == "file identifier missing" => RelumeError::StackForeign {
@@ -296,7 +326,10 @@ fn text_attr(path: &Path, attrs: &x::LayerAttributes, name: &str) -> Result<Opti
             .map_err(|_| format_err(path, format!("attribute {name} is not UTF-8 text"))),
         Some(other) => Err(format_err(
             path,
-            format!("attribute {name} has type {:?}; expected text", other.kind_name()),
+            format!(
+                "attribute {name} has type {:?}; expected text",
+                other.kind_name()
+            ),
         )),
     }
 }
@@ -315,8 +348,18 @@ fn header_from_meta(path: &Path, meta: &x::MetaData) -> Result<StackHeader> {
     };
     let version = match attr_text(attrs, ATTR_FORMAT_VERSION) {
         Some(x::AttributeValue::I32(v)) => *v,
-        Some(_) => return Err(format_err(path, format!("attribute {ATTR_FORMAT_VERSION} is not an i32"))),
-        None => return Err(format_err(path, format!("attribute {ATTR_FORMAT_VERSION} is missing"))),
+        Some(_) => {
+            return Err(format_err(
+                path,
+                format!("attribute {ATTR_FORMAT_VERSION} is not an i32"),
+            ))
+        }
+        None => {
+            return Err(format_err(
+                path,
+                format!("attribute {ATTR_FORMAT_VERSION} is missing"),
+            ))
+        }
     };
     // Before parsing the JSON: another version may lay it out differently.
     if version != STACK_FORMAT_VERSION as i32 {
@@ -332,8 +375,12 @@ fn header_from_meta(path: &Path, meta: &x::MetaData) -> Result<StackHeader> {
             format!("{} parts; a stack file has one", meta.headers.len()),
         ));
     }
-    let header: StackHeader = serde_json::from_str(&header_json)
-        .map_err(|e| format_err(path, format!("attribute {ATTR_HEADER} is not a stack header: {e}")))?;
+    let header: StackHeader = serde_json::from_str(&header_json).map_err(|e| {
+        format_err(
+            path,
+            format!("attribute {ATTR_HEADER} is not a stack header: {e}"),
+        )
+    })?;
     if header.format_version != STACK_FORMAT_VERSION {
         return Err(format_err(
             path,
@@ -348,10 +395,18 @@ fn header_from_meta(path: &Path, meta: &x::MetaData) -> Result<StackHeader> {
         Some(hash) => {
             return Err(format_err(
                 path,
-                format!("{ATTR_SCENE_HASH} is {hash} but {ATTR_HEADER} says {}", header.scene_hash),
+                format!(
+                    "{ATTR_SCENE_HASH} is {hash} but {ATTR_HEADER} says {}",
+                    header.scene_hash
+                ),
             ))
         }
-        None => return Err(format_err(path, format!("attribute {ATTR_SCENE_HASH} is missing"))),
+        None => {
+            return Err(format_err(
+                path,
+                format!("attribute {ATTR_SCENE_HASH} is missing"),
+            ))
+        }
     }
     let size = part.layer_size;
     if (size.width(), size.height()) != (header.width as usize, header.height as usize) {
@@ -395,24 +450,41 @@ pub fn read_stack(path: &Path) -> Result<TransferStack> {
     let attrs = &meta.headers[0].own_attributes;
     let layers_json = text_attr(path, attrs, ATTR_LAYERS)?
         .ok_or_else(|| format_err(path, format!("attribute {ATTR_LAYERS} is missing")))?;
-    let entries: Vec<LayerEntry> = serde_json::from_str(&layers_json)
-        .map_err(|e| format_err(path, format!("attribute {ATTR_LAYERS} is not a layer list: {e}")))?;
+    let entries: Vec<LayerEntry> = serde_json::from_str(&layers_json).map_err(|e| {
+        format_err(
+            path,
+            format!("attribute {ATTR_LAYERS} is not a layer list: {e}"),
+        )
+    })?;
 
     // The channels the layer list implies, before decoding any pixel.
     let mut keys = Vec::with_capacity(entries.len());
     let mut expected: BTreeMap<String, (usize, usize)> = BTreeMap::new(); // channel → (layer, colour)
     for (i, e) in entries.iter().enumerate() {
-        let key = LayerKey::parse(&e.name)
-            .ok_or_else(|| format_err(path, format!("layer name {:?} is not a path signature", e.name)))?;
+        let key = LayerKey::parse(&e.name).ok_or_else(|| {
+            format_err(
+                path,
+                format!("layer name {:?} is not a path signature", e.name),
+            )
+        })?;
         if e.channels != 1 && e.channels != 3 {
             return Err(format_err(
                 path,
-                format!("layer {} has {} channels; a layer has 1 (grey) or 3 (RGB)", e.name, e.channels),
+                format!(
+                    "layer {} has {} channels; a layer has 1 (grey) or 3 (RGB)",
+                    e.name, e.channels
+                ),
             ));
         }
         for (k, s) in channel_suffixes(e.channels).iter().enumerate() {
-            if expected.insert(format!("{}.{PASS}.{s}", e.name), (i, k)).is_some() {
-                return Err(format_err(path, format!("layer {} appears twice in {ATTR_LAYERS}", e.name)));
+            if expected
+                .insert(format!("{}.{PASS}.{s}", e.name), (i, k))
+                .is_some()
+            {
+                return Err(format_err(
+                    path,
+                    format!("layer {} appears twice in {ATTR_LAYERS}", e.name),
+                ));
             }
         }
         keys.push(key);
@@ -483,7 +555,10 @@ pub fn read_stack(path: &Path) -> Result<TransferStack> {
         if channel.sample_data.len() != pixels {
             return Err(format_err(
                 path,
-                format!("channel {name} has {} samples; expected {pixels}", channel.sample_data.len()),
+                format!(
+                    "channel {name} has {} samples; expected {pixels}",
+                    channel.sample_data.len()
+                ),
             ));
         }
         match (&mut layer.samples, channel.sample_data) {
