@@ -323,6 +323,30 @@ fn truncated_files_are_stack_truncated() {
             "cut at {len}: {r:?}"
         );
     }
+    // Meta data that is there but wrong (not missing): StackFormat. Byte 4 is the OpenEXR
+    // file version (2); 99 is no version at all.
+    let mut bad = full.clone();
+    bad[4] = 99;
+    std::fs::write(&cut, &bad).unwrap();
+    for r in [
+        read_stack(&cut).map(|_| ()),
+        read_stack_header(&cut).map(|_| ()),
+    ] {
+        assert!(
+            matches!(r, Err(RelumeError::StackFormat { .. })),
+            "version byte 99: {r:?}"
+        );
+    }
+    // Damaged compressed pixel data (zlib checks it): StackTruncated, "truncated or damaged".
+    let mut bad = full.clone();
+    let at = full.len() * 3 / 4;
+    bad[at..at + 32].iter_mut().for_each(|b| *b ^= 0x5a);
+    std::fs::write(&cut, &bad).unwrap();
+    let r = read_stack(&cut);
+    assert!(
+        matches!(r, Err(RelumeError::StackTruncated { .. })),
+        "damaged: {r:?}"
+    );
     // The meta data is in the first few KiB: cut inside it, the header read fails too.
     for len in [0, 10, 200] {
         std::fs::write(&cut, &full[..len]).unwrap();
