@@ -19,10 +19,13 @@
 //!   every input.
 //! * **Out-of-range inputs** are clamped, never rejected (the function is total; use
 //!   [`Principled::validate`] to get an error instead): base colour to [0, 1] (Blender accepts
-//!   > 1, which would break `Kd + Ks ≤ 1`), metallic and roughness to [0, 1], Specular IOR Level
+//!   values above 1, which would break `Kd + Ks ≤ 1`), metallic and roughness to [0, 1],
+//!   Specular IOR Level
 //!   to [0, 1], IOR below 1 is mirrored to `1/ior` (same F0). NaN inputs fall back to
 //!   Blender's defaults (base 0.8, metallic 0, roughness 0.5, IOR 1.5, level 0.5); an IOR of
 //!   +∞ gives F0 = 1.
+
+#![allow(clippy::neg_cmp_op_on_partial_ord)] // `!(x > 0.0)` deliberately rejects NaN too.
 
 use serde::{Deserialize, Serialize};
 
