@@ -16,7 +16,7 @@ relume=target/release/relume
 echo "   built in $(elapsed "$t0") s"
 
 echo "== generating the asset scenes"
-python3 assets/build_scenes.py --out assets --only cornell >/dev/null
+python3 assets/build_scenes.py --out assets cornell >/dev/null
 
 mkdir -p out
 res=${RELUME_DEMO_RESOLUTION:-256x256}

@@ -178,7 +178,8 @@ pub enum World {
         strength: f32,
     },
     /// An equirectangular environment in Blender's default mapping (Z up; the image centre
-    /// looks along −Y... see [`crate::geometry::environment`]), scaled by `strength`.
+    /// faces +X, the top row is the zenith: see [`crate::geometry::environment`]), scaled by
+    /// `strength`.
     Equirect {
         image: ImageRef,
         #[serde(default = "one")]
@@ -232,7 +233,8 @@ pub struct Camera {
     pub sensor_height_mm: f32,
     #[serde(default)]
     pub sensor_fit: SensorFit,
-    /// Lens shift, in units of the larger image dimension (Blender's convention).
+    /// Lens shift, in units of the fitted image dimension (the larger one for `auto`), as in
+    /// Blender.
     #[serde(default)]
     pub shift_x: f32,
     #[serde(default)]
