@@ -44,10 +44,12 @@ fn default_config_errors() {
     assert_eq!(b.count(), 6);
     assert_eq!(r.bases, 6);
     assert_eq!(r.pca_measure, "grid");
-    // The paper's maximum (6.747 %) is met with margin (< 3 %); the average is higher than
-    // the paper's 0.7979 % (see `literal_pca_meets_the_paper_average` and the module docs).
+    assert!(b.spec_constant());
+    // Both of the paper's figures (0.7979 % average, 6.747 % maximum) are met, the maximum
+    // with margin (< 3 %; measured 0.699 % / 2.92 %).
+    assert!(r.avg_rel_l2 <= 0.007979, "{r:?}");
+    assert!(r.max_rel_l2 <= 0.06747, "{r:?}");
     assert!(r.max_rel_l2 < 0.03, "{r:?}");
-    assert!(r.avg_rel_l2 < 0.012, "{r:?}");
     // N_b = 2..=17: 200 lobes over [1, 200] have numerical rank 16 (eigenvalues below 1e-12
     // of the largest are not kept).
     assert!(
@@ -72,7 +74,11 @@ fn default_config_errors() {
 
 #[test]
 fn literal_pca_meets_the_paper_average() {
-    let b = BrdfBasis::build(&cfg_with(|c| c.weighting = LobeWeighting::Energy)).unwrap();
+    let b = BrdfBasis::build(&cfg_with(|c| {
+        c.weighting = LobeWeighting::Energy;
+        c.constant_in_fit = false;
+    }))
+    .unwrap();
     let r = b.error_report();
     eprintln!(
         "literal (energy-weighted) PCA: avg {:.5} max {:.5} worst ns {}",
@@ -81,6 +87,140 @@ fn literal_pca_meets_the_paper_average() {
     assert!(r.avg_rel_l2 <= 0.007979, "{r:?}");
     // …but not the maximum: the broadest lobe (ns = 1) is badly represented.
     assert!(r.max_rel_l2 > 0.1 && r.worst_ns == 1.0, "{r:?}");
+}
+
+#[test]
+fn unit_weighting_without_the_constant() {
+    let b = BrdfBasis::build(&cfg_with(|c| {
+        c.weighting = LobeWeighting::Unit;
+        c.constant_in_fit = false;
+    }))
+    .unwrap();
+    let r = b.error_report();
+    eprintln!(
+        "unit-weighted PCA, no constant: avg {:.5} max {:.5} worst ns {}",
+        r.avg_rel_l2, r.max_rel_l2, r.worst_ns
+    );
+    // 0.891 % / 6.77 %: the paper's maximum is just missed, and its average too.
+    assert!(r.avg_rel_l2 > 0.007979 && r.max_rel_l2 > 0.06747, "{r:?}");
+    assert!(r.max_rel_l2 < 0.07 && r.worst_ns == 1.0, "{r:?}");
+}
+
+#[test]
+fn without_the_constant_no_cap_meets_both_paper_figures() {
+    // Direction "another weighting, 5 specular bases": the capped weighting trades average
+    // for maximum, and over caps 4–7 % the average stays above 0.7979 % (0.96, 0.89, 0.84,
+    // 0.81 %) while the maximum reaches the paper's 6.747 % first.
+    for cap in [0.04f32, 0.05, 0.06, 0.07] {
+        let b = BrdfBasis::build(&cfg_with(|c| {
+            c.weighting = LobeWeighting::Capped(cap);
+            c.constant_in_fit = false;
+        }))
+        .unwrap();
+        let r = b.error_report();
+        eprintln!(
+            "no constant, Capped({cap}): avg {:.5} max {:.5} worst ns {}",
+            r.avg_rel_l2, r.max_rel_l2, r.worst_ns
+        );
+        assert!(
+            r.avg_rel_l2 > 0.007979 || r.max_rel_l2 > 0.06747,
+            "cap {cap}: {r:?}"
+        );
+        // The cap is honoured (to the Lawson iteration's accuracy).
+        assert!(r.max_rel_l2 < 1.05 * cap as f64, "cap {cap}: {r:?}");
+    }
+}
+
+#[test]
+fn constant_in_fit_lowers_errors_for_every_weighting() {
+    for w in [
+        LobeWeighting::Energy,
+        LobeWeighting::Unit,
+        LobeWeighting::Capped(0.029),
+    ] {
+        let with = BrdfBasis::build(&cfg_with(|c| c.weighting = w)).unwrap();
+        let without = BrdfBasis::build(&cfg_with(|c| {
+            c.weighting = w;
+            c.constant_in_fit = false;
+        }))
+        .unwrap();
+        let (a, b) = (with.error_report(), without.error_report());
+        eprintln!(
+            "{w:?}: constant avg {:.5} max {:.5} / none avg {:.5} max {:.5}",
+            a.avg_rel_l2, a.max_rel_l2, b.avg_rel_l2, b.max_rel_l2
+        );
+        assert!(with.spec_constant() && !without.spec_constant());
+        assert!(a.avg_rel_l2 < b.avg_rel_l2, "{w:?}");
+        assert!(a.max_rel_l2 <= b.max_rel_l2 * 1.001, "{w:?}");
+        // c₀ (the lobe's mean, times π) is used only with the constant.
+        let mut c = vec![0.0f32; 6];
+        with.spec_coefficients(1.0, &mut c);
+        assert!(c[0] > 0.0);
+        without.spec_coefficients(1.0, &mut c);
+        assert_eq!(c[0], 0.0);
+    }
+}
+
+#[test]
+fn report_matches_direct_grid_evaluation() {
+    // Recompute the default report's errors the slow way: the 54,000 cell centres of the
+    // paper's 30×30×60 grid, exact lobes, tabulated bases (`eval`) and exact coefficients.
+    let b = BrdfBasis::build(&BasisConfig::default()).unwrap();
+    let r = b.error_report();
+    let n = b.count();
+    let ns: Vec<f64> = (0..200).map(|j| 1.0 + j as f64 * 199.0 / 199.0).collect();
+    let coefs: Vec<Vec<f64>> = ns
+        .iter()
+        .map(|&x| {
+            let mut c = vec![0.0; n];
+            b.exact_spec_coefficients(x, &mut c);
+            c
+        })
+        .collect();
+    let mut num = vec![0.0f64; ns.len()];
+    let mut den = vec![0.0f64; ns.len()];
+    let mut basis = vec![0.0f32; n];
+    // θi ↔ θo symmetric: the pairs below the diagonal count twice.
+    for a in 0..30 {
+        for o in a..30 {
+            let w = if a == o { 1.0 } else { 2.0 };
+            for p in 0..60 {
+                let ti = (a as f64 + 0.5) * FRAC_PI_2 / 30.0;
+                let to = (o as f64 + 0.5) * FRAC_PI_2 / 30.0;
+                let ph = (p as f64 + 0.5) * PI / 60.0;
+                let (si, ci) = ti.sin_cos();
+                let (so, co) = to.sin_cos();
+                let cd = ((ci + co) / (2.0 * (1.0 + ci * co + si * so * ph.cos())).sqrt()).min(1.0);
+                b.eval(cd as f32, &mut basis);
+                for (j, &x) in ns.iter().enumerate() {
+                    let exact = lobe(x, cd);
+                    let approx: f64 = coefs[j]
+                        .iter()
+                        .zip(&basis)
+                        .map(|(c, &v)| c * v as f64)
+                        .sum();
+                    num[j] += w * (exact - approx).powi(2);
+                    den[j] += w * exact * exact;
+                }
+            }
+        }
+    }
+    let e: Vec<f64> = num.iter().zip(&den).map(|(a, b)| (a / b).sqrt()).collect();
+    let avg = e.iter().sum::<f64>() / e.len() as f64;
+    let max = e.iter().cloned().fold(0.0, f64::max);
+    eprintln!(
+        "direct on the grid: avg {avg:.5} max {max:.5}; report {:.5} {:.5}",
+        r.avg_rel_l2, r.max_rel_l2
+    );
+    assert!(
+        (avg - r.avg_rel_l2).abs() < 0.01 * r.avg_rel_l2,
+        "{avg} vs {r:?}"
+    );
+    assert!(
+        (max - r.max_rel_l2).abs() < 0.01 * r.max_rel_l2,
+        "{max} vs {r:?}"
+    );
+    assert!(avg <= 0.007979 && max < 0.03);
 }
 
 #[test]
@@ -342,12 +482,14 @@ fn coefficient_interpolation_error() {
             let mut ce = vec![0.0f64; n];
             b.spec_coefficients(ns, &mut ci);
             b.exact_spec_coefficients(ns as f64, &mut ce);
-            // Bases are orthonormal: the coefficient error is the L2 error of the lobe.
-            let err: f64 = (1..n)
-                .map(|k| (ci[k] as f64 - ce[k]).powi(2))
+            // Bases are orthogonal (the specular ones orthonormal, the diffuse 1/π of norm
+            // 1/π): the coefficient error is the L2 error of the lobe.
+            let wk = |k: usize| if k == 0 { 1.0 / PI } else { 1.0 };
+            let err: f64 = (0..n)
+                .map(|k| ((ci[k] as f64 - ce[k]) * wk(k)).powi(2))
                 .sum::<f64>()
                 .sqrt();
-            let norm: f64 = (1..n).map(|k| ce[k] * ce[k]).sum::<f64>().sqrt();
+            let norm: f64 = (0..n).map(|k| (ce[k] * wk(k)).powi(2)).sum::<f64>().sqrt();
             worst = worst.max(err / norm);
         }
         eprintln!("[1, {ns_max}] coefficient interpolation: worst {worst:.2e} of the lobe norm");
@@ -362,8 +504,18 @@ fn eval_shape_and_clamping() {
     b.eval(1.0, &mut out);
     assert_eq!(out[0], std::f32::consts::FRAC_1_PI);
     assert_eq!(out[6], 9.0, "writes only count() slots");
-    for c in [0.0f32, -0.5, f32::NAN] {
+    // Below the horizon the bases keep their value at cos δ = 0 (a constant offset with
+    // the constant in the fit; 0 without).
+    let mut edge = vec![0.0f32; 6];
+    b.eval(0.0, &mut edge);
+    assert!(edge[1..].iter().any(|&x| x != 0.0));
+    for c in [-0.5f32, f32::NAN] {
         b.eval(c, &mut out);
+        assert_eq!(out[..6], edge[..]);
+    }
+    let plain = BrdfBasis::build(&cfg_with(|c| c.constant_in_fit = false)).unwrap();
+    for c in [0.0f32, -0.5, f32::NAN] {
+        plain.eval(c, &mut out);
         assert!(out[1..6].iter().all(|&x| x == 0.0));
     }
     let mut c = vec![0.0f32; 6];
@@ -374,7 +526,7 @@ fn eval_shape_and_clamping() {
     b.spec_coefficients(1e9, &mut c);
     b.spec_coefficients(200.0, &mut d);
     assert_eq!(c, d, "ns above the range is clamped to ns_max");
-    assert_eq!(c[0], 0.0);
+    assert!(c[0] > 0.0, "c₀ is used with the constant in the fit");
 }
 
 #[test]
@@ -429,12 +581,25 @@ fn material_coefficients_layout() {
     };
     let c = b.material_coefficients(&m);
     assert_eq!(c.len(), 6);
-    assert_eq!(c[0], glam::Vec3::new(0.1, 0.2, 0.3));
     let mut s = vec![0.0f32; 6];
     b.spec_coefficients(42.0, &mut s);
+    let ks = glam::Vec3::new(0.5, 0.25, 0.0);
+    assert!(s[0] > 0.0);
+    assert_eq!(c[0], glam::Vec3::new(0.1, 0.2, 0.3) + ks * s[0]);
     for k in 1..6 {
-        assert_eq!(c[k], glam::Vec3::new(0.5, 0.25, 0.0) * s[k]);
+        assert_eq!(c[k], ks * s[k]);
     }
+    let (kd, ks0, spec) = b.split_coefficients(&m);
+    assert_eq!(kd, glam::Vec3::new(0.1, 0.2, 0.3));
+    assert_eq!(ks0, ks * s[0]);
+    assert_eq!(spec.len(), 5);
+    assert_eq!(kd + ks0, c[0]);
+    assert_eq!(spec[..], c[1..]);
+    // Without the constant, basis 0 is the diffuse alone.
+    let plain = BrdfBasis::build(&cfg_with(|c| c.constant_in_fit = false)).unwrap();
+    let (kd, ks0, _) = plain.split_coefficients(&m);
+    assert_eq!(ks0, glam::Vec3::ZERO);
+    assert_eq!(plain.material_coefficients(&m)[0], kd);
 }
 
 #[test]
@@ -442,6 +607,10 @@ fn config_serde_defaults() {
     let json = r#"{"ns_min":1.0,"ns_max":200.0,"lobes":200,"grid":[30,30,60],"count":{"Fixed":6}}"#;
     let c: BasisConfig = serde_json::from_str(json).unwrap();
     assert_eq!(c, BasisConfig::default());
+    assert!(c.constant_in_fit);
+    let json = r#"{"ns_min":1.0,"ns_max":200.0,"lobes":200,"grid":[30,30,60],"count":{"Fixed":6},"constant_in_fit":false}"#;
+    let c: BasisConfig = serde_json::from_str(json).unwrap();
+    assert!(!c.constant_in_fit);
     let back: BasisConfig = serde_json::from_str(&serde_json::to_string(&c).unwrap()).unwrap();
     assert_eq!(back, c);
 }
