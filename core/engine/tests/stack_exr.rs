@@ -52,6 +52,7 @@ fn header(width: u32, height: u32, precision: Precision) -> StackHeader {
                     ns: 120.0,
                 }),
                 basis: None,
+                textured: false,
             },
             RegionInfo {
                 name: "Floor".into(),
@@ -62,6 +63,7 @@ fn header(width: u32, height: u32, precision: Precision) -> StackHeader {
                     ns: 1.0,
                 }),
                 basis: None,
+                textured: false,
             },
         ],
         lights: vec![Light::Point {

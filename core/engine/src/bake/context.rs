@@ -88,7 +88,9 @@ impl BakeContext {
                         b
                     }
                 };
-                let count = basis.count();
+                // A textured region keeps the specular fit's constant apart from the textured
+                // diffuse basis: one more slot, after the basis functions.
+                let count = basis.count() + usize::from(texture.is_some() && basis.spec_constant());
                 if count > MAX_BASES {
                     return Err(RelumeError::Basis(format!("{count} bases for region \"{}\" (at most {MAX_BASES})", region.name)));
                 }

@@ -190,6 +190,7 @@ pub fn bake(scene: &Scene, settings: &BakeSettings, progress: &Progress) -> Resu
                 editable: r.editable,
                 material: r.material.clone(),
                 basis: r.editable.then(|| context::basis_config_for(&settings.basis, r.ns_range)),
+                textured: r.editable && r.albedo_texture.is_some(),
             })
             .collect(),
         lights: scene.lights.clone(),

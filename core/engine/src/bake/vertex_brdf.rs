@@ -51,7 +51,11 @@ impl VertexBrdf for BasisBrdf<'_> {
                 if r.texture.is_some() {
                     out[0] *= albedo_at(r, uv);
                 }
-                (r.first_slot, count)
+                // The untextured constant slot of a textured region (see `BakeContext::new`).
+                if r.slot_count as usize > count {
+                    out[count] = Rgb::splat(scratch[0]);
+                }
+                (r.first_slot, r.slot_count as usize)
             }
             RegionModel::Fixed { material } => {
                 out[0] = blinn_phong_value(material, albedo_at(r, uv), cos_delta);
@@ -67,8 +71,8 @@ impl VertexBrdf for BasisBrdf<'_> {
 pub struct MaterialBrdf<'a> {
     ctx: &'a BakeContext,
     materials: Vec<BlinnPhong>,
-    /// Basis coefficients per editable region (projected mode).
-    coefficients: Option<Vec<Vec<Rgb>>>,
+    /// Basis coefficients per editable region (projected mode): Kd, Ks·c₀, Ks·c̃ᵢ (i ≥ 1).
+    coefficients: Option<Vec<(Rgb, Rgb, Vec<Rgb>)>>,
 }
 
 impl<'a> MaterialBrdf<'a> {
@@ -82,7 +86,7 @@ impl<'a> MaterialBrdf<'a> {
                 bases.len()
             )));
         }
-        let coefficients = projected.then(|| bases.iter().zip(&materials).map(|(b, m)| b.material_coefficients(m)).collect());
+        let coefficients = projected.then(|| bases.iter().zip(&materials).map(|(b, m)| b.split_coefficients(m)).collect());
         Ok(MaterialBrdf { ctx, materials, coefficients })
     }
 }
@@ -102,9 +106,10 @@ impl VertexBrdf for MaterialBrdf<'_> {
                         let count = basis.count();
                         let mut scratch = [0.0f32; MAX_BASES];
                         basis.eval(cos_delta, &mut scratch[..count]);
-                        let mut v = coefs[e][0] * scratch[0] * albedo_at(r, uv);
+                        let (kd, ks_c0, rest) = &coefs[e];
+                        let mut v = (*kd * albedo_at(r, uv) + *ks_c0) * scratch[0];
                         for i in 1..count {
-                            v += coefs[e][i] * scratch[i];
+                            v += rest[i - 1] * scratch[i];
                         }
                         v
                     }

@@ -11,6 +11,8 @@ use crate::{RelumeError, Result, Rgb};
 /// One basis per editable region, in editable order (shared when configurations are equal).
 pub struct StackBases {
     pub bases: Vec<Arc<BrdfBasis>>,
+    /// Whether each editable region is textured (its last slot is the untextured constant).
+    pub textured: Vec<bool>,
 }
 
 impl StackBases {
@@ -18,6 +20,7 @@ impl StackBases {
     pub fn from_header(header: &StackHeader) -> Result<StackBases> {
         let mut cache: HashMap<String, Arc<BrdfBasis>> = HashMap::new();
         let mut bases = Vec::new();
+        let mut textured = Vec::new();
         for region in header.regions.iter().filter(|r| r.editable) {
             let cfg = region.basis.as_ref().ok_or_else(|| {
                 RelumeError::Basis(format!("editable region \"{}\" has no basis in the stack header", region.name))
@@ -32,8 +35,9 @@ impl StackBases {
                 }
             };
             bases.push(basis);
+            textured.push(region.textured);
         }
-        Ok(StackBases { bases })
+        Ok(StackBases { bases, textured })
     }
 
     /// Coefficients per editable region and basis for `materials` (editable order).
@@ -45,7 +49,7 @@ impl StackBases {
                 self.bases.len()
             )));
         }
-        Ok(self.bases.iter().zip(materials).map(|(b, m)| b.material_coefficients(&m.to_blinn_phong())).collect())
+        (0..self.bases.len()).map(|r| self.region_coefficients(r, &materials[r])).collect()
     }
 
     /// Coefficients of one editable region.
@@ -53,6 +57,15 @@ impl StackBases {
         let basis = self.bases.get(region).ok_or_else(|| {
             RelumeError::Materials(format!("editable region {region} does not exist ({} editable)", self.bases.len()))
         })?;
-        Ok(basis.material_coefficients(&material.to_blinn_phong()))
+        let m = material.to_blinn_phong();
+        if self.textured[region] && basis.spec_constant() {
+            // [Kd (textured diffuse layer), Ks·c̃₁, …, Ks·c₀ (untextured constant layer)].
+            let (kd, ks_c0, mut rest) = basis.split_coefficients(&m);
+            rest.insert(0, kd);
+            rest.push(ks_c0);
+            Ok(rest)
+        } else {
+            Ok(basis.material_coefficients(&m))
+        }
     }
 }

@@ -51,6 +51,11 @@ pub struct RegionInfo {
     pub material: crate::brdf::MaterialSpec,
     /// The basis of an editable region (rebuilt deterministically from this on load).
     pub basis: Option<BasisConfig>,
+    /// Whether an albedo texture scales the diffuse basis of this (editable) region. With the
+    /// diffuse basis in the specular fit, such a region stores one more layer per position:
+    /// the untextured constant, so the texture never tints the specular part.
+    #[serde(default)]
+    pub textured: bool,
 }
 
 /// Samples of one layer: interleaved per pixel (1 channel for grey layers, 3 for RGB),
