@@ -72,7 +72,11 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(ctx: &BakeContext
     };
     let wo = -dir;
     let mut values = [Rgb::ZERO; MAX_BASES];
-    direct_light(ctx, brdf, tracer, &hit, wo, &mut stream, &mut values, |slot, v| sink.direct(slot, v));
+    let mut eye_light = [Rgb::ZERO; MAX_BASES];
+    let (first, count) = direct_light(ctx, brdf, tracer, &hit, wo, &mut stream, &mut values, &mut eye_light);
+    for (k, v) in eye_light.iter().enumerate().take(count) {
+        sink.direct(first + k as u32, *v);
+    }
     if settings.bounces == 0 {
         return;
     }
@@ -94,17 +98,7 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(ctx: &BakeContext
         };
         let (eye_first, eye_count) = brdf.eval(hit.region, hit.uv, n, wi, wo, &mut eye_values);
         let weight = cos_i / pdf * inv_indirect;
-        bounce_light.fill(Rgb::ZERO);
-        let mut bounce_first = 0u32;
-        let mut bounce_count = 0usize;
-        direct_light(ctx, brdf, tracer, &hit2, -wi, &mut stream, &mut values, |slot, v| {
-            if bounce_count == 0 {
-                bounce_first = slot;
-            }
-            let k = (slot - bounce_first) as usize;
-            bounce_light[k] += v;
-            bounce_count = bounce_count.max(k + 1);
-        });
+        let (bounce_first, bounce_count) = direct_light(ctx, brdf, tracer, &hit2, -wi, &mut stream, &mut values, &mut bounce_light);
         for e in 0..eye_count {
             let fe = eye_values[e] * weight;
             if fe == Rgb::ZERO {
@@ -118,8 +112,9 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(ctx: &BakeContext
 }
 
 /// Direct light at `hit` towards `wo`: for every emitter and light sample, every BRDF value
-/// of the vertex times cos θ times radiance/pdf, averaged over the light samples; each
-/// (slot, value) goes to `emit`. Consumes 2 random numbers per light sample always.
+/// of the vertex times cos θ times radiance/pdf, averaged over the light samples, summed per
+/// slot into `light` (cleared first). Returns the vertex's first slot and slot count (count
+/// 0 when no sample arrived). Consumes 2 random numbers per light sample always.
 #[allow(clippy::too_many_arguments)]
 fn direct_light<B: VertexBrdf, T: Tracer>(
     ctx: &BakeContext,
@@ -129,17 +124,19 @@ fn direct_light<B: VertexBrdf, T: Tracer>(
     wo: Vec3,
     stream: &mut SampleStream,
     values: &mut [Rgb; MAX_BASES],
-    mut emit: impl FnMut(u32, Rgb),
-) {
+    light: &mut [Rgb; MAX_BASES],
+) -> (u32, usize) {
+    let mut first = 0u32;
+    let mut count = 0usize;
     let n = hit.shading_normal;
     let ng = hit.geometric_normal;
     let samples = ctx.settings.light_samples;
     let inv = 1.0 / samples as f32;
     let origin = ctx.geometry.offset(hit.position, ng);
-    for light in 0..ctx.lights.len() {
+    for emitter in 0..ctx.lights.len() {
         for _ in 0..samples {
             let (u1, u2) = stream.next2();
-            let Some(s) = ctx.lights.sample(light, hit.position, n, u1, u2) else {
+            let Some(s) = ctx.lights.sample(emitter, hit.position, n, u1, u2) else {
                 continue;
             };
             let cos = n.dot(s.wi);
@@ -150,13 +147,18 @@ fn direct_light<B: VertexBrdf, T: Tracer>(
             if tracer.occluded(ctx, origin, s.wi, tmax) {
                 continue;
             }
-            let (first, count) = brdf.eval(hit.region, hit.uv, n, s.wi, wo, values);
+            let (f, c) = brdf.eval(hit.region, hit.uv, n, s.wi, wo, values);
+            if count == 0 {
+                (first, count) = (f, c);
+                light[..c].fill(Rgb::ZERO);
+            }
             let li = s.radiance_over_pdf * (cos * inv);
-            for (k, v) in values.iter().enumerate().take(count) {
-                emit(first + k as u32, *v * li);
+            for (l, v) in light.iter_mut().zip(values.iter()).take(count) {
+                *l += *v * li;
             }
         }
     }
+    (first, count)
 }
 
 /// Draws an indirect direction at a vertex with normal `n`: uniform (the paper) or the

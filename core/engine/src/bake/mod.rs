@@ -16,6 +16,7 @@ pub mod signature;
 pub mod tiles;
 pub mod vertex_brdf;
 
+use rayon::prelude::*;
 use serde::Serialize;
 use std::sync::Mutex;
 use std::time::Instant;
@@ -39,6 +40,8 @@ pub struct BakeReport {
     pub setup_seconds: f64,
     /// Path tracing and layer assembly.
     pub trace_seconds: f64,
+    /// Part of `trace_seconds` spent turning the accumulated images into layers.
+    pub assembly_seconds: f64,
     /// Rays per second of `trace_seconds`.
     pub rays: u64,
     pub rays_per_second: f64,
@@ -56,18 +59,18 @@ pub struct BakeReport {
     pub sample_bytes: usize,
 }
 
-/// Accumulates one tile densely: layer-major, then pixel, then RGB.
+/// Accumulates one pixel of a tile densely: the tile buffer is pixel-major (all layers of
+/// a pixel together, so a path's writes stay in a few cache lines), then layer, then RGB.
 struct TileSink<'a> {
+    /// The layers of the current pixel.
     buf: &'a mut [f32],
-    pixel: usize,
-    tile_pixels: usize,
     slots: usize,
 }
 
 impl TileSink<'_> {
     #[inline]
     fn add(&mut self, layer: usize, v: Rgb) {
-        let i = (layer * self.tile_pixels + self.pixel) * 3;
+        let i = layer * 3;
         self.buf[i] += v.x;
         self.buf[i + 1] += v.y;
         self.buf[i + 2] += v.z;
@@ -126,16 +129,18 @@ pub fn bake(scene: &Scene, settings: &BakeSettings, progress: &Progress) -> Resu
                 return false;
             }
             for tx in 0..tile.width {
-                let mut sink = TileSink { buf: &mut buf, pixel: (ty * tile.width + tx) as usize, tile_pixels: tp, slots };
+                let pixel = (ty * tile.width + tx) as usize;
+                let mut sink = TileSink { buf: &mut buf[pixel * layer_count * 3..(pixel + 1) * layer_count * 3], slots };
                 for s in 0..settings.spp {
                     trace_eye_sample(&ctx, &brdf, &mut sink, &mut tracer, tile.x0 + tx, tile.y0 + ty, s);
                 }
             }
         }
         rays.fetch_add(tracer.rays, std::sync::atomic::Ordering::Relaxed);
+        let stride = layer_count * 3;
         for (layer, slot) in store.iter().enumerate() {
-            let part = &buf[layer * tp * 3..(layer + 1) * tp * 3];
-            if part.iter().all(|v| *v == 0.0) {
+            let texel = |p: usize| &buf[p * stride + layer * 3..p * stride + layer * 3 + 3];
+            if (0..tp).all(|p| texel(p) == [0.0; 3]) {
                 continue;
             }
             let mut image = slot.lock().unwrap_or_else(|e| e.into_inner());
@@ -143,35 +148,40 @@ pub fn bake(scene: &Scene, settings: &BakeSettings, progress: &Progress) -> Resu
                 *image = vec![0.0; width * height * 3];
             }
             for ty in 0..tile.height as usize {
-                let src = &part[ty * tile.width as usize * 3..(ty + 1) * tile.width as usize * 3];
-                let row = (tile.y0 as usize + ty) * width + tile.x0 as usize;
-                image[row * 3..row * 3 + src.len()].copy_from_slice(src);
+                for tx in 0..tile.width as usize {
+                    let dst = ((tile.y0 as usize + ty) * width + tile.x0 as usize + tx) * 3;
+                    image[dst..dst + 3].copy_from_slice(texel(ty * tile.width as usize + tx));
+                }
             }
         }
         true
     })?;
 
+    let assembly_start = Instant::now();
     let inv_spp = 1.0 / settings.spp as f32;
-    let mut layers = Vec::new();
-    let (mut grey, mut rgb, mut empty) = (0, 0, 0);
-    for (index, slot) in store.into_iter().enumerate() {
+    let assemble = |(index, slot): (usize, Mutex<Vec<f32>>)| -> Option<Layer> {
         let mut image = slot.into_inner().unwrap_or_else(|e| e.into_inner());
         if image.is_empty() || image.iter().all(|v| *v == 0.0) {
-            empty += 1;
-            continue;
+            return None;
         }
         image.iter_mut().for_each(|v| *v *= inv_spp);
         let key = layer_key(&ctx, index);
-        let is_grey = image.chunks_exact(3).all(|c| c[0] == c[1] && c[1] == c[2]);
-        if is_grey {
+        if image.chunks_exact(3).all(|c| c[0] == c[1] && c[1] == c[2]) {
             let y: Vec<f32> = image.chunks_exact(3).map(|c| c[0]).collect();
-            layers.push(Layer::from_f32(key, 1, &y, settings.precision));
-            grey += 1;
+            Some(Layer::from_f32(key, 1, &y, settings.precision))
         } else {
-            layers.push(Layer::from_f32(key, 3, &image, settings.precision));
-            rgb += 1;
+            Some(Layer::from_f32(key, 3, &image, settings.precision))
         }
-    }
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(settings.threads)
+        .build()
+        .map_err(|e| crate::RelumeError::invalid("threads", e.to_string()))?;
+    let assembled: Vec<Option<Layer>> = pool.install(|| store.into_par_iter().enumerate().map(assemble).collect());
+    let empty = assembled.iter().filter(|l| l.is_none()).count();
+    let layers: Vec<Layer> = assembled.into_iter().flatten().collect();
+    let grey = layers.iter().filter(|l| l.channels == 1).count();
+    let rgb = layers.len() - grey;
     let header = StackHeader {
         format_version: STACK_FORMAT_VERSION,
         width: res.width,
@@ -198,6 +208,7 @@ pub fn bake(scene: &Scene, settings: &BakeSettings, progress: &Progress) -> Resu
         precision: settings.precision,
     };
     let stack = TransferStack { header, layers };
+    let assembly_seconds = assembly_start.elapsed().as_secs_f64();
     let trace_seconds = trace_start.elapsed().as_secs_f64();
     let seconds = start.elapsed().as_secs_f64();
     let rays = rays.into_inner();
@@ -206,6 +217,7 @@ pub fn bake(scene: &Scene, settings: &BakeSettings, progress: &Progress) -> Resu
         rays,
         setup_seconds,
         trace_seconds,
+        assembly_seconds,
         rays_per_second: rays as f64 / trace_seconds.max(1e-9),
         width: res.width,
         height: res.height,
