@@ -19,7 +19,7 @@
 //!   of the frame costs about a quarter of its bytes.
 //! - **Zero weights skipped.** A layer whose weight is 0 (say every specular basis of a
 //!   region with `Ks = 0`) is not read at all.
-//! - **Fast inner loops** ([`kernels`]): AVX2 + FMA + F16C where the CPU has them
+//! - **Fast inner loops** (`kernels.rs`): AVX2 + FMA + F16C where the CPU has them
 //!   (detected at run time), converting f16 in registers.
 //!
 //!
