@@ -1,1 +1,295 @@
-//! Material edits applied at relight time. HELPER D: implement.
+//! Material edits applied at relight time: the file behind `relume relight --materials M.json`.
+//!
+//! A stack remembers the material every region had at bake time ([`RegionInfo::material`]);
+//! a materials file overrides some editable regions by name and leaves the others as baked.
+//!
+//! ```json
+//! { "format": "relume-materials", "version": 1,
+//!   "regions": {
+//!     "Bunny": {"model": "blinn_phong", "kd": [0.2, 0.2, 0.2], "ks": [0.4, 0.4, 0.4], "ns": 50},
+//!     "Walls": {"model": "principled", "base_color": [0.8, 0.8, 0.8], "roughness": 0.4} } }
+//! ```
+//!
+//! - `format` must be `"relume-materials"` and `version` must be
+//!   [`MATERIALS_FORMAT_VERSION`] (1): a file of another kind or a later layout is refused,
+//!   not half-read.
+//! - `regions` maps region names (Blender material names) to a [`MaterialSpec`]:
+//!   `"model": "blinn_phong"` with `kd`, `ks` (RGB albedos) and `ns` (exponent), or
+//!   `"model": "principled"` with `base_color` and optionally `metallic` (0), `roughness`
+//!   (0.5), `ior` (1.5), `specular_ior_level` (0.5), mapped by
+//!   [`crate::brdf::principled_to_blinn_phong`].
+//! - Unknown fields are errors, at the top and in every material: a misspelt
+//!   `"roughnes"` would otherwise silently leave the default in place.
+//! - Only editable regions can be edited; naming a fixed region is an error, because its
+//!   material was baked into the layers.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use serde::Deserialize;
+
+use crate::brdf::MaterialSpec;
+use crate::stack::RegionInfo;
+use crate::{RelumeError, Result};
+
+/// The `format` string of a materials file.
+pub const MATERIALS_FORMAT: &str = "relume-materials";
+/// The only `version` this build reads.
+pub const MATERIALS_FORMAT_VERSION: u32 = 1;
+
+/// A parsed materials file: material per region name.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MaterialsFile {
+    pub regions: BTreeMap<String, MaterialSpec>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawFile {
+    #[allow(dead_code)]
+    format: String,
+    #[allow(dead_code)]
+    version: u32,
+    regions: BTreeMap<String, MaterialSpec>,
+}
+
+/// Reads and parses a materials file. Errors: the file cannot be read
+/// ([`RelumeError::Io`]); anything [`parse_materials`] refuses, prefixed by the path.
+pub fn load_materials(path: &Path) -> Result<MaterialsFile> {
+    let text = std::fs::read_to_string(path).map_err(|e| RelumeError::io(path, e))?;
+    parse_materials(&text).map_err(|e| match e {
+        RelumeError::Materials(m) => RelumeError::Materials(format!("{}: {m}", path.display())),
+        other => other,
+    })
+}
+
+/// Parses the text of a materials file. Errors ([`RelumeError::Materials`]): invalid JSON
+/// or a field of the wrong type (with serde's line and column), a missing or other
+/// `format`, a missing or other `version`, an unknown field.
+pub fn parse_materials(json: &str) -> Result<MaterialsFile> {
+    let value: serde_json::Value = serde_json::from_str(json)
+        .map_err(|e| RelumeError::Materials(format!("invalid JSON: {e}")))?;
+    let obj = value.as_object().ok_or_else(|| {
+        RelumeError::Materials("expected a JSON object with \"format\", \"version\" and \"regions\"".into())
+    })?;
+    match obj.get("format") {
+        Some(serde_json::Value::String(f)) if f == MATERIALS_FORMAT => {}
+        Some(other) => {
+            return Err(RelumeError::Materials(format!(
+                "\"format\" is {other}, expected \"{MATERIALS_FORMAT}\": not a Relume materials file"
+            )))
+        }
+        None => {
+            return Err(RelumeError::Materials(format!(
+                "no \"format\" field (expected \"{MATERIALS_FORMAT}\"): not a Relume materials file"
+            )))
+        }
+    }
+    match obj.get("version").map(|v| v.as_u64()) {
+        Some(Some(v)) if v == MATERIALS_FORMAT_VERSION as u64 => {}
+        Some(Some(v)) => {
+            return Err(RelumeError::Materials(format!(
+                "materials file version {v}; this build reads version {MATERIALS_FORMAT_VERSION}"
+            )))
+        }
+        Some(None) => {
+            return Err(RelumeError::Materials(format!(
+                "\"version\" must be an unsigned integer (this build reads {MATERIALS_FORMAT_VERSION})"
+            )))
+        }
+        None => {
+            return Err(RelumeError::Materials(format!(
+                "no \"version\" field (this build reads {MATERIALS_FORMAT_VERSION})"
+            )))
+        }
+    }
+    // Typed parse of the text (not of `value`) so that field errors keep line and column.
+    let raw: RawFile = serde_json::from_str(json)
+        .map_err(|e| RelumeError::Materials(format!("invalid materials file: {e}")))?;
+    // `MaterialSpec` ignores unknown fields; catch them by comparing each material's keys
+    // with those of the parsed value written back.
+    let given = obj.get("regions").and_then(|r| r.as_object());
+    for (name, spec) in &raw.regions {
+        let Some(serde_json::Value::Object(fields)) = given.and_then(|g| g.get(name)) else {
+            continue;
+        };
+        let known = serde_json::to_value(spec)
+            .map_err(|e| RelumeError::Materials(format!("region {name:?}: {e}")))?;
+        let known = known.as_object().cloned().unwrap_or_default();
+        if let Some(bad) = fields.keys().find(|k| !known.contains_key(*k)) {
+            let names: Vec<&str> = known.keys().map(|k| k.as_str()).filter(|k| *k != "model").collect();
+            return Err(RelumeError::Materials(format!(
+                "region {name:?}: unknown field {bad:?} (fields of this model: {})",
+                names.join(", ")
+            )));
+        }
+    }
+    Ok(MaterialsFile { regions: raw.regions })
+}
+
+/// Materials of the editable regions, in editable order (the order of
+/// `PathVertex::Editable::region`): each region's bake-time material, replaced by the
+/// file's where it names the region.
+///
+/// Errors ([`RelumeError::Materials`]): a name that is no region of the stack (the message
+/// lists the editable ones), a name of a fixed region (its material is baked into the
+/// layers: rebake with it editable).
+pub fn resolve_materials(regions: &[RegionInfo], edits: &MaterialsFile) -> Result<Vec<MaterialSpec>> {
+    for name in edits.regions.keys() {
+        match regions.iter().find(|r| &r.name == name) {
+            None => {
+                let editable: Vec<String> = regions
+                    .iter()
+                    .filter(|r| r.editable)
+                    .map(|r| format!("{:?}", r.name))
+                    .collect();
+                let list = if editable.is_empty() {
+                    "none".to_string()
+                } else {
+                    editable.join(", ")
+                };
+                return Err(RelumeError::Materials(format!(
+                    "no region named {name:?} in this stack; editable regions: {list}"
+                )));
+            }
+            Some(r) if !r.editable => {
+                return Err(RelumeError::Materials(format!(
+                    "region {name:?} is fixed in this stack: rebake with it editable to edit its material"
+                )));
+            }
+            Some(_) => {}
+        }
+    }
+    Ok(regions
+        .iter()
+        .filter(|r| r.editable)
+        .map(|r| edits.regions.get(&r.name).unwrap_or(&r.material).clone())
+        .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::brdf::{BlinnPhong, Principled};
+
+    fn region(name: &str, editable: bool, kd: f32) -> RegionInfo {
+        RegionInfo {
+            name: name.into(),
+            editable,
+            material: MaterialSpec::BlinnPhong(BlinnPhong { kd: [kd; 3], ks: [0.1; 3], ns: 20.0 }),
+            basis: None,
+        }
+    }
+
+    const EXAMPLE: &str = r#"{ "format": "relume-materials", "version": 1,
+      "regions": { "Bunny": {"model": "blinn_phong", "kd": [0.2,0.2,0.2], "ks": [0.4,0.4,0.4], "ns": 50},
+                   "Walls": {"model": "principled", "base_color": [0.8,0.8,0.8], "roughness": 0.4} } }"#;
+
+    fn err(json: &str) -> String {
+        match parse_materials(json) {
+            Err(RelumeError::Materials(m)) => m,
+            other => panic!("expected a materials error for {json}, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn parses_the_documented_example() {
+        let m = parse_materials(EXAMPLE).unwrap();
+        assert_eq!(
+            m.regions["Bunny"],
+            MaterialSpec::BlinnPhong(BlinnPhong { kd: [0.2; 3], ks: [0.4; 3], ns: 50.0 })
+        );
+        assert_eq!(
+            m.regions["Walls"],
+            MaterialSpec::Principled(Principled {
+                base_color: [0.8; 3],
+                metallic: 0.0,
+                roughness: 0.4,
+                ior: 1.5,
+                specular_ior_level: 0.5,
+            })
+        );
+    }
+
+    #[test]
+    fn bad_json_reports_line_and_column() {
+        let m = err("{ \"format\": \"relume-materials\",\n  \"version\": 1,\n  \"regions\": { ]\n}");
+        assert!(m.contains("line 3") && m.contains("column"), "{m}");
+        // A type error inside a material also keeps its position.
+        let m = err(r#"{"format":"relume-materials","version":1,"regions":{"A":{"model":"blinn_phong","kd":"red","ks":[0,0,0],"ns":1}}}"#);
+        assert!(m.contains("line 1") && m.contains("column"), "{m}");
+    }
+
+    #[test]
+    fn wrong_format_and_version_are_refused() {
+        assert!(err(r#"{"format":"relume-scene","version":1,"regions":{}}"#).contains("not a Relume materials file"));
+        assert!(err(r#"{"version":1,"regions":{}}"#).contains("no \"format\""));
+        assert!(err(r#"{"format":"relume-materials","version":2,"regions":{}}"#).contains("version 2"));
+        assert!(err(r#"{"format":"relume-materials","regions":{}}"#).contains("no \"version\""));
+        assert!(err(r#"{"format":"relume-materials","version":"1","regions":{}}"#).contains("unsigned integer"));
+        assert!(err("[1, 2]").contains("expected a JSON object"));
+    }
+
+    #[test]
+    fn unknown_fields_are_refused() {
+        let m = err(r#"{"format":"relume-materials","version":1,"regions":{"W":{"model":"principled","base_color":[1,1,1],"roughnes":0.2}}}"#);
+        assert!(m.contains("\"roughnes\"") && m.contains("roughness"), "{m}");
+        let m = err(r#"{"format":"relume-materials","version":1,"regions":{},"extra":1}"#);
+        assert!(m.contains("extra"), "{m}");
+        let m = err(r#"{"format":"relume-materials","version":1,"regions":{"W":{"model":"lambert"}}}"#);
+        assert!(m.contains("lambert"), "{m}");
+    }
+
+    #[test]
+    fn load_reports_io_and_prefixes_the_path() {
+        let dir = std::env::temp_dir().join(format!("relume-materials-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let missing = dir.join("missing.json");
+        assert!(matches!(load_materials(&missing), Err(RelumeError::Io { .. })));
+        let bad = dir.join("bad.json");
+        std::fs::write(&bad, "{").unwrap();
+        match load_materials(&bad) {
+            Err(RelumeError::Materials(m)) => assert!(m.contains("bad.json") && m.contains("line 1"), "{m}"),
+            other => panic!("{other:?}"),
+        }
+        let good = dir.join("good.json");
+        std::fs::write(&good, EXAMPLE).unwrap();
+        assert_eq!(load_materials(&good).unwrap().regions.len(), 2);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn resolve_overrides_named_editable_regions_only() {
+        let regions = [region("Bunny", true, 0.3), region("Floor", false, 0.5), region("Walls", true, 0.7)];
+        // No edits: bake-time materials of the editable regions, in editable order.
+        let base = resolve_materials(&regions, &MaterialsFile::default()).unwrap();
+        assert_eq!(base, vec![regions[0].material.clone(), regions[2].material.clone()]);
+        // One edit: that region changes, the other keeps its bake-time material.
+        let mut edits = MaterialsFile::default();
+        let new = MaterialSpec::BlinnPhong(BlinnPhong { kd: [0.9, 0.1, 0.1], ks: [0.0; 3], ns: 5.0 });
+        edits.regions.insert("Walls".into(), new.clone());
+        let got = resolve_materials(&regions, &edits).unwrap();
+        assert_eq!(got, vec![regions[0].material.clone(), new]);
+    }
+
+    #[test]
+    fn resolve_refuses_unknown_and_fixed_regions() {
+        let regions = [region("Bunny", true, 0.3), region("Floor", false, 0.5), region("Walls", true, 0.7)];
+        let spec = regions[0].material.clone();
+        let mut edits = MaterialsFile::default();
+        edits.regions.insert("Bunyy".into(), spec.clone());
+        match resolve_materials(&regions, &edits) {
+            Err(RelumeError::Materials(m)) => {
+                assert!(m.contains("\"Bunyy\"") && m.contains("\"Bunny\", \"Walls\""), "{m}");
+                assert!(!m.contains("Floor"), "fixed regions are not offered: {m}");
+            }
+            other => panic!("{other:?}"),
+        }
+        let mut edits = MaterialsFile::default();
+        edits.regions.insert("Floor".into(), spec);
+        match resolve_materials(&regions, &edits) {
+            Err(RelumeError::Materials(m)) => assert!(m.contains("fixed in this stack") && m.contains("rebake"), "{m}"),
+            other => panic!("{other:?}"),
+        }
+    }
+}
