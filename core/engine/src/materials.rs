@@ -178,6 +178,7 @@ mod tests {
             editable,
             material: MaterialSpec::BlinnPhong(BlinnPhong { kd: [kd; 3], ks: [0.1; 3], ns: 20.0 }),
             basis: None,
+            textured: false,
         }
     }
 

@@ -50,7 +50,7 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
     let infos: Vec<RegionInfo> = scene
         .regions
         .iter()
-        .map(|r| RegionInfo { name: r.name.clone(), editable: r.editable, material: r.material.clone(), basis: None })
+        .map(|r| RegionInfo { name: r.name.clone(), editable: r.editable, material: r.material.clone(), basis: None, textured: false })
         .collect();
     let materials: Vec<_> = resolve_materials(&infos, &edits)?.iter().map(|m| m.to_blinn_phong()).collect();
     let brdf = match args.brdf {

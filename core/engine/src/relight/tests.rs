@@ -16,6 +16,7 @@ fn header(width: u32, height: u32) -> StackHeader {
         editable,
         material: MaterialSpec::BlinnPhong(BlinnPhong { kd: [0.5; 3], ks: [0.1; 3], ns: 10.0 }),
         basis: None,
+        textured: false,
     };
     StackHeader {
         format_version: STACK_FORMAT_VERSION,

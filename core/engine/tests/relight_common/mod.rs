@@ -43,6 +43,7 @@ pub fn header(width: u32, height: u32) -> StackHeader {
         editable,
         material: MaterialSpec::BlinnPhong(BlinnPhong { kd: [0.5; 3], ks: [0.2; 3], ns: 20.0 }),
         basis: None,
+        textured: false,
     };
     StackHeader {
         format_version: STACK_FORMAT_VERSION,

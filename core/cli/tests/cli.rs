@@ -1,0 +1,136 @@
+//! The `relume` binary end to end on the assets' Cornell scene at a tiny resolution:
+//! bake → relight → reference → compare, the basis report, the benches, and errors.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn relume(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_relume")).args(args).output().expect("run relume")
+}
+
+fn json_of(out: &Output) -> serde_json::Value {
+    assert!(out.status.success(), "relume failed: {}", String::from_utf8_lossy(&out.stderr));
+    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
+}
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("relume-cli-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[test]
+fn bake_relight_reference_compare() {
+    let dir = scratch("pipeline");
+    let scene = root().join("assets/cornell.scene.json");
+    let stack = dir.join("c.exr");
+    let common = ["--resolution", "40x40", "--spp", "2", "--light-samples", "2", "--seed", "3"];
+    let mut args = vec!["bake", s(&scene), "-o", s(&stack), "--json"];
+    args.extend(common);
+    let bake = json_of(&relume(&args));
+    assert!(bake["layers"].as_u64().unwrap() > 10, "{bake}");
+    assert!(bake["report"]["rays"].as_u64().unwrap() > 0);
+
+    let mats = dir.join("m.json");
+    std::fs::write(
+        &mats,
+        r#"{"format": "relume-materials", "version": 1, "regions": {"Object": {"model": "blinn_phong", "kd": [0.1, 0.5, 0.1], "ks": [0.5, 0.5, 0.5], "ns": 80}}}"#,
+    )
+    .unwrap();
+    let relit = dir.join("relit.exr");
+    let r = json_of(&relume(&["relight", s(&stack), "--materials", s(&mats), "-o", s(&relit), "--png", s(&dir.join("relit.png")), "--scene", s(&scene), "--json"]));
+    assert_eq!(r["width"], 40);
+    assert!(dir.join("relit.png").exists());
+
+    let reference = dir.join("ref.exr");
+    let mut args = vec!["reference", s(&scene), "--materials", s(&mats), "-o", s(&reference), "--brdf", "projected", "--json"];
+    args.extend(common);
+    json_of(&relume(&args));
+    let cmp = json_of(&relume(&["compare", s(&relit), s(&reference), "--json"]));
+    let rel = cmp["rel_l2"].as_f64().unwrap();
+    assert!(rel < 5e-4, "relit vs projected reference: {rel}");
+
+    // A different seed gives different paths, so a visibly different image.
+    let other = dir.join("ref_seed.exr");
+    let mut args = vec!["reference", s(&scene), "--materials", s(&mats), "-o", s(&other), "--brdf", "projected", "--json", "--seed", "4"];
+    args.extend(&common[..6]);
+    json_of(&relume(&args));
+    let cmp = json_of(&relume(&["compare", s(&relit), s(&other), "--json"]));
+    assert!(cmp["rel_l2"].as_f64().unwrap() > 1e-3);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn basis_report_as_json() {
+    let r = json_of(&relume(&["basis", "--ns-min", "1", "--ns-max", "200", "--bases", "6", "--json"]));
+    assert_eq!(r["bases"], 6);
+    let avg = r["avg_rel_l2"].as_f64().unwrap();
+    let max = r["max_rel_l2"].as_f64().unwrap();
+    assert!(avg <= 0.007979 && max <= 0.06747, "avg {avg} max {max}: the paper reports 0.7979 % / 6.747 %");
+    let t = json_of(&relume(&["basis", "--ns-min", "1", "--ns-max", "10000", "--tolerance", "0.03", "--json"]));
+    assert!(t["max_rel_l2"].as_f64().unwrap() <= 0.03, "{t}");
+}
+
+#[test]
+fn benches_print_figures() {
+    let dir = scratch("bench");
+    let scene = root().join("assets/cornell.scene.json");
+    let b = json_of(&relume(&["bench", "bake", s(&scene), "--resolution", "32x32", "--spp", "1", "--json"]));
+    for k in ["effective_rays_per_second", "raw_rays_per_second", "ratio"] {
+        assert!(b[k].as_f64().unwrap() > 0.0, "{k}: {b}");
+    }
+    let stack = dir.join("b.exr");
+    json_of(&relume(&["bake", s(&scene), "-o", s(&stack), "--resolution", "32x32", "--spp", "1", "--json"]));
+    let r = json_of(&relume(&["bench", "relight", s(&stack), "--repeats", "3", "--json"]));
+    for k in ["full_ms", "incremental_ms", "bandwidth_gb_s", "bandwidth_bound_ms"] {
+        assert!(r[k].as_f64().unwrap() > 0.0, "{k}: {r}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn errors_are_specific_and_exit_nonzero() {
+    let dir = scratch("errors");
+    let missing = relume(&["bake", "/nonexistent/scene.json", "-o", s(&dir.join("x.exr"))]);
+    assert!(!missing.status.success());
+    assert!(String::from_utf8_lossy(&missing.stderr).contains("/nonexistent/scene.json"));
+
+    // A truncated stack.
+    let scene = root().join("assets/cornell.scene.json");
+    let stack = dir.join("t.exr");
+    json_of(&relume(&["bake", s(&scene), "-o", s(&stack), "--resolution", "16x16", "--spp", "1", "--json"]));
+    let bytes = std::fs::read(&stack).unwrap();
+    let cut = dir.join("cut.exr");
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    let out = relume(&["relight", s(&cut), "-o", s(&dir.join("o.exr"))]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("truncated"), "{}", String::from_utf8_lossy(&out.stderr));
+
+    // A stack from another scene.
+    let mut other: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&scene).unwrap()).unwrap();
+    other["lights"][0]["power"] = serde_json::json!(1.0);
+    let other_path = dir.join("other.scene.json");
+    std::fs::write(&other_path, other.to_string()).unwrap();
+    let out = relume(&["relight", s(&stack), "-o", s(&dir.join("o.exr")), "--scene", s(&other_path)]);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("another scene"), "{}", String::from_utf8_lossy(&out.stderr));
+
+    // A material for a region that does not exist.
+    let mats = dir.join("m.json");
+    std::fs::write(&mats, r#"{"format": "relume-materials", "version": 1, "regions": {"Nope": {"model": "blinn_phong", "kd": [0.1, 0.1, 0.1], "ks": [0, 0, 0], "ns": 1}}}"#).unwrap();
+    let out = relume(&["relight", s(&stack), "--materials", s(&mats), "-o", s(&dir.join("o.exr"))]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("Nope"));
+    assert!(!dir.join("o.exr").exists(), "no output on error");
+
+    let out = relume(&["bake", s(&scene), "-o", s(&dir.join("x.exr")), "--resolution", "12by12"]);
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--resolution"));
+    std::fs::remove_dir_all(&dir).ok();
+}
