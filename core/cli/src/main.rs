@@ -12,7 +12,11 @@ mod progress_bar;
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
-#[command(name = "relume", version, about = "Bake global illumination once, relight materials in milliseconds")]
+#[command(
+    name = "relume",
+    version,
+    about = "Bake global illumination once, relight materials in milliseconds"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,

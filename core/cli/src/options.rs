@@ -99,7 +99,12 @@ impl BakeOptions {
 
 /// Parses `WxH`.
 pub fn parse_resolution(s: &str) -> Result<Resolution, RelumeError> {
-    let bad = || RelumeError::invalid("--resolution", format!("\"{s}\" (expected WIDTHxHEIGHT, e.g. 512x512)"));
+    let bad = || {
+        RelumeError::invalid(
+            "--resolution",
+            format!("\"{s}\" (expected WIDTHxHEIGHT, e.g. 512x512)"),
+        )
+    };
     let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
     let width: u32 = w.trim().parse().map_err(|_| bad())?;
     let height: u32 = h.trim().parse().map_err(|_| bad())?;

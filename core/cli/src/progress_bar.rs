@@ -9,7 +9,10 @@ use indicatif::{ProgressBar, ProgressStyle};
 use relume_engine::bake::progress::Progress;
 
 /// Runs `work` with a shared [`Progress`], drawing a bar labelled `label` meanwhile.
-pub fn with_progress<T: Send + 'static>(label: &str, work: impl FnOnce(Arc<Progress>) -> T + Send + 'static) -> T {
+pub fn with_progress<T: Send + 'static>(
+    label: &str,
+    work: impl FnOnce(Arc<Progress>) -> T + Send + 'static,
+) -> T {
     let progress = Arc::new(Progress::new());
     {
         let p = progress.clone();
@@ -23,9 +26,11 @@ pub fn with_progress<T: Send + 'static>(label: &str, work: impl FnOnce(Arc<Progr
     let bar = std::io::stderr().is_terminal().then(|| {
         let bar = ProgressBar::new(1000);
         bar.set_style(
-            ProgressStyle::with_template("{msg} [{bar:40}] {percent:>3}% {elapsed_precise} ETA {eta}")
-                .unwrap_or_else(|_| ProgressStyle::default_bar())
-                .progress_chars("=> "),
+            ProgressStyle::with_template(
+                "{msg} [{bar:40}] {percent:>3}% {elapsed_precise} ETA {eta}",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
         );
         bar.set_message(label.to_string());
         bar

@@ -5,12 +5,20 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 fn relume(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_relume")).args(args).output().expect("run relume")
+    Command::new(env!("CARGO_BIN_EXE_relume"))
+        .args(args)
+        .output()
+        .expect("run relume")
 }
 
 fn json_of(out: &Output) -> serde_json::Value {
-    assert!(out.status.success(), "relume failed: {}", String::from_utf8_lossy(&out.stderr));
-    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
+    assert!(
+        out.status.success(),
+        "relume failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
 }
 
 fn root() -> PathBuf {
@@ -32,7 +40,16 @@ fn bake_relight_reference_compare() {
     let dir = scratch("pipeline");
     let scene = root().join("assets/cornell.scene.json");
     let stack = dir.join("c.exr");
-    let common = ["--resolution", "40x40", "--spp", "2", "--light-samples", "2", "--seed", "3"];
+    let common = [
+        "--resolution",
+        "40x40",
+        "--spp",
+        "2",
+        "--light-samples",
+        "2",
+        "--seed",
+        "3",
+    ];
     let mut args = vec!["bake", s(&scene), "-o", s(&stack), "--json"];
     args.extend(common);
     let bake = json_of(&relume(&args));
@@ -46,12 +63,34 @@ fn bake_relight_reference_compare() {
     )
     .unwrap();
     let relit = dir.join("relit.exr");
-    let r = json_of(&relume(&["relight", s(&stack), "--materials", s(&mats), "-o", s(&relit), "--png", s(&dir.join("relit.png")), "--scene", s(&scene), "--json"]));
+    let r = json_of(&relume(&[
+        "relight",
+        s(&stack),
+        "--materials",
+        s(&mats),
+        "-o",
+        s(&relit),
+        "--png",
+        s(&dir.join("relit.png")),
+        "--scene",
+        s(&scene),
+        "--json",
+    ]));
     assert_eq!(r["width"], 40);
     assert!(dir.join("relit.png").exists());
 
     let reference = dir.join("ref.exr");
-    let mut args = vec!["reference", s(&scene), "--materials", s(&mats), "-o", s(&reference), "--brdf", "projected", "--json"];
+    let mut args = vec![
+        "reference",
+        s(&scene),
+        "--materials",
+        s(&mats),
+        "-o",
+        s(&reference),
+        "--brdf",
+        "projected",
+        "--json",
+    ];
     args.extend(common);
     json_of(&relume(&args));
     let cmp = json_of(&relume(&["compare", s(&relit), s(&reference), "--json"]));
@@ -60,7 +99,19 @@ fn bake_relight_reference_compare() {
 
     // A different seed gives different paths, so a visibly different image.
     let other = dir.join("ref_seed.exr");
-    let mut args = vec!["reference", s(&scene), "--materials", s(&mats), "-o", s(&other), "--brdf", "projected", "--json", "--seed", "4"];
+    let mut args = vec![
+        "reference",
+        s(&scene),
+        "--materials",
+        s(&mats),
+        "-o",
+        s(&other),
+        "--brdf",
+        "projected",
+        "--json",
+        "--seed",
+        "4",
+    ];
     args.extend(&common[..6]);
     json_of(&relume(&args));
     let cmp = json_of(&relume(&["compare", s(&relit), s(&other), "--json"]));
@@ -70,12 +121,26 @@ fn bake_relight_reference_compare() {
 
 #[test]
 fn basis_report_as_json() {
-    let r = json_of(&relume(&["basis", "--ns-min", "1", "--ns-max", "200", "--bases", "6", "--json"]));
+    let r = json_of(&relume(&[
+        "basis", "--ns-min", "1", "--ns-max", "200", "--bases", "6", "--json",
+    ]));
     assert_eq!(r["bases"], 6);
     let avg = r["avg_rel_l2"].as_f64().unwrap();
     let max = r["max_rel_l2"].as_f64().unwrap();
-    assert!(avg <= 0.007979 && max <= 0.06747, "avg {avg} max {max}: the paper reports 0.7979 % / 6.747 %");
-    let t = json_of(&relume(&["basis", "--ns-min", "1", "--ns-max", "10000", "--tolerance", "0.03", "--json"]));
+    assert!(
+        avg <= 0.007979 && max <= 0.06747,
+        "avg {avg} max {max}: the paper reports 0.7979 % / 6.747 %"
+    );
+    let t = json_of(&relume(&[
+        "basis",
+        "--ns-min",
+        "1",
+        "--ns-max",
+        "10000",
+        "--tolerance",
+        "0.03",
+        "--json",
+    ]));
     assert!(t["max_rel_l2"].as_f64().unwrap() <= 0.03, "{t}");
 }
 
@@ -83,14 +148,45 @@ fn basis_report_as_json() {
 fn benches_print_figures() {
     let dir = scratch("bench");
     let scene = root().join("assets/cornell.scene.json");
-    let b = json_of(&relume(&["bench", "bake", s(&scene), "--resolution", "32x32", "--spp", "1", "--json"]));
+    let b = json_of(&relume(&[
+        "bench",
+        "bake",
+        s(&scene),
+        "--resolution",
+        "32x32",
+        "--spp",
+        "1",
+        "--json",
+    ]));
     for k in ["effective_rays_per_second", "raw_rays_per_second", "ratio"] {
         assert!(b[k].as_f64().unwrap() > 0.0, "{k}: {b}");
     }
     let stack = dir.join("b.exr");
-    json_of(&relume(&["bake", s(&scene), "-o", s(&stack), "--resolution", "32x32", "--spp", "1", "--json"]));
-    let r = json_of(&relume(&["bench", "relight", s(&stack), "--repeats", "3", "--json"]));
-    for k in ["full_ms", "incremental_ms", "bandwidth_gb_s", "bandwidth_bound_ms"] {
+    json_of(&relume(&[
+        "bake",
+        s(&scene),
+        "-o",
+        s(&stack),
+        "--resolution",
+        "32x32",
+        "--spp",
+        "1",
+        "--json",
+    ]));
+    let r = json_of(&relume(&[
+        "bench",
+        "relight",
+        s(&stack),
+        "--repeats",
+        "3",
+        "--json",
+    ]));
+    for k in [
+        "full_ms",
+        "incremental_ms",
+        "bandwidth_gb_s",
+        "bandwidth_bound_ms",
+    ] {
         assert!(r[k].as_f64().unwrap() > 0.0, "{k}: {r}");
     }
     std::fs::remove_dir_all(&dir).ok();
@@ -99,38 +195,83 @@ fn benches_print_figures() {
 #[test]
 fn errors_are_specific_and_exit_nonzero() {
     let dir = scratch("errors");
-    let missing = relume(&["bake", "/nonexistent/scene.json", "-o", s(&dir.join("x.exr"))]);
+    let missing = relume(&[
+        "bake",
+        "/nonexistent/scene.json",
+        "-o",
+        s(&dir.join("x.exr")),
+    ]);
     assert!(!missing.status.success());
     assert!(String::from_utf8_lossy(&missing.stderr).contains("/nonexistent/scene.json"));
 
     // A truncated stack.
     let scene = root().join("assets/cornell.scene.json");
     let stack = dir.join("t.exr");
-    json_of(&relume(&["bake", s(&scene), "-o", s(&stack), "--resolution", "16x16", "--spp", "1", "--json"]));
+    json_of(&relume(&[
+        "bake",
+        s(&scene),
+        "-o",
+        s(&stack),
+        "--resolution",
+        "16x16",
+        "--spp",
+        "1",
+        "--json",
+    ]));
     let bytes = std::fs::read(&stack).unwrap();
     let cut = dir.join("cut.exr");
     std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
     let out = relume(&["relight", s(&cut), "-o", s(&dir.join("o.exr"))]);
     assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("truncated"), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("truncated"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 
     // A stack from another scene.
-    let mut other: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&scene).unwrap()).unwrap();
+    let mut other: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&scene).unwrap()).unwrap();
     other["lights"][0]["power"] = serde_json::json!(1.0);
     let other_path = dir.join("other.scene.json");
     std::fs::write(&other_path, other.to_string()).unwrap();
-    let out = relume(&["relight", s(&stack), "-o", s(&dir.join("o.exr")), "--scene", s(&other_path)]);
-    assert!(String::from_utf8_lossy(&out.stderr).contains("another scene"), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = relume(&[
+        "relight",
+        s(&stack),
+        "-o",
+        s(&dir.join("o.exr")),
+        "--scene",
+        s(&other_path),
+    ]);
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("another scene"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 
     // A material for a region that does not exist.
     let mats = dir.join("m.json");
     std::fs::write(&mats, r#"{"format": "relume-materials", "version": 1, "regions": {"Nope": {"model": "blinn_phong", "kd": [0.1, 0.1, 0.1], "ks": [0, 0, 0], "ns": 1}}}"#).unwrap();
-    let out = relume(&["relight", s(&stack), "--materials", s(&mats), "-o", s(&dir.join("o.exr"))]);
+    let out = relume(&[
+        "relight",
+        s(&stack),
+        "--materials",
+        s(&mats),
+        "-o",
+        s(&dir.join("o.exr")),
+    ]);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("Nope"));
     assert!(!dir.join("o.exr").exists(), "no output on error");
 
-    let out = relume(&["bake", s(&scene), "-o", s(&dir.join("x.exr")), "--resolution", "12by12"]);
+    let out = relume(&[
+        "bake",
+        s(&scene),
+        "-o",
+        s(&dir.join("x.exr")),
+        "--resolution",
+        "12by12",
+    ]);
     assert!(String::from_utf8_lossy(&out.stderr).contains("--resolution"));
     std::fs::remove_dir_all(&dir).ok();
 }

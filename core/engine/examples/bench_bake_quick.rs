@@ -8,13 +8,21 @@ fn main() {
     let mut settings = BakeSettings::default();
     if let Some(r) = args.get(2) {
         let (w, h) = r.split_once('x').expect("WxH");
-        settings.resolution = Some(Resolution { width: w.parse().unwrap(), height: h.parse().unwrap() });
+        settings.resolution = Some(Resolution {
+            width: w.parse().unwrap(),
+            height: h.parse().unwrap(),
+        });
     }
     if let Some(s) = args.get(3) {
         settings.spp = s.parse().unwrap();
     }
     let b = bench_bake(&scene, &settings).expect("bench");
     println!("{}", serde_json::to_string_pretty(&b).unwrap());
-    let (_, r) = relume_engine::bake::bake(&scene, &settings, &relume_engine::bake::progress::Progress::new()).unwrap();
+    let (_, r) = relume_engine::bake::bake(
+        &scene,
+        &settings,
+        &relume_engine::bake::progress::Progress::new(),
+    )
+    .unwrap();
     println!("{}", serde_json::to_string(&r).unwrap());
 }

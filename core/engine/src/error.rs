@@ -36,7 +36,9 @@ pub enum RelumeError {
     StackFormat { path: PathBuf, message: String },
     #[error("stack file {path} is truncated or damaged: {message}")]
     StackTruncated { path: PathBuf, message: String },
-    #[error("stack file {path} has stack format version {found}; this build reads version {supported}")]
+    #[error(
+        "stack file {path} has stack format version {found}; this build reads version {supported}"
+    )]
     StackVersion {
         path: PathBuf,
         found: u32,

@@ -70,15 +70,15 @@ pub fn parse_materials(json: &str) -> Result<MaterialsFile> {
     let value: serde_json::Value = serde_json::from_str(json)
         .map_err(|e| RelumeError::Materials(format!("invalid JSON: {e}")))?;
     let obj = value.as_object().ok_or_else(|| {
-        RelumeError::Materials("expected a JSON object with \"format\", \"version\" and \"regions\"".into())
+        RelumeError::Materials(
+            "expected a JSON object with \"format\", \"version\" and \"regions\"".into(),
+        )
     })?;
     match obj.get("format") {
         Some(serde_json::Value::String(f)) if f == MATERIALS_FORMAT => {}
-        Some(other) => {
-            return Err(RelumeError::Materials(format!(
-                "\"format\" is {other}, expected \"{MATERIALS_FORMAT}\": not a Relume materials file"
-            )))
-        }
+        Some(other) => return Err(RelumeError::Materials(format!(
+            "\"format\" is {other}, expected \"{MATERIALS_FORMAT}\": not a Relume materials file"
+        ))),
         None => {
             return Err(RelumeError::Materials(format!(
                 "no \"format\" field (expected \"{MATERIALS_FORMAT}\"): not a Relume materials file"
@@ -92,11 +92,9 @@ pub fn parse_materials(json: &str) -> Result<MaterialsFile> {
                 "materials file version {v}; this build reads version {MATERIALS_FORMAT_VERSION}"
             )))
         }
-        Some(None) => {
-            return Err(RelumeError::Materials(format!(
-                "\"version\" must be an unsigned integer (this build reads {MATERIALS_FORMAT_VERSION})"
-            )))
-        }
+        Some(None) => return Err(RelumeError::Materials(format!(
+            "\"version\" must be an unsigned integer (this build reads {MATERIALS_FORMAT_VERSION})"
+        ))),
         None => {
             return Err(RelumeError::Materials(format!(
                 "no \"version\" field (this build reads {MATERIALS_FORMAT_VERSION})"
@@ -117,14 +115,20 @@ pub fn parse_materials(json: &str) -> Result<MaterialsFile> {
             .map_err(|e| RelumeError::Materials(format!("region {name:?}: {e}")))?;
         let known = known.as_object().cloned().unwrap_or_default();
         if let Some(bad) = fields.keys().find(|k| !known.contains_key(*k)) {
-            let names: Vec<&str> = known.keys().map(|k| k.as_str()).filter(|k| *k != "model").collect();
+            let names: Vec<&str> = known
+                .keys()
+                .map(|k| k.as_str())
+                .filter(|k| *k != "model")
+                .collect();
             return Err(RelumeError::Materials(format!(
                 "region {name:?}: unknown field {bad:?} (fields of this model: {})",
                 names.join(", ")
             )));
         }
     }
-    Ok(MaterialsFile { regions: raw.regions })
+    Ok(MaterialsFile {
+        regions: raw.regions,
+    })
 }
 
 /// Materials of the editable regions, in editable order (the order of
@@ -134,7 +138,10 @@ pub fn parse_materials(json: &str) -> Result<MaterialsFile> {
 /// Errors ([`RelumeError::Materials`]): a name that is no region of the stack (the message
 /// lists the editable ones), a name of a fixed region (its material is baked into the
 /// layers: rebake with it editable).
-pub fn resolve_materials(regions: &[RegionInfo], edits: &MaterialsFile) -> Result<Vec<MaterialSpec>> {
+pub fn resolve_materials(
+    regions: &[RegionInfo],
+    edits: &MaterialsFile,
+) -> Result<Vec<MaterialSpec>> {
     for name in edits.regions.keys() {
         match regions.iter().find(|r| &r.name == name) {
             None => {
@@ -176,7 +183,11 @@ mod tests {
         RegionInfo {
             name: name.into(),
             editable,
-            material: MaterialSpec::BlinnPhong(BlinnPhong { kd: [kd; 3], ks: [0.1; 3], ns: 20.0 }),
+            material: MaterialSpec::BlinnPhong(BlinnPhong {
+                kd: [kd; 3],
+                ks: [0.1; 3],
+                ns: 20.0,
+            }),
             basis: None,
             textured: false,
         }
@@ -198,7 +209,11 @@ mod tests {
         let m = parse_materials(EXAMPLE).unwrap();
         assert_eq!(
             m.regions["Bunny"],
-            MaterialSpec::BlinnPhong(BlinnPhong { kd: [0.2; 3], ks: [0.4; 3], ns: 50.0 })
+            MaterialSpec::BlinnPhong(BlinnPhong {
+                kd: [0.2; 3],
+                ks: [0.4; 3],
+                ns: 50.0
+            })
         );
         assert_eq!(
             m.regions["Walls"],
@@ -214,30 +229,42 @@ mod tests {
 
     #[test]
     fn bad_json_reports_line_and_column() {
-        let m = err("{ \"format\": \"relume-materials\",\n  \"version\": 1,\n  \"regions\": { ]\n}");
+        let m =
+            err("{ \"format\": \"relume-materials\",\n  \"version\": 1,\n  \"regions\": { ]\n}");
         assert!(m.contains("line 3") && m.contains("column"), "{m}");
         // A type error inside a material also keeps its position.
-        let m = err(r#"{"format":"relume-materials","version":1,"regions":{"A":{"model":"blinn_phong","kd":"red","ks":[0,0,0],"ns":1}}}"#);
+        let m = err(
+            r#"{"format":"relume-materials","version":1,"regions":{"A":{"model":"blinn_phong","kd":"red","ks":[0,0,0],"ns":1}}}"#,
+        );
         assert!(m.contains("line 1") && m.contains("column"), "{m}");
     }
 
     #[test]
     fn wrong_format_and_version_are_refused() {
-        assert!(err(r#"{"format":"relume-scene","version":1,"regions":{}}"#).contains("not a Relume materials file"));
+        assert!(err(r#"{"format":"relume-scene","version":1,"regions":{}}"#)
+            .contains("not a Relume materials file"));
         assert!(err(r#"{"version":1,"regions":{}}"#).contains("no \"format\""));
-        assert!(err(r#"{"format":"relume-materials","version":2,"regions":{}}"#).contains("version 2"));
+        assert!(
+            err(r#"{"format":"relume-materials","version":2,"regions":{}}"#).contains("version 2")
+        );
         assert!(err(r#"{"format":"relume-materials","regions":{}}"#).contains("no \"version\""));
-        assert!(err(r#"{"format":"relume-materials","version":"1","regions":{}}"#).contains("unsigned integer"));
+        assert!(
+            err(r#"{"format":"relume-materials","version":"1","regions":{}}"#)
+                .contains("unsigned integer")
+        );
         assert!(err("[1, 2]").contains("expected a JSON object"));
     }
 
     #[test]
     fn unknown_fields_are_refused() {
-        let m = err(r#"{"format":"relume-materials","version":1,"regions":{"W":{"model":"principled","base_color":[1,1,1],"roughnes":0.2}}}"#);
+        let m = err(
+            r#"{"format":"relume-materials","version":1,"regions":{"W":{"model":"principled","base_color":[1,1,1],"roughnes":0.2}}}"#,
+        );
         assert!(m.contains("\"roughnes\"") && m.contains("roughness"), "{m}");
         let m = err(r#"{"format":"relume-materials","version":1,"regions":{},"extra":1}"#);
         assert!(m.contains("extra"), "{m}");
-        let m = err(r#"{"format":"relume-materials","version":1,"regions":{"W":{"model":"lambert"}}}"#);
+        let m =
+            err(r#"{"format":"relume-materials","version":1,"regions":{"W":{"model":"lambert"}}}"#);
         assert!(m.contains("lambert"), "{m}");
     }
 
@@ -246,11 +273,16 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("relume-materials-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let missing = dir.join("missing.json");
-        assert!(matches!(load_materials(&missing), Err(RelumeError::Io { .. })));
+        assert!(matches!(
+            load_materials(&missing),
+            Err(RelumeError::Io { .. })
+        ));
         let bad = dir.join("bad.json");
         std::fs::write(&bad, "{").unwrap();
         match load_materials(&bad) {
-            Err(RelumeError::Materials(m)) => assert!(m.contains("bad.json") && m.contains("line 1"), "{m}"),
+            Err(RelumeError::Materials(m)) => {
+                assert!(m.contains("bad.json") && m.contains("line 1"), "{m}")
+            }
             other => panic!("{other:?}"),
         }
         let good = dir.join("good.json");
@@ -261,13 +293,24 @@ mod tests {
 
     #[test]
     fn resolve_overrides_named_editable_regions_only() {
-        let regions = [region("Bunny", true, 0.3), region("Floor", false, 0.5), region("Walls", true, 0.7)];
+        let regions = [
+            region("Bunny", true, 0.3),
+            region("Floor", false, 0.5),
+            region("Walls", true, 0.7),
+        ];
         // No edits: bake-time materials of the editable regions, in editable order.
         let base = resolve_materials(&regions, &MaterialsFile::default()).unwrap();
-        assert_eq!(base, vec![regions[0].material.clone(), regions[2].material.clone()]);
+        assert_eq!(
+            base,
+            vec![regions[0].material.clone(), regions[2].material.clone()]
+        );
         // One edit: that region changes, the other keeps its bake-time material.
         let mut edits = MaterialsFile::default();
-        let new = MaterialSpec::BlinnPhong(BlinnPhong { kd: [0.9, 0.1, 0.1], ks: [0.0; 3], ns: 5.0 });
+        let new = MaterialSpec::BlinnPhong(BlinnPhong {
+            kd: [0.9, 0.1, 0.1],
+            ks: [0.0; 3],
+            ns: 5.0,
+        });
         edits.regions.insert("Walls".into(), new.clone());
         let got = resolve_materials(&regions, &edits).unwrap();
         assert_eq!(got, vec![regions[0].material.clone(), new]);
@@ -275,13 +318,20 @@ mod tests {
 
     #[test]
     fn resolve_refuses_unknown_and_fixed_regions() {
-        let regions = [region("Bunny", true, 0.3), region("Floor", false, 0.5), region("Walls", true, 0.7)];
+        let regions = [
+            region("Bunny", true, 0.3),
+            region("Floor", false, 0.5),
+            region("Walls", true, 0.7),
+        ];
         let spec = regions[0].material.clone();
         let mut edits = MaterialsFile::default();
         edits.regions.insert("Bunyy".into(), spec.clone());
         match resolve_materials(&regions, &edits) {
             Err(RelumeError::Materials(m)) => {
-                assert!(m.contains("\"Bunyy\"") && m.contains("\"Bunny\", \"Walls\""), "{m}");
+                assert!(
+                    m.contains("\"Bunyy\"") && m.contains("\"Bunny\", \"Walls\""),
+                    "{m}"
+                );
                 assert!(!m.contains("Floor"), "fixed regions are not offered: {m}");
             }
             other => panic!("{other:?}"),
@@ -289,7 +339,10 @@ mod tests {
         let mut edits = MaterialsFile::default();
         edits.regions.insert("Floor".into(), spec);
         match resolve_materials(&regions, &edits) {
-            Err(RelumeError::Materials(m)) => assert!(m.contains("fixed in this stack") && m.contains("rebake"), "{m}"),
+            Err(RelumeError::Materials(m)) => assert!(
+                m.contains("fixed in this stack") && m.contains("rebake"),
+                "{m}"
+            ),
             other => panic!("{other:?}"),
         }
     }

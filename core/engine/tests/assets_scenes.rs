@@ -17,14 +17,29 @@ fn committed_scenes_load_validate_and_bake() {
         let report = validate_scene(&scene).unwrap_or_else(|e| panic!("{name}: {e}"));
         assert_eq!(report.degenerate_triangles, 0, "{name}");
         assert!(report.warnings.is_empty(), "{name}: {:?}", report.warnings);
-        assert!(scene.regions.iter().filter(|r| r.editable).count() >= 2, "{name}: two editable regions as in the paper");
-        let settings = BakeSettings { spp: 1, light_samples: 1, resolution: Some(Resolution { width: 24, height: 24 }), ..Default::default() };
+        assert!(
+            scene.regions.iter().filter(|r| r.editable).count() >= 2,
+            "{name}: two editable regions as in the paper"
+        );
+        let settings = BakeSettings {
+            spp: 1,
+            light_samples: 1,
+            resolution: Some(Resolution {
+                width: 24,
+                height: 24,
+            }),
+            ..Default::default()
+        };
         let (stack, report) = bake(&scene, &settings, &Progress::new()).unwrap();
         assert!(report.rays > 0);
         assert!(!stack.layers.is_empty(), "{name}: the bake stored no layer");
         for layer in &stack.layers {
             for i in 0..layer.samples.len() {
-                assert!(layer.value(i).is_finite(), "{name}: {}", layer.key.layer_name());
+                assert!(
+                    layer.value(i).is_finite(),
+                    "{name}: {}",
+                    layer.key.layer_name()
+                );
             }
         }
     }

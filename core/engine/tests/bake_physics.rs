@@ -33,7 +33,18 @@ fn white_furnace_diffuse_is_exact() {
     // cosine-sampled world light the estimator has zero variance.
     let size = 32;
     let scene = common::furnace(common::bp(1.0, 0.0, 1.0), false, size);
-    let img = render_reference(&scene, &BakeSettings { spp: 2, light_samples: 2, ..Default::default() }, &[], ReferenceBrdf::True, &Progress::new()).unwrap();
+    let img = render_reference(
+        &scene,
+        &BakeSettings {
+            spp: 2,
+            light_samples: 2,
+            ..Default::default()
+        },
+        &[],
+        ReferenceBrdf::True,
+        &Progress::new(),
+    )
+    .unwrap();
     let px = sphere_pixels(&img.rgba, size);
     assert!(px.len() > 100);
     for v in px {
@@ -44,17 +55,37 @@ fn white_furnace_diffuse_is_exact() {
 #[test]
 fn no_energy_is_created_when_kd_plus_ks_is_one() {
     let size = 32;
-    for (kd, ks, ns) in [(0.0, 1.0, 1.0), (0.0, 1.0, 20.0), (0.0, 1.0, 200.0), (0.5, 0.5, 50.0), (0.0, 1.0, 5000.0)] {
+    for (kd, ks, ns) in [
+        (0.0, 1.0, 1.0),
+        (0.0, 1.0, 20.0),
+        (0.0, 1.0, 200.0),
+        (0.5, 0.5, 50.0),
+        (0.0, 1.0, 5000.0),
+    ] {
         let scene = common::furnace(common::bp(kd, ks, ns), false, size);
-        let settings = BakeSettings { spp: 16, light_samples: 8, ..Default::default() };
-        let img = render_reference(&scene, &settings, &[], ReferenceBrdf::True, &Progress::new()).unwrap();
+        let settings = BakeSettings {
+            spp: 16,
+            light_samples: 8,
+            ..Default::default()
+        };
+        let img = render_reference(
+            &scene,
+            &settings,
+            &[],
+            ReferenceBrdf::True,
+            &Progress::new(),
+        )
+        .unwrap();
         let px = sphere_pixels(&img.rgba, size);
         let n = px.len() as f64;
         let mean = px.iter().map(|v| *v as f64).sum::<f64>() / n;
         let var = px.iter().map(|v| (*v as f64 - mean).powi(2)).sum::<f64>() / (n - 1.0);
         let se = (var / n).sqrt();
         assert!(px.iter().all(|v| v.is_finite() && *v >= 0.0));
-        assert!(mean <= 1.0 + 4.0 * se + 1e-3, "Kd {kd} Ks {ks} ns {ns}: mean {mean} ± {se}");
+        assert!(
+            mean <= 1.0 + 4.0 * se + 1e-3,
+            "Kd {kd} Ks {ks} ns {ns}: mean {mean} ± {se}"
+        );
     }
 }
 
@@ -62,24 +93,56 @@ fn no_energy_is_created_when_kd_plus_ks_is_one() {
 fn bake_is_identical_for_any_thread_count() {
     let scene = common::cornell(24);
     for sampling in [IndirectSampling::Uniform, IndirectSampling::Mixture] {
-        let one = BakeSettings { spp: 2, threads: 1, sampling, ..Default::default() };
-        let two = BakeSettings { threads: 2, ..one.clone() };
-        let three = BakeSettings { threads: 3, ..one.clone() };
+        let one = BakeSettings {
+            spp: 2,
+            threads: 1,
+            sampling,
+            ..Default::default()
+        };
+        let two = BakeSettings {
+            threads: 2,
+            ..one.clone()
+        };
+        let three = BakeSettings {
+            threads: 3,
+            ..one.clone()
+        };
         let (a, _) = bake(&scene, &one, &Progress::new()).unwrap();
         let (b, _) = bake(&scene, &two, &Progress::new()).unwrap();
         let (c, _) = bake(&scene, &three, &Progress::new()).unwrap();
         assert!(!a.layers.is_empty());
-        assert!(a == b && b == c, "stacks differ across thread counts ({sampling:?})");
+        assert!(
+            a == b && b == c,
+            "stacks differ across thread counts ({sampling:?})"
+        );
     }
 }
 
 #[test]
 fn reference_is_identical_for_any_thread_count() {
     let scene = common::cornell(24);
-    let m = vec![BlinnPhong { kd: [0.5; 3], ks: [0.2; 3], ns: 30.0 }; 2];
-    let one = BakeSettings { spp: 2, threads: 1, ..Default::default() };
+    let m = vec![
+        BlinnPhong {
+            kd: [0.5; 3],
+            ks: [0.2; 3],
+            ns: 30.0
+        };
+        2
+    ];
+    let one = BakeSettings {
+        spp: 2,
+        threads: 1,
+        ..Default::default()
+    };
     let a = render_reference(&scene, &one, &m, ReferenceBrdf::True, &Progress::new()).unwrap();
-    let b = render_reference(&scene, &BakeSettings { threads: 2, ..one }, &m, ReferenceBrdf::True, &Progress::new()).unwrap();
+    let b = render_reference(
+        &scene,
+        &BakeSettings { threads: 2, ..one },
+        &m,
+        ReferenceBrdf::True,
+        &Progress::new(),
+    )
+    .unwrap();
     assert_eq!(a.rgba, b.rgba);
 }
 
@@ -88,7 +151,10 @@ fn cancel_stops_a_bake_within_a_second() {
     let scene = common::cornell(256);
     let progress = Arc::new(Progress::new());
     let p = progress.clone();
-    let settings = BakeSettings { spp: 64, ..Default::default() };
+    let settings = BakeSettings {
+        spp: 64,
+        ..Default::default()
+    };
     let worker = std::thread::spawn(move || bake(&scene, &settings, &p));
     while progress.fraction() <= 0.0 {
         std::thread::sleep(std::time::Duration::from_millis(5));
@@ -106,7 +172,15 @@ fn cancel_stops_a_bake_within_a_second() {
 fn progress_reports_fraction_and_eta() {
     let scene = common::cornell(32);
     let progress = Progress::new();
-    bake(&scene, &BakeSettings { spp: 1, ..Default::default() }, &progress).unwrap();
+    bake(
+        &scene,
+        &BakeSettings {
+            spp: 1,
+            ..Default::default()
+        },
+        &progress,
+    )
+    .unwrap();
     assert_eq!(progress.fraction(), 1.0);
     assert_eq!(progress.eta_seconds(), Some(0.0));
 }
@@ -116,12 +190,24 @@ fn editable_material_changes_do_not_change_the_hash_but_geometry_does() {
     use relume_engine::scene::hash::scene_hash;
     let a = common::cornell(16);
     let mut b = a.clone();
-    b.regions[1].material = MaterialSpec::BlinnPhong(BlinnPhong { kd: [0.9; 3], ks: [0.0; 3], ns: 3.0 });
+    b.regions[1].material = MaterialSpec::BlinnPhong(BlinnPhong {
+        kd: [0.9; 3],
+        ks: [0.0; 3],
+        ns: 3.0,
+    });
     assert_eq!(scene_hash(&a), scene_hash(&b));
     let mut c = a.clone();
     c.meshes[0].positions[0][0] += 1e-3;
     assert_ne!(scene_hash(&a), scene_hash(&c));
     let mut d = a.clone();
-    d.regions[2].material = MaterialSpec::BlinnPhong(BlinnPhong { kd: [0.1; 3], ks: [0.0; 3], ns: 1.0 });
-    assert_ne!(scene_hash(&a), scene_hash(&d), "a fixed region's material is baked in");
+    d.regions[2].material = MaterialSpec::BlinnPhong(BlinnPhong {
+        kd: [0.1; 3],
+        ks: [0.0; 3],
+        ns: 1.0,
+    });
+    assert_ne!(
+        scene_hash(&a),
+        scene_hash(&d),
+        "a fixed region's material is baked in"
+    );
 }

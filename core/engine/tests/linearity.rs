@@ -14,14 +14,25 @@ use relume_engine::relight::CpuRelighter;
 use relume_engine::stack::{bases::StackBases, Precision};
 
 fn materials() -> Vec<[BlinnPhong; 2]> {
-    let m = |kd: f32, ks: f32, ns: f32| BlinnPhong { kd: [kd; 3], ks: [ks; 3], ns };
+    let m = |kd: f32, ks: f32, ns: f32| BlinnPhong {
+        kd: [kd; 3],
+        ks: [ks; 3],
+        ns,
+    };
     vec![
-        [m(0.3, 0.3, 5.0), m(0.2, 0.4, 5.0)],     // the paper's Fig. 3(a-d)
+        [m(0.3, 0.3, 5.0), m(0.2, 0.4, 5.0)], // the paper's Fig. 3(a-d)
         [m(0.3, 0.3, 180.0), m(0.2, 0.4, 180.0)], // Fig. 3(e-h)
-        [m(1.0, 0.0, 1.0), m(0.0, 1.0, 1.0)],     // Kd, Ks at their extremes
+        [m(1.0, 0.0, 1.0), m(0.0, 1.0, 1.0)], // Kd, Ks at their extremes
         [m(0.0, 1.0, 200.0), m(1.0, 0.0, 200.0)],
         [m(0.5, 0.5, 60.0), m(0.0, 1.0, 30.0)],
-        [BlinnPhong { kd: [0.7, 0.2, 0.1], ks: [0.1, 0.3, 0.5], ns: 12.0 }, m(0.4, 0.6, 100.0)],
+        [
+            BlinnPhong {
+                kd: [0.7, 0.2, 0.1],
+                ks: [0.1, 0.3, 0.5],
+                ns: 12.0,
+            },
+            m(0.4, 0.6, 100.0),
+        ],
     ]
 }
 
@@ -36,24 +47,62 @@ fn relight(stack: relume_engine::stack::TransferStack, mats: &[BlinnPhong]) -> V
 /// Bakes the test Cornell box with `count` bases and checks every material set: relit
 /// against the projected reference within `tolerance_projected` (linearity), and against the
 /// true-BRDF reference within `tolerance_true` (the basis error). Returns the worst of each.
-fn check(sampling: IndirectSampling, precision: Precision, count: BasisCount, tolerance_projected: f64, tolerance_true: f64) -> (f64, f64) {
+fn check(
+    sampling: IndirectSampling,
+    precision: Precision,
+    count: BasisCount,
+    tolerance_projected: f64,
+    tolerance_true: f64,
+) -> (f64, f64) {
     let scene = common::cornell(48);
-    let basis = BasisConfig { count, ..BasisConfig::default() };
-    let settings = BakeSettings { spp: 4, light_samples: 2, sampling, precision, basis, ..Default::default() };
+    let basis = BasisConfig {
+        count,
+        ..BasisConfig::default()
+    };
+    let settings = BakeSettings {
+        spp: 4,
+        light_samples: 2,
+        sampling,
+        precision,
+        basis,
+        ..Default::default()
+    };
     let mut worst = (0.0f64, 0.0f64);
     let (stack, _) = bake(&scene, &settings, &Progress::new()).unwrap();
     for mats in materials() {
         let relit = relight(stack.clone(), &mats);
-        let projected = render_reference(&scene, &settings, &mats, ReferenceBrdf::Projected, &Progress::new()).unwrap();
-        let truth = render_reference(&scene, &settings, &mats, ReferenceBrdf::True, &Progress::new()).unwrap();
+        let projected = render_reference(
+            &scene,
+            &settings,
+            &mats,
+            ReferenceBrdf::Projected,
+            &Progress::new(),
+        )
+        .unwrap();
+        let truth = render_reference(
+            &scene,
+            &settings,
+            &mats,
+            ReferenceBrdf::True,
+            &Progress::new(),
+        )
+        .unwrap();
         let dp = compare_rgb(&relit, &projected.rgba, 4).unwrap();
         let dt = compare_rgb(&relit, &truth.rgba, 4).unwrap();
         eprintln!(
             "{sampling:?} {precision:?} obj ns {:>5} Kd {:?} Ks {:?}: relit vs projected {:.5} %, vs true BRDF {:.4} %",
             mats[1].ns, mats[1].kd, mats[1].ks, dp.rel_l2 * 100.0, dt.rel_l2 * 100.0
         );
-        assert!(dp.rel_l2 <= tolerance_projected, "linearity broken: {} > {tolerance_projected}", dp.rel_l2);
-        assert!(dt.rel_l2 <= tolerance_true, "basis error {} > {tolerance_true}", dt.rel_l2);
+        assert!(
+            dp.rel_l2 <= tolerance_projected,
+            "linearity broken: {} > {tolerance_projected}",
+            dp.rel_l2
+        );
+        assert!(
+            dt.rel_l2 <= tolerance_true,
+            "basis error {} > {tolerance_true}",
+            dt.rel_l2
+        );
         assert!(relit.iter().all(|v| v.is_finite()));
         worst = (worst.0.max(dp.rel_l2), worst.1.max(dt.rel_l2));
     }
@@ -66,24 +115,48 @@ const PAPER_BASES: BasisCount = BasisCount::Fixed(6);
 
 #[test]
 fn relight_equals_projected_reference_f32() {
-    check(IndirectSampling::Uniform, Precision::F32, PAPER_BASES, 1e-5, 0.015);
+    check(
+        IndirectSampling::Uniform,
+        Precision::F32,
+        PAPER_BASES,
+        1e-5,
+        0.015,
+    );
 }
 
 #[test]
 fn relight_equals_projected_reference_f16() {
     // Half floats round each sample by ≤ 2⁻¹¹ relative; the sum stays within 0.05 %.
-    check(IndirectSampling::Uniform, Precision::F16, PAPER_BASES, 5e-4, 0.015);
+    check(
+        IndirectSampling::Uniform,
+        Precision::F16,
+        PAPER_BASES,
+        5e-4,
+        0.015,
+    );
 }
 
 #[test]
 fn relight_equals_projected_reference_mixture_sampling() {
-    check(IndirectSampling::Mixture, Precision::F16, PAPER_BASES, 5e-4, 0.015);
+    check(
+        IndirectSampling::Mixture,
+        Precision::F16,
+        PAPER_BASES,
+        5e-4,
+        0.015,
+    );
 }
 
 #[test]
 fn relight_equals_true_brdf_reference_with_a_tight_basis() {
     // A basis chosen by tolerance (worst lobe ≤ 0.1 %: N_b = 11 on [1, 200]) brings the relit
     // image within 0.05 % of the true Blinn–Phong render along the same paths.
-    let (projected, truth) = check(IndirectSampling::Uniform, Precision::F32, BasisCount::Tolerance(0.001), 1e-5, 5e-4);
+    let (projected, truth) = check(
+        IndirectSampling::Uniform,
+        Precision::F32,
+        BasisCount::Tolerance(0.001),
+        1e-5,
+        5e-4,
+    );
     eprintln!("tolerance 0.1 %: worst relit vs projected {projected:.2e}, vs true {truth:.2e}");
 }

@@ -24,7 +24,11 @@ fn mixed_stack(seed: u64) -> TransferStack {
         .enumerate()
         .map(|(i, key)| {
             let ch = if i % 3 == 0 { 3 } else { 1 };
-            let prec = if i % 2 == 0 { Precision::F16 } else { Precision::F32 };
+            let prec = if i % 2 == 0 {
+                Precision::F16
+            } else {
+                Precision::F32
+            };
             let zero_rows = match i % 4 {
                 0 => 0..0,
                 1 => 0..10,
@@ -34,14 +38,20 @@ fn mixed_stack(seed: u64) -> TransferStack {
             random_layer(&mut rng, key, W, H, ch, prec, zero_rows, (i * 7) % 20)
         })
         .collect();
-    TransferStack { header: header(W as u32, H as u32), layers }
+    TransferStack {
+        header: header(W as u32, H as u32),
+        layers,
+    }
 }
 
 #[test]
 fn counts_come_from_header_and_keys() {
     let r = CpuRelighter::new(Arc::new(mixed_stack(1))).unwrap();
     assert_eq!(r.editable_count(), 2);
-    assert_eq!((r.basis_count(0), r.basis_count(1), r.basis_count(2)), (3, 3, 0));
+    assert_eq!(
+        (r.basis_count(0), r.basis_count(1), r.basis_count(2)),
+        (3, 3, 0)
+    );
     assert_eq!(r.size(), (W, H));
     // Before any relight the image is black with alpha 1.
     assert!(r.image().chunks(4).all(|p| p == [0.0, 0.0, 0.0, 1.0]));
@@ -53,10 +63,20 @@ fn layer_weight_is_the_product_along_the_path() {
         vec![Rgb::new(0.5, 2.0, 3.0), Rgb::new(0.25, 1.0, -1.0)],
         vec![Rgb::new(4.0, 0.5, 0.1)],
     ];
-    assert_eq!(layer_weight(&LayerKey::new(vec![]), &coefs), Rgb::ONE, "World");
-    assert_eq!(layer_weight(&LayerKey::new(vec![PathVertex::Fixed]), &coefs), Rgb::ONE);
     assert_eq!(
-        layer_weight(&LayerKey::new(vec![e(0, 1), PathVertex::Fixed, e(1, 0)]), &coefs),
+        layer_weight(&LayerKey::new(vec![]), &coefs),
+        Rgb::ONE,
+        "World"
+    );
+    assert_eq!(
+        layer_weight(&LayerKey::new(vec![PathVertex::Fixed]), &coefs),
+        Rgb::ONE
+    );
+    assert_eq!(
+        layer_weight(
+            &LayerKey::new(vec![e(0, 1), PathVertex::Fixed, e(1, 0)]),
+            &coefs
+        ),
         Rgb::new(1.0, 0.5, -0.1)
     );
     assert_eq!(
@@ -64,7 +84,10 @@ fn layer_weight_is_the_product_along_the_path() {
         Rgb::new(0.25, 4.0, 9.0),
         "a region met twice counts twice"
     );
-    let grouped = LayerKey { path: vec![e(1, 0)], light_group: 3 };
+    let grouped = LayerKey {
+        path: vec![e(1, 0)],
+        light_group: 3,
+    };
     assert_eq!(layer_weight(&grouped, &coefs), Rgb::new(4.0, 0.5, 0.1));
 }
 
@@ -77,7 +100,12 @@ fn full_relight_matches_f64_reference() {
         let coefs = random_coefs(&mut rng, &[3, 3]);
         let img = r.relight(&coefs).unwrap().to_vec();
         // ~57 terms of magnitude ≤ ~20 rounded in f32: a few 1e-7 relative to the largest.
-        assert_close(&img, &reference(&stack, &coefs), 2e-6, &format!("round {round}"));
+        assert_close(
+            &img,
+            &reference(&stack, &coefs),
+            2e-6,
+            &format!("round {round}"),
+        );
         let s = r.last_stats();
         assert!(!s.incremental);
         assert_eq!(s.layers_summed, stack.layers.len());
@@ -111,12 +139,24 @@ fn incremental_equals_full_over_random_edits() {
         assert_eq!(s.incremental, edit % FULL_RESUM_EVERY != 0, "edit {edit}");
         if s.incremental {
             n_incremental += 1;
-            let touching = stack.layers.iter().filter(|l| l.key.contains_region(region as u16)).count();
-            assert!(s.layers_summed <= touching && s.layers_summed > 0, "edit {edit}: {s:?}");
+            let touching = stack
+                .layers
+                .iter()
+                .filter(|l| l.key.contains_region(region as u16))
+                .count();
+            assert!(
+                s.layers_summed <= touching && s.layers_summed > 0,
+                "edit {edit}: {s:?}"
+            );
         }
         let b = full.relight(&coefs).unwrap();
         let scale = b.iter().fold(1.0f32, |m, v| m.max(v.abs()));
-        let worst = a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max) / scale;
+        let worst = a
+            .iter()
+            .zip(b)
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0f32, f32::max)
+            / scale;
         assert!(worst <= 1e-5, "edit {edit}: relative difference {worst:e}");
     }
     assert_eq!(n_incremental, 150 - 2);
@@ -139,11 +179,22 @@ fn incremental_skips_unchanged_bases_and_reads_less() {
         .filter(|l| l.key.path.iter().any(|v| *v == e(1, 2)))
         .count();
     assert_eq!(s.layers_summed, expect);
-    assert!(s.incremental && s.bytes_read < full.bytes_read / 3, "{s:?} vs {full:?}");
+    assert!(
+        s.incremental && s.bytes_read < full.bytes_read / 3,
+        "{s:?} vs {full:?}"
+    );
     // The same coefficients again: nothing to add.
     r.relight_region(1, &coefs[1]).unwrap();
-    assert_eq!((r.last_stats().layers_summed, r.last_stats().bytes_read), (0, 0));
-    assert_close(r.image(), &reference(&stack, &coefs), 2e-6, "after no-op edit");
+    assert_eq!(
+        (r.last_stats().layers_summed, r.last_stats().bytes_read),
+        (0, 0)
+    );
+    assert_close(
+        r.image(),
+        &reference(&stack, &coefs),
+        2e-6,
+        "after no-op edit",
+    );
 }
 
 #[test]
@@ -159,7 +210,16 @@ fn zero_rows_and_columns_are_skipped_and_correct() {
         // All zero: never read.
         random_layer(&mut rng, keys[0].clone(), W, H, 3, Precision::F16, 0..H, 0),
         // Rows 0..30 zero, and the left 13 columns: 7 rows × 32 px × 1 ch × 2 B.
-        random_layer(&mut rng, keys[1].clone(), W, H, 1, Precision::F16, 0..30, 13),
+        random_layer(
+            &mut rng,
+            keys[1].clone(),
+            W,
+            H,
+            1,
+            Precision::F16,
+            0..30,
+            13,
+        ),
         // Rows 3..37 zero: 3 rows × 45 px × 3 ch × 4 B.
         random_layer(&mut rng, keys[2].clone(), W, H, 3, Precision::F32, 3..H, 0),
         // Dense: 37 × 45 × 2 B.
@@ -167,7 +227,10 @@ fn zero_rows_and_columns_are_skipped_and_correct() {
     ];
     // A single non-zero pixel in the middle of the dense layer's last row leaves its span
     // as is; a lone value in the all-zero-left layer at x = 40 must still be summed.
-    let stack = Arc::new(TransferStack { header: header(W as u32, H as u32), layers });
+    let stack = Arc::new(TransferStack {
+        header: header(W as u32, H as u32),
+        layers,
+    });
     let mut r = CpuRelighter::new(stack.clone()).unwrap();
     let coefs = random_coefs(&mut rng, &[2, 2]);
     let img = r.relight(&coefs).unwrap().to_vec();
@@ -182,13 +245,25 @@ fn zero_rows_and_columns_are_skipped_and_correct() {
     v[10 * W + 5] = -1.0;
     v[20 * W + 44] = 3.0;
     let layer = Layer::from_f32(LayerKey::new(vec![e(0, 0)]), 1, &v, Precision::F32);
-    let stack = Arc::new(TransferStack { header: header(W as u32, H as u32), layers: vec![layer] });
+    let stack = Arc::new(TransferStack {
+        header: header(W as u32, H as u32),
+        layers: vec![layer],
+    });
     let mut r = CpuRelighter::new(stack.clone()).unwrap();
     let coefs = vec![vec![Rgb::new(1.0, 2.0, 3.0)], vec![]];
     let img = r.relight(&coefs).unwrap();
-    assert_eq!(&img[4 * (10 * W + 40)..4 * (10 * W + 40) + 4], &[2.0, 4.0, 6.0, 1.0]);
-    assert_eq!(&img[4 * (10 * W + 5)..4 * (10 * W + 5) + 4], &[-1.0, -2.0, -3.0, 1.0]);
-    assert_eq!(&img[4 * (20 * W + 44)..4 * (20 * W + 44) + 4], &[3.0, 6.0, 9.0, 1.0]);
+    assert_eq!(
+        &img[4 * (10 * W + 40)..4 * (10 * W + 40) + 4],
+        &[2.0, 4.0, 6.0, 1.0]
+    );
+    assert_eq!(
+        &img[4 * (10 * W + 5)..4 * (10 * W + 5) + 4],
+        &[-1.0, -2.0, -3.0, 1.0]
+    );
+    assert_eq!(
+        &img[4 * (20 * W + 44)..4 * (20 * W + 44) + 4],
+        &[3.0, 6.0, 9.0, 1.0]
+    );
     assert_eq!(r.last_stats().bytes_read, (36 * 4) + 4);
 }
 
@@ -197,16 +272,26 @@ fn zero_weight_layers_are_not_read() {
     let stack = Arc::new(mixed_stack(9));
     let mut r = CpuRelighter::new(stack.clone()).unwrap();
     // Region 0 all zero: every layer through it has weight 0.
-    let coefs = vec![vec![Rgb::ZERO; 3], random_coefs(&mut Rng::new(10), &[3]).remove(0)];
+    let coefs = vec![
+        vec![Rgb::ZERO; 3],
+        random_coefs(&mut Rng::new(10), &[3]).remove(0),
+    ];
     let img = r.relight(&coefs).unwrap().to_vec();
     assert_close(&img, &reference(&stack, &coefs), 2e-6, "zero region");
-    let without = stack.layers.iter().filter(|l| !l.key.contains_region(0)).count();
+    let without = stack
+        .layers
+        .iter()
+        .filter(|l| !l.key.contains_region(0))
+        .count();
     assert_eq!(r.last_stats().layers_summed, without);
 }
 
 fn expect_invalid(res: Result<CpuRelighter, RelumeError>, needle: &str) {
     match res {
-        Err(e) => assert!(e.to_string().contains(needle), "{e} does not mention {needle:?}"),
+        Err(e) => assert!(
+            e.to_string().contains(needle),
+            "{e} does not mention {needle:?}"
+        ),
         Ok(_) => panic!("expected an error mentioning {needle:?}"),
     }
 }
@@ -229,7 +314,10 @@ fn malformed_stacks_are_refused() {
     );
     expect_invalid(with(&|l| l.channels = 2), "2 channels");
     expect_invalid(with(&|l| l.channels = 4), &name);
-    expect_invalid(with(&|l| l.key = LayerKey::new(vec![e(2, 0)])), "editable region of layer E2b0");
+    expect_invalid(
+        with(&|l| l.key = LayerKey::new(vec![e(2, 0)])),
+        "editable region of layer E2b0",
+    );
     expect_invalid(
         with(&|l| match &mut l.samples {
             LayerSamples::F16(v) => v[W * 3 + 7] = half::f16::NAN,
@@ -248,17 +336,32 @@ fn bad_coefficients_are_refused() {
     let e0 = r.relight_region(0, &good[0]).unwrap_err().to_string();
     assert!(e0.contains("call relight"), "{e0}");
     let e1 = r.relight(&good[..1]).unwrap_err().to_string();
-    assert!(e1.contains("1 coefficient lists for 2 editable regions (Bunny, Floor)"), "{e1}");
-    let e2 = r.relight(&[good[0].clone(), good[1][..2].to_vec()]).unwrap_err().to_string();
+    assert!(
+        e1.contains("1 coefficient lists for 2 editable regions (Bunny, Floor)"),
+        "{e1}"
+    );
+    let e2 = r
+        .relight(&[good[0].clone(), good[1][..2].to_vec()])
+        .unwrap_err()
+        .to_string();
     assert!(e2.contains("Floor") && e2.contains("use 3 bases"), "{e2}");
     let mut nan = good.clone();
     nan[0][1].y = f32::NAN;
-    assert!(matches!(r.relight(&nan), Err(RelumeError::NonFinite { .. })));
+    assert!(matches!(
+        r.relight(&nan),
+        Err(RelumeError::NonFinite { .. })
+    ));
     r.relight(&good).unwrap();
-    assert!(matches!(r.relight_region(2, &good[0]), Err(RelumeError::IndexOutOfRange { .. })));
+    assert!(matches!(
+        r.relight_region(2, &good[0]),
+        Err(RelumeError::IndexOutOfRange { .. })
+    ));
     let mut inf = good[1].clone();
     inf[2].x = f32::INFINITY;
-    assert!(matches!(r.relight_region(1, &inf), Err(RelumeError::NonFinite { .. })));
+    assert!(matches!(
+        r.relight_region(1, &inf),
+        Err(RelumeError::NonFinite { .. })
+    ));
     // A refused edit leaves the image as it was.
     let before = r.image().to_vec();
     assert!(r.relight_region(1, &good[1][..1]).is_err());

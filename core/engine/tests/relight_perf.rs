@@ -29,7 +29,10 @@ fn paper_stack(n: usize) -> TransferStack {
             random_layer(&mut rng, key, w, h, ch, Precision::F16, 0..0, 0)
         })
         .collect();
-    TransferStack { header: header(w as u32, h as u32), layers }
+    TransferStack {
+        header: header(w as u32, h as u32),
+        layers,
+    }
 }
 
 fn median_ms(mut v: Vec<f64>) -> f64 {

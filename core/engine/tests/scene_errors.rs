@@ -18,7 +18,10 @@ fn nan_position_is_named() {
     let mut s = small();
     s.meshes[2].positions[1][2] = f32::NAN;
     match validate_scene(&s) {
-        Err(RelumeError::NonFinite { what }) => assert!(what.contains("mesh 2") && what.contains("back") && what.contains("positions"), "{what}"),
+        Err(RelumeError::NonFinite { what }) => assert!(
+            what.contains("mesh 2") && what.contains("back") && what.contains("positions"),
+            "{what}"
+        ),
         other => panic!("expected NonFinite, got {other:?}"),
     }
 }
@@ -26,7 +29,12 @@ fn nan_position_is_named() {
 #[test]
 fn infinite_light_power_is_named() {
     let mut s = small();
-    s.lights.push(Light::Point { position: [0.0; 3], power: f32::INFINITY, color: [1.0; 3], radius: 0.0 });
+    s.lights.push(Light::Point {
+        position: [0.0; 3],
+        power: f32::INFINITY,
+        color: [1.0; 3],
+        radius: 0.0,
+    });
     match validate_scene(&s) {
         Err(RelumeError::NonFinite { what }) => assert_eq!(what, "light 1"),
         other => panic!("expected NonFinite, got {other:?}"),
@@ -63,10 +71,16 @@ fn region_index_out_of_range() {
 fn empty_scenes() {
     let mut s = small();
     s.meshes.clear();
-    assert!(matches!(validate_scene(&s), Err(RelumeError::EmptyScene(_))));
+    assert!(matches!(
+        validate_scene(&s),
+        Err(RelumeError::EmptyScene(_))
+    ));
     let mut s = small();
     s.regions.clear();
-    assert!(matches!(validate_scene(&s), Err(RelumeError::EmptyScene(_))));
+    assert!(matches!(
+        validate_scene(&s),
+        Err(RelumeError::EmptyScene(_))
+    ));
     // Only degenerate triangles: empty too, and it says so.
     let mut s = small();
     s.meshes.truncate(1);
@@ -82,14 +96,23 @@ fn degenerate_triangles_are_skipped_and_counted() {
     let mut s = small();
     let m = &mut s.meshes[0];
     let base = m.positions.len() as u32;
-    m.positions.extend([[0.0, 0.0, -1.0], [0.5, 0.0, -1.0], [1.0, 0.0, -1.0]]); // collinear
+    m.positions
+        .extend([[0.0, 0.0, -1.0], [0.5, 0.0, -1.0], [1.0, 0.0, -1.0]]); // collinear
     m.positions.push([0.2, 0.2, -1.0]);
     m.indices.push([base, base + 1, base + 2]);
     m.indices.push([base + 3, base + 3, base + 3]); // a point
     m.uvs = None;
     let report = validate_scene(&s).unwrap();
     assert_eq!(report.degenerate_triangles, 2);
-    let (_, bake_report) = bake(&s, &BakeSettings { spp: 1, ..Default::default() }, &Progress::new()).unwrap();
+    let (_, bake_report) = bake(
+        &s,
+        &BakeSettings {
+            spp: 1,
+            ..Default::default()
+        },
+        &Progress::new(),
+    )
+    .unwrap();
     assert_eq!(bake_report.degenerate_triangles, 2);
     assert_eq!(bake_report.triangles, common::cornell(16).triangle_count());
 }
@@ -98,10 +121,25 @@ fn degenerate_triangles_are_skipped_and_counted() {
 fn no_light_warns_and_bakes_black() {
     let mut s = small();
     s.lights.clear();
-    s.world = World::Color { color: [0.0; 3], strength: 1.0 };
+    s.world = World::Color {
+        color: [0.0; 3],
+        strength: 1.0,
+    };
     let report = validate_scene(&s).unwrap();
-    assert!(report.warnings.iter().any(|w| w.contains("no light")), "{:?}", report.warnings);
-    let (stack, _) = bake(&s, &BakeSettings { spp: 1, ..Default::default() }, &Progress::new()).unwrap();
+    assert!(
+        report.warnings.iter().any(|w| w.contains("no light")),
+        "{:?}",
+        report.warnings
+    );
+    let (stack, _) = bake(
+        &s,
+        &BakeSettings {
+            spp: 1,
+            ..Default::default()
+        },
+        &Progress::new(),
+    )
+    .unwrap();
     assert!(stack.layers.is_empty(), "a black scene stores no layer");
 }
 
@@ -109,11 +147,26 @@ fn no_light_warns_and_bakes_black() {
 fn bad_settings_are_refused() {
     let s = small();
     for settings in [
-        BakeSettings { spp: 0, ..Default::default() },
-        BakeSettings { bounces: 2, ..Default::default() },
-        BakeSettings { resolution: Some(Resolution { width: 0, height: 4 }), ..Default::default() },
+        BakeSettings {
+            spp: 0,
+            ..Default::default()
+        },
+        BakeSettings {
+            bounces: 2,
+            ..Default::default()
+        },
+        BakeSettings {
+            resolution: Some(Resolution {
+                width: 0,
+                height: 4,
+            }),
+            ..Default::default()
+        },
     ] {
-        assert!(matches!(bake(&s, &settings, &Progress::new()), Err(RelumeError::InvalidValue { .. })));
+        assert!(matches!(
+            bake(&s, &settings, &Progress::new()),
+            Err(RelumeError::InvalidValue { .. })
+        ));
     }
 }
 
@@ -121,15 +174,34 @@ fn bad_settings_are_refused() {
 fn scene_file_errors() {
     let p = Path::new("test.scene.json");
     let d = Path::new(".");
-    assert!(matches!(parse_scene("{", p, d), Err(RelumeError::SceneFormat { .. })));
-    assert!(matches!(parse_scene(r#"{"meshes": []}"#, p, d), Err(RelumeError::SceneFormat { message, .. }) if message.contains("not a Relume scene")));
-    assert!(matches!(parse_scene(r#"{"format": "other", "version": 1}"#, p, d), Err(RelumeError::SceneFormat { .. })));
+    assert!(matches!(
+        parse_scene("{", p, d),
+        Err(RelumeError::SceneFormat { .. })
+    ));
+    assert!(
+        matches!(parse_scene(r#"{"meshes": []}"#, p, d), Err(RelumeError::SceneFormat { message, .. }) if message.contains("not a Relume scene"))
+    );
+    assert!(matches!(
+        parse_scene(r#"{"format": "other", "version": 1}"#, p, d),
+        Err(RelumeError::SceneFormat { .. })
+    ));
     assert!(matches!(
         parse_scene(r#"{"format": "relume-scene", "version": 7}"#, p, d),
-        Err(RelumeError::SceneVersion { found: 7, supported: 1, .. })
+        Err(RelumeError::SceneVersion {
+            found: 7,
+            supported: 1,
+            ..
+        })
     ));
-    match parse_scene(r#"{"format": "relume-scene", "version": 1, "meshes": []}"#, p, d) {
-        Err(RelumeError::SceneFormat { message, .. }) => assert!(message.contains("regions") || message.contains("missing"), "{message}"),
+    match parse_scene(
+        r#"{"format": "relume-scene", "version": 1, "meshes": []}"#,
+        p,
+        d,
+    ) {
+        Err(RelumeError::SceneFormat { message, .. }) => assert!(
+            message.contains("regions") || message.contains("missing"),
+            "{message}"
+        ),
         other => panic!("expected SceneFormat, got {other:?}"),
     }
 }
@@ -142,6 +214,9 @@ fn scene_file_round_trips() {
     let path = dir.join("cornell.scene.json");
     relume_engine::scene::file::save_scene(&path, &s).unwrap();
     let back = relume_engine::scene::file::load_scene(&path).unwrap();
-    assert_eq!(relume_engine::scene::hash::scene_hash(&back), relume_engine::scene::hash::scene_hash(&s));
+    assert_eq!(
+        relume_engine::scene::hash::scene_hash(&back),
+        relume_engine::scene::hash::scene_hash(&s)
+    );
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -26,9 +26,17 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Result<(), RelumeError> {
-    let dims: Vec<u32> = args.grid.split(['x', 'X']).map(|s| s.trim().parse::<u32>()).collect::<Result<_, _>>().map_err(|_| RelumeError::invalid("--grid", &args.grid))?;
+    let dims: Vec<u32> = args
+        .grid
+        .split(['x', 'X'])
+        .map(|s| s.trim().parse::<u32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| RelumeError::invalid("--grid", &args.grid))?;
     let [a, b, c] = dims[..] else {
-        return Err(RelumeError::invalid("--grid", format!("\"{}\" (expected e.g. 30x30x60)", args.grid)));
+        return Err(RelumeError::invalid(
+            "--grid",
+            format!("\"{}\" (expected e.g. 30x30x60)", args.grid),
+        ));
     };
     let cfg = BasisConfig {
         ns_min: args.ns_min,
@@ -56,7 +64,12 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
             report.worst_ns
         );
         for row in &report.per_count {
-            println!("  N_b = {:2}: avg {:.4} %, max {:.4} %", row.bases, row.avg_rel_l2 * 100.0, row.max_rel_l2 * 100.0);
+            println!(
+                "  N_b = {:2}: avg {:.4} %, max {:.4} %",
+                row.bases,
+                row.avg_rel_l2 * 100.0,
+                row.max_rel_l2 * 100.0
+            );
         }
     }
     Ok(())

@@ -38,7 +38,11 @@ pub enum Bench {
 
 pub fn run(bench: Bench) -> Result<(), RelumeError> {
     match bench {
-        Bench::Bake { scene, options, json } => {
+        Bench::Bake {
+            scene,
+            options,
+            json,
+        } => {
             let scene = load_scene(&scene)?;
             let figures = bench_bake(&scene, &options.settings()?)?;
             if json {
@@ -53,7 +57,11 @@ pub fn run(bench: Bench) -> Result<(), RelumeError> {
             }
             Ok(())
         }
-        Bench::Relight { stack, repeats, json } => bench_relight(&stack, repeats.max(1), json),
+        Bench::Relight {
+            stack,
+            repeats,
+            json,
+        } => bench_relight(&stack, repeats.max(1), json),
     }
 }
 
@@ -64,10 +72,20 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 fn bench_relight(path: &PathBuf, repeats: usize, json: bool) -> Result<(), RelumeError> {
     let stack = read_stack(path)?;
-    let materials = resolve_materials(&stack.header.regions, &MaterialsFile { regions: Default::default() })?;
+    let materials = resolve_materials(
+        &stack.header.regions,
+        &MaterialsFile {
+            regions: Default::default(),
+        },
+    )?;
     let bases = StackBases::from_header(&stack.header)?;
     let coefs = bases.coefficients(&materials)?;
-    let (width, height, layers, stack_bytes) = (stack.header.width, stack.header.height, stack.layers.len(), stack.sample_bytes());
+    let (width, height, layers, stack_bytes) = (
+        stack.header.width,
+        stack.header.height,
+        stack.layers.len(),
+        stack.sample_bytes(),
+    );
     let mut relighter = CpuRelighter::new(Arc::new(stack))?;
     relighter.relight(&coefs)?;
     let mut full = Vec::with_capacity(repeats);
@@ -89,7 +107,10 @@ fn bench_relight(path: &PathBuf, repeats: usize, json: bool) -> Result<(), Relum
     let mut incremental_bytes = 0;
     if !coefs.is_empty() {
         for i in 0..repeats {
-            let c: Vec<Rgb> = coefs[0].iter().map(|v| *v * (1.0 + 1e-3 * (i % 5 + 1) as f32)).collect();
+            let c: Vec<Rgb> = coefs[0]
+                .iter()
+                .map(|v| *v * (1.0 + 1e-3 * (i % 5 + 1) as f32))
+                .collect();
             let t = Instant::now();
             relighter.relight_region(0, &c)?;
             incremental.push(t.elapsed().as_secs_f64() * 1e3);
@@ -99,7 +120,11 @@ fn bench_relight(path: &PathBuf, repeats: usize, json: bool) -> Result<(), Relum
     let bandwidth = measure_read_bandwidth((256usize << 20).max(2 * stack_bytes), 5);
     let bound_ms = full_bytes as f64 / (bandwidth * 1e9) * 1e3;
     let full_ms = median(full);
-    let incremental_ms = if incremental.is_empty() { f64::NAN } else { median(incremental) };
+    let incremental_ms = if incremental.is_empty() {
+        f64::NAN
+    } else {
+        median(incremental)
+    };
     let figures = json!({
         "command": "bench relight",
         "device": "cpu",
@@ -120,8 +145,10 @@ fn bench_relight(path: &PathBuf, repeats: usize, json: bool) -> Result<(), Relum
     if json {
         super::print_json(&figures);
     } else {
-        println!("{}", serde_json::to_string_pretty(&figures).unwrap_or_default());
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&figures).unwrap_or_default()
+        );
     }
     Ok(())
 }
-

@@ -1,7 +1,7 @@
 //! One file per subcommand.
 
-pub mod basis;
 pub mod bake;
+pub mod basis;
 pub mod bench;
 pub mod compare;
 pub mod reference;

@@ -45,29 +45,49 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
     let settings = args.options.settings()?;
     let edits = match &args.materials {
         Some(p) => load_materials(p)?,
-        None => MaterialsFile { regions: Default::default() },
+        None => MaterialsFile {
+            regions: Default::default(),
+        },
     };
     let infos: Vec<RegionInfo> = scene
         .regions
         .iter()
-        .map(|r| RegionInfo { name: r.name.clone(), editable: r.editable, material: r.material.clone(), basis: None, textured: false })
+        .map(|r| RegionInfo {
+            name: r.name.clone(),
+            editable: r.editable,
+            material: r.material.clone(),
+            basis: None,
+            textured: false,
+        })
         .collect();
-    let materials: Vec<_> = resolve_materials(&infos, &edits)?.iter().map(|m| m.to_blinn_phong()).collect();
+    let materials: Vec<_> = resolve_materials(&infos, &edits)?
+        .iter()
+        .map(|m| m.to_blinn_phong())
+        .collect();
     let brdf = match args.brdf {
         BrdfArg::True => ReferenceBrdf::True,
         BrdfArg::Projected => ReferenceBrdf::Projected,
     };
     let t = std::time::Instant::now();
-    let image = with_progress("reference", move |p| render_reference(&scene, &settings, &materials, brdf, &p))?;
+    let image = with_progress("reference", move |p| {
+        render_reference(&scene, &settings, &materials, brdf, &p)
+    })?;
     let seconds = t.elapsed().as_secs_f64();
     write_rgba_exr(&args.output, image.width, image.height, &image.rgba)?;
     if let Some(png) = &args.png {
         write_png_srgb(png, image.width, image.height, &image.rgba, args.exposure)?;
     }
     if args.json {
-        super::print_json(&json!({"command": "reference", "output": args.output, "seconds": seconds, "width": image.width, "height": image.height}));
+        super::print_json(
+            &json!({"command": "reference", "output": args.output, "seconds": seconds, "width": image.width, "height": image.height}),
+        );
     } else {
-        println!("reference {}×{} in {seconds:.2} s → {}", image.width, image.height, args.output.display());
+        println!(
+            "reference {}×{} in {seconds:.2} s → {}",
+            image.width,
+            image.height,
+            args.output.display()
+        );
     }
     Ok(())
 }

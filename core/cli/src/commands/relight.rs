@@ -8,7 +8,10 @@ use relume_engine::image_io::{write_png_srgb, write_rgba_exr};
 use relume_engine::materials::{load_materials, resolve_materials, MaterialsFile};
 use relume_engine::relight::CpuRelighter;
 use relume_engine::scene::{file::load_scene, hash::scene_hash};
-use relume_engine::stack::{bases::StackBases, exr_file::{check_scene_hash, read_stack}};
+use relume_engine::stack::{
+    bases::StackBases,
+    exr_file::{check_scene_hash, read_stack},
+};
 use relume_engine::RelumeError;
 use serde_json::json;
 
@@ -52,7 +55,9 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
     }
     let edits = match &args.materials {
         Some(p) => load_materials(p)?,
-        None => MaterialsFile { regions: Default::default() },
+        None => MaterialsFile {
+            regions: Default::default(),
+        },
     };
     let materials = resolve_materials(&stack.header.regions, &edits)?;
     let bases = StackBases::from_header(&stack.header)?;
@@ -77,7 +82,10 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
             "relight_ms": relight_ms,
         }));
     } else {
-        println!("relit {width}×{height} on the CPU in {relight_ms:.2} ms → {}", args.output.display());
+        println!(
+            "relit {width}×{height} on the CPU in {relight_ms:.2} ms → {}",
+            args.output.display()
+        );
     }
     Ok(())
 }

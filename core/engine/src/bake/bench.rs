@@ -56,12 +56,31 @@ struct RecordingTracer {
 }
 
 impl Tracer for RecordingTracer {
-    fn intersect(&mut self, ctx: &BakeContext, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<SurfaceHit> {
-        self.rays.push(RecordedRay { origin, dir, tmin, tmax, closest: true });
+    fn intersect(
+        &mut self,
+        ctx: &BakeContext,
+        origin: Vec3,
+        dir: Vec3,
+        tmin: f32,
+        tmax: f32,
+    ) -> Option<SurfaceHit> {
+        self.rays.push(RecordedRay {
+            origin,
+            dir,
+            tmin,
+            tmax,
+            closest: true,
+        });
         ctx.geometry.intersect(origin, dir, tmin, tmax)
     }
     fn occluded(&mut self, ctx: &BakeContext, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
-        self.rays.push(RecordedRay { origin, dir, tmin: 0.0, tmax, closest: false });
+        self.rays.push(RecordedRay {
+            origin,
+            dir,
+            tmin: 0.0,
+            tmax,
+            closest: false,
+        });
         ctx.geometry.occluded(origin, dir, tmax)
     }
 }
@@ -84,7 +103,15 @@ pub fn bench_bake(scene: &Scene, settings: &BakeSettings) -> Result<BakeBench> {
         for ty in 0..tile.height {
             for tx in 0..tile.width {
                 for s in 0..settings.spp {
-                    trace_eye_sample(&ctx, &brdf, &mut NullSink, &mut tracer, tile.x0 + tx, tile.y0 + ty, s);
+                    trace_eye_sample(
+                        &ctx,
+                        &brdf,
+                        &mut NullSink,
+                        &mut tracer,
+                        tile.x0 + tx,
+                        tile.y0 + ty,
+                        s,
+                    );
                 }
             }
         }
@@ -103,7 +130,9 @@ pub fn bench_bake(scene: &Scene, settings: &BakeSettings) -> Result<BakeBench> {
                 let mut n = 0usize;
                 for r in chunk {
                     let hit = if r.closest {
-                        geometry.intersect_raw(r.origin, r.dir, r.tmin, r.tmax).is_some()
+                        geometry
+                            .intersect_raw(r.origin, r.dir, r.tmin, r.tmax)
+                            .is_some()
                     } else {
                         geometry.occluded(r.origin, r.dir, r.tmax)
                     };

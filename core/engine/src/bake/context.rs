@@ -57,12 +57,18 @@ impl BakeContext {
     /// Validates `scene` and prepares it for `settings`.
     pub fn new(scene: &Scene, settings: &BakeSettings) -> Result<(BakeContext, ValidationReport)> {
         if settings.spp == 0 || settings.light_samples == 0 || settings.indirect_samples == 0 {
-            return Err(RelumeError::invalid("bake settings", "spp, light samples and indirect samples must be ≥ 1"));
+            return Err(RelumeError::invalid(
+                "bake settings",
+                "spp, light samples and indirect samples must be ≥ 1",
+            ));
         }
         if settings.bounces > MAX_BOUNCES {
             return Err(RelumeError::invalid(
                 "bake settings",
-                format!("{} bounces asked; this build bakes 0 or {MAX_BOUNCES}", settings.bounces),
+                format!(
+                    "{} bounces asked; this build bakes 0 or {MAX_BOUNCES}",
+                    settings.bounces
+                ),
             ));
         }
         let mut report = validate_scene(scene)?;
@@ -92,24 +98,39 @@ impl BakeContext {
                 // diffuse basis: one more slot, after the basis functions.
                 let count = basis.count() + usize::from(texture.is_some() && basis.spec_constant());
                 if count > MAX_BASES {
-                    return Err(RelumeError::Basis(format!("{count} bases for region \"{}\" (at most {MAX_BASES})", region.name)));
+                    return Err(RelumeError::Basis(format!(
+                        "{count} bases for region \"{}\" (at most {MAX_BASES})",
+                        region.name
+                    )));
                 }
                 let first_slot = slot_vertex.len() as u32;
                 for b in 0..count {
-                    slot_vertex.push(PathVertex::Editable { region: editable_index, basis: b as u16 });
+                    slot_vertex.push(PathVertex::Editable {
+                        region: editable_index,
+                        basis: b as u16,
+                    });
                 }
                 let (lo, hi) = (cfg.ns_min, cfg.ns_max);
                 regions.push(PreparedRegion {
                     name: region.name.clone(),
-                    model: RegionModel::Editable { index: editable_index, basis },
+                    model: RegionModel::Editable {
+                        index: editable_index,
+                        basis,
+                    },
                     texture,
                     first_slot,
                     slot_count: count as u32,
-                    mixture_lobes: (0..4).map(|k| lo * (hi / lo).powf(k as f32 / 3.0)).collect(),
+                    mixture_lobes: (0..4)
+                        .map(|k| lo * (hi / lo).powf(k as f32 / 3.0))
+                        .collect(),
                 });
                 editable_index += 1;
             } else {
-                let lobes = if material.ks.iter().any(|k| *k > 0.0) { vec![material.ns] } else { vec![] };
+                let lobes = if material.ks.iter().any(|k| *k > 0.0) {
+                    vec![material.ns]
+                } else {
+                    vec![]
+                };
                 regions.push(PreparedRegion {
                     name: region.name.clone(),
                     model: RegionModel::Fixed { material },
@@ -135,7 +156,11 @@ impl BakeContext {
         let geometry = SceneGeometry::build(scene);
         report.triangles = geometry.triangle_count();
         let camera = CameraRays::new(&scene.camera, resolution);
-        let clip_end = if scene.camera.clip_end > 0.0 { scene.camera.clip_end } else { f32::INFINITY };
+        let clip_end = if scene.camera.clip_end > 0.0 {
+            scene.camera.clip_end
+        } else {
+            f32::INFINITY
+        };
         Ok((
             BakeContext {
                 geometry,

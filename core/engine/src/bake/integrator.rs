@@ -13,14 +13,25 @@ use std::f32::consts::PI;
 use crate::bake::context::{BakeContext, MAX_BASES};
 use crate::bake::settings::IndirectSampling;
 use crate::geometry::bvh::SurfaceHit;
-use crate::geometry::sampling::{blinn_phong_half_vector, blinn_phong_pdf, cosine_hemisphere, to_world, uniform_hemisphere, SampleStream};
+use crate::geometry::sampling::{
+    blinn_phong_half_vector, blinn_phong_pdf, cosine_hemisphere, to_world, uniform_hemisphere,
+    SampleStream,
+};
 use crate::Rgb;
 
 /// The BRDF values at a path vertex, one per slot of its region.
 pub trait VertexBrdf: Sync {
     /// Writes the BRDF values (no cosine) for region `region` into `out` and returns the
     /// first slot they belong to and how many there are.
-    fn eval(&self, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3, out: &mut [Rgb; MAX_BASES]) -> (u32, usize);
+    fn eval(
+        &self,
+        region: u32,
+        uv: Vec2,
+        n: Vec3,
+        wi: Vec3,
+        wo: Vec3,
+        out: &mut [Rgb; MAX_BASES],
+    ) -> (u32, usize);
 }
 
 /// Where the integrator puts radiance.
@@ -36,7 +47,14 @@ pub trait PathSink {
 
 /// Ray queries, counted (and recordable for throughput measurements).
 pub trait Tracer {
-    fn intersect(&mut self, ctx: &BakeContext, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<SurfaceHit>;
+    fn intersect(
+        &mut self,
+        ctx: &BakeContext,
+        origin: Vec3,
+        dir: Vec3,
+        tmin: f32,
+        tmax: f32,
+    ) -> Option<SurfaceHit>;
     fn occluded(&mut self, ctx: &BakeContext, origin: Vec3, dir: Vec3, tmax: f32) -> bool;
 }
 
@@ -48,7 +66,14 @@ pub struct CountingTracer {
 
 impl Tracer for CountingTracer {
     #[inline]
-    fn intersect(&mut self, ctx: &BakeContext, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<SurfaceHit> {
+    fn intersect(
+        &mut self,
+        ctx: &BakeContext,
+        origin: Vec3,
+        dir: Vec3,
+        tmin: f32,
+        tmax: f32,
+    ) -> Option<SurfaceHit> {
         self.rays += 1;
         ctx.geometry.intersect(origin, dir, tmin, tmax)
     }
@@ -60,7 +85,15 @@ impl Tracer for CountingTracer {
 }
 
 /// Traces eye sample number `sample` of pixel (`px`, `py`).
-pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(ctx: &BakeContext, brdf: &B, sink: &mut S, tracer: &mut T, px: u32, py: u32, sample: u32) {
+pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(
+    ctx: &BakeContext,
+    brdf: &B,
+    sink: &mut S,
+    tracer: &mut T,
+    px: u32,
+    py: u32,
+    sample: u32,
+) {
     let settings = &ctx.settings;
     let pixel = py as u64 * ctx.resolution.width as u64 + px as u64;
     let mut stream = SampleStream::new(settings.seed, pixel, sample);
@@ -73,7 +106,16 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(ctx: &BakeContext
     let wo = -dir;
     let mut values = [Rgb::ZERO; MAX_BASES];
     let mut eye_light = [Rgb::ZERO; MAX_BASES];
-    let (first, count) = direct_light(ctx, brdf, tracer, &hit, wo, &mut stream, &mut values, &mut eye_light);
+    let (first, count) = direct_light(
+        ctx,
+        brdf,
+        tracer,
+        &hit,
+        wo,
+        &mut stream,
+        &mut values,
+        &mut eye_light,
+    );
     for (k, v) in eye_light.iter().enumerate().take(count) {
         sink.direct(first + k as u32, *v);
     }
@@ -86,19 +128,36 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(ctx: &BakeContext
     let mut eye_values = [Rgb::ZERO; MAX_BASES];
     let mut bounce_light = [Rgb::ZERO; MAX_BASES];
     for _ in 0..settings.indirect_samples {
-        let Some((wi, pdf)) = sample_indirect(settings.sampling, &region.mixture_lobes, n, wo, &mut stream) else {
+        let Some((wi, pdf)) =
+            sample_indirect(settings.sampling, &region.mixture_lobes, n, wo, &mut stream)
+        else {
             continue;
         };
         let cos_i = n.dot(wi);
         if cos_i <= 0.0 || hit.geometric_normal.dot(wi) <= 0.0 || !(pdf > 0.0) {
             continue;
         }
-        let Some(hit2) = tracer.intersect(ctx, ctx.geometry.offset(hit.position, hit.geometric_normal), wi, 0.0, f32::INFINITY) else {
+        let Some(hit2) = tracer.intersect(
+            ctx,
+            ctx.geometry.offset(hit.position, hit.geometric_normal),
+            wi,
+            0.0,
+            f32::INFINITY,
+        ) else {
             continue;
         };
         let (eye_first, eye_count) = brdf.eval(hit.region, hit.uv, n, wi, wo, &mut eye_values);
         let weight = cos_i / pdf * inv_indirect;
-        let (bounce_first, bounce_count) = direct_light(ctx, brdf, tracer, &hit2, -wi, &mut stream, &mut values, &mut bounce_light);
+        let (bounce_first, bounce_count) = direct_light(
+            ctx,
+            brdf,
+            tracer,
+            &hit2,
+            -wi,
+            &mut stream,
+            &mut values,
+            &mut bounce_light,
+        );
         for e in 0..eye_count {
             let fe = eye_values[e] * weight;
             if fe == Rgb::ZERO {
@@ -143,7 +202,11 @@ fn direct_light<B: VertexBrdf, T: Tracer>(
             if cos <= 0.0 || ng.dot(s.wi) <= 0.0 || s.radiance_over_pdf == Rgb::ZERO {
                 continue;
             }
-            let tmax = if s.distance.is_finite() { s.distance * (1.0 - 1e-4) } else { f32::INFINITY };
+            let tmax = if s.distance.is_finite() {
+                s.distance * (1.0 - 1e-4)
+            } else {
+                f32::INFINITY
+            };
             if tracer.occluded(ctx, origin, s.wi, tmax) {
                 continue;
             }
@@ -164,7 +227,13 @@ fn direct_light<B: VertexBrdf, T: Tracer>(
 /// Draws an indirect direction at a vertex with normal `n`: uniform (the paper) or the
 /// cosine + lobes mixture. Returns the direction and its solid-angle pdf; consumes 2
 /// (uniform) or 3 (mixture) random numbers always.
-pub fn sample_indirect(sampling: IndirectSampling, lobes: &[f32], n: Vec3, wo: Vec3, stream: &mut SampleStream) -> Option<(Vec3, f32)> {
+pub fn sample_indirect(
+    sampling: IndirectSampling,
+    lobes: &[f32],
+    n: Vec3,
+    wo: Vec3,
+    stream: &mut SampleStream,
+) -> Option<(Vec3, f32)> {
     match sampling {
         IndirectSampling::Uniform => {
             let (u1, u2) = stream.next2();
@@ -179,7 +248,10 @@ pub fn sample_indirect(sampling: IndirectSampling, lobes: &[f32], n: Vec3, wo: V
                 to_world(n, cosine_hemisphere(u1, u2))
             } else {
                 let k = (((pick - cos_weight) / (1.0 - cos_weight)) * lobes.len() as f32) as usize;
-                let h = to_world(n, blinn_phong_half_vector(u1, u2, lobes[k.min(lobes.len() - 1)]));
+                let h = to_world(
+                    n,
+                    blinn_phong_half_vector(u1, u2, lobes[k.min(lobes.len() - 1)]),
+                );
                 2.0 * wo.dot(h) * h - wo
             };
             let cos = n.dot(wi);

@@ -107,7 +107,11 @@ pub fn layer_key(ctx: &BakeContext, layer: usize) -> LayerKey {
 }
 
 /// Bakes `scene` into a transfer stack. `progress` reports and cancels from other threads.
-pub fn bake(scene: &Scene, settings: &BakeSettings, progress: &Progress) -> Result<(TransferStack, BakeReport)> {
+pub fn bake(
+    scene: &Scene,
+    settings: &BakeSettings,
+    progress: &Progress,
+) -> Result<(TransferStack, BakeReport)> {
     let start = Instant::now();
     let (ctx, validation) = BakeContext::new(scene, settings)?;
     let setup_seconds = start.elapsed().as_secs_f64();
@@ -130,9 +134,20 @@ pub fn bake(scene: &Scene, settings: &BakeSettings, progress: &Progress) -> Resu
             }
             for tx in 0..tile.width {
                 let pixel = (ty * tile.width + tx) as usize;
-                let mut sink = TileSink { buf: &mut buf[pixel * layer_count * 3..(pixel + 1) * layer_count * 3], slots };
+                let mut sink = TileSink {
+                    buf: &mut buf[pixel * layer_count * 3..(pixel + 1) * layer_count * 3],
+                    slots,
+                };
                 for s in 0..settings.spp {
-                    trace_eye_sample(&ctx, &brdf, &mut sink, &mut tracer, tile.x0 + tx, tile.y0 + ty, s);
+                    trace_eye_sample(
+                        &ctx,
+                        &brdf,
+                        &mut sink,
+                        &mut tracer,
+                        tile.x0 + tx,
+                        tile.y0 + ty,
+                        s,
+                    );
                 }
             }
         }
@@ -177,7 +192,8 @@ pub fn bake(scene: &Scene, settings: &BakeSettings, progress: &Progress) -> Resu
         .num_threads(settings.threads)
         .build()
         .map_err(|e| crate::RelumeError::invalid("threads", e.to_string()))?;
-    let assembled: Vec<Option<Layer>> = pool.install(|| store.into_par_iter().enumerate().map(assemble).collect());
+    let assembled: Vec<Option<Layer>> =
+        pool.install(|| store.into_par_iter().enumerate().map(assemble).collect());
     let empty = assembled.iter().filter(|l| l.is_none()).count();
     let layers: Vec<Layer> = assembled.into_iter().flatten().collect();
     let grey = layers.iter().filter(|l| l.channels == 1).count();
@@ -199,7 +215,9 @@ pub fn bake(scene: &Scene, settings: &BakeSettings, progress: &Progress) -> Resu
                 name: r.name.clone(),
                 editable: r.editable,
                 material: r.material.clone(),
-                basis: r.editable.then(|| context::basis_config_for(&settings.basis, r.ns_range)),
+                basis: r
+                    .editable
+                    .then(|| context::basis_config_for(&settings.basis, r.ns_range)),
                 textured: r.editable && r.albedo_texture.is_some(),
             })
             .collect(),

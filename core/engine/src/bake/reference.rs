@@ -48,13 +48,24 @@ pub struct RgbaImage {
 
 /// Renders `scene` with `materials` for its editable regions (in scene order of the
 /// editable regions) using exactly the bake's paths for `settings`.
-pub fn render_reference(scene: &Scene, settings: &BakeSettings, materials: &[BlinnPhong], brdf: ReferenceBrdf, progress: &Progress) -> Result<RgbaImage> {
+pub fn render_reference(
+    scene: &Scene,
+    settings: &BakeSettings,
+    materials: &[BlinnPhong],
+    brdf: ReferenceBrdf,
+    progress: &Progress,
+) -> Result<RgbaImage> {
     let (ctx, _) = BakeContext::new(scene, settings)?;
     render_with_context(&ctx, materials, brdf, progress)
 }
 
 /// As [`render_reference`], with a prepared context.
-pub fn render_with_context(ctx: &BakeContext, materials: &[BlinnPhong], brdf: ReferenceBrdf, progress: &Progress) -> Result<RgbaImage> {
+pub fn render_with_context(
+    ctx: &BakeContext,
+    materials: &[BlinnPhong],
+    brdf: ReferenceBrdf,
+    progress: &Progress,
+) -> Result<RgbaImage> {
     let res = ctx.resolution;
     let width = res.width as usize;
     let vertex = MaterialBrdf::new(ctx, materials.to_vec(), brdf == ReferenceBrdf::Projected)?;
@@ -70,7 +81,15 @@ pub fn render_with_context(ctx: &BakeContext, materials: &[BlinnPhong], brdf: Re
             for tx in 0..tile.width {
                 let mut sink = PixelSink(Rgb::ZERO);
                 for s in 0..ctx.settings.spp {
-                    trace_eye_sample(ctx, &vertex, &mut sink, &mut tracer, tile.x0 + tx, tile.y0 + ty, s);
+                    trace_eye_sample(
+                        ctx,
+                        &vertex,
+                        &mut sink,
+                        &mut tracer,
+                        tile.x0 + tx,
+                        tile.y0 + ty,
+                        s,
+                    );
                 }
                 let c = sink.0 * inv_spp;
                 let i = (ty * tile.width + tx) as usize * 4;
@@ -85,5 +104,9 @@ pub fn render_with_context(ctx: &BakeContext, materials: &[BlinnPhong], brdf: Re
         }
         true
     })?;
-    Ok(RgbaImage { width: res.width, height: res.height, rgba: image.into_inner().unwrap_or_else(|e| e.into_inner()) })
+    Ok(RgbaImage {
+        width: res.width,
+        height: res.height,
+        rgba: image.into_inner().unwrap_or_else(|e| e.into_inner()),
+    })
 }

@@ -131,7 +131,12 @@ mod tests {
             },
         ];
         for k in keys {
-            assert_eq!(LayerKey::parse(&k.layer_name()), Some(k.clone()), "{}", k.layer_name());
+            assert_eq!(
+                LayerKey::parse(&k.layer_name()),
+                Some(k.clone()),
+                "{}",
+                k.layer_name()
+            );
         }
         for bad in ["", "E0", "X1b2", "G0_F", "E1b2_", "Ea b"] {
             assert_eq!(LayerKey::parse(bad), None, "{bad}");

@@ -26,7 +26,8 @@ fn albedo_at(region: &PreparedRegion, uv: Vec2) -> Rgb {
 /// The true Blinn–Phong value of `m` with the diffuse part scaled by `albedo`.
 #[inline]
 pub fn blinn_phong_value(m: &BlinnPhong, albedo: Rgb, cos_delta: f32) -> Rgb {
-    Rgb::from(m.kd) * albedo * FRAC_1_PI + Rgb::from(m.ks) * lobe(m.ns as f64, cos_delta as f64) as f32
+    Rgb::from(m.kd) * albedo * FRAC_1_PI
+        + Rgb::from(m.ks) * lobe(m.ns as f64, cos_delta as f64) as f32
 }
 
 /// The bake: every basis function of an editable region (the diffuse one times the albedo
@@ -37,7 +38,15 @@ pub struct BasisBrdf<'a> {
 
 impl VertexBrdf for BasisBrdf<'_> {
     #[inline]
-    fn eval(&self, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3, out: &mut [Rgb; MAX_BASES]) -> (u32, usize) {
+    fn eval(
+        &self,
+        region: u32,
+        uv: Vec2,
+        n: Vec3,
+        wi: Vec3,
+        wo: Vec3,
+        out: &mut [Rgb; MAX_BASES],
+    ) -> (u32, usize) {
         let r = &self.ctx.regions[region as usize];
         let cos_delta = cos_half_angle(n, wi, wo);
         match &r.model {
@@ -86,18 +95,38 @@ impl<'a> MaterialBrdf<'a> {
                 bases.len()
             )));
         }
-        let coefficients = projected.then(|| bases.iter().zip(&materials).map(|(b, m)| b.split_coefficients(m)).collect());
-        Ok(MaterialBrdf { ctx, materials, coefficients })
+        let coefficients = projected.then(|| {
+            bases
+                .iter()
+                .zip(&materials)
+                .map(|(b, m)| b.split_coefficients(m))
+                .collect()
+        });
+        Ok(MaterialBrdf {
+            ctx,
+            materials,
+            coefficients,
+        })
     }
 }
 
 impl VertexBrdf for MaterialBrdf<'_> {
     #[inline]
-    fn eval(&self, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3, out: &mut [Rgb; MAX_BASES]) -> (u32, usize) {
+    fn eval(
+        &self,
+        region: u32,
+        uv: Vec2,
+        n: Vec3,
+        wi: Vec3,
+        wo: Vec3,
+        out: &mut [Rgb; MAX_BASES],
+    ) -> (u32, usize) {
         let r = &self.ctx.regions[region as usize];
         let cos_delta = cos_half_angle(n, wi, wo);
         out[0] = match &r.model {
-            RegionModel::Fixed { material } => blinn_phong_value(material, albedo_at(r, uv), cos_delta),
+            RegionModel::Fixed { material } => {
+                blinn_phong_value(material, albedo_at(r, uv), cos_delta)
+            }
             RegionModel::Editable { index, basis } => {
                 let e = *index as usize;
                 match &self.coefficients {

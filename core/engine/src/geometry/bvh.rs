@@ -69,7 +69,11 @@ impl SceneGeometry {
                     Some(n) => idx.map(|i| {
                         let v = Vec3::from(n[i as usize]);
                         let l = v.length();
-                        if l > 0.0 && l.is_finite() { v / l } else { geo_n }
+                        if l > 0.0 && l.is_finite() {
+                            v / l
+                        } else {
+                            geo_n
+                        }
                     }),
                     None => [geo_n; 3],
                 };
@@ -77,14 +81,39 @@ impl SceneGeometry {
                     Some(uv) => idx.map(|i| Vec2::from(uv[i as usize])),
                     None => [Vec2::ZERO; 3],
                 };
-                tris.push(Triangle { v0: p[0].into(), v1: p[1].into(), v2: p[2].into() });
-                shading.push(TriShading { normals, uvs, region: mesh.region_of(t) });
+                tris.push(Triangle {
+                    v0: p[0].into(),
+                    v1: p[1].into(),
+                    v2: p[2].into(),
+                });
+                shading.push(TriShading {
+                    normals,
+                    uvs,
+                    region: mesh.region_of(t),
+                });
             }
         }
-        let bvh = build_cwbvh_from_tris(&tris, BvhBuildParams::medium_build(), &mut Default::default());
-        let tris_ordered: Vec<Triangle> = bvh.primitive_indices.iter().map(|&i| tris[i as usize]).collect();
-        let shading_ordered = bvh.primitive_indices.iter().map(|&i| shading[i as usize]).collect();
-        SceneGeometry { bvh, tris: tris_ordered, shading: shading_ordered, extent: extent.max(1e-30) }
+        let bvh = build_cwbvh_from_tris(
+            &tris,
+            BvhBuildParams::medium_build(),
+            &mut Default::default(),
+        );
+        let tris_ordered: Vec<Triangle> = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| tris[i as usize])
+            .collect();
+        let shading_ordered = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| shading[i as usize])
+            .collect();
+        SceneGeometry {
+            bvh,
+            tris: tris_ordered,
+            shading: shading_ordered,
+            extent: extent.max(1e-30),
+        }
     }
 
     /// Number of triangles in the BVH.
@@ -102,8 +131,14 @@ impl SceneGeometry {
     pub fn intersect_raw(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<RawHit> {
         let ray = Ray::new(origin.into(), dir.into(), tmin, tmax);
         let mut hit = RayHit::none();
-        if self.bvh.ray_traverse(ray, &mut hit, |r, id| self.tris[id].intersect(r)) {
-            Some(RawHit { t: hit.t, primitive: hit.primitive_id })
+        if self
+            .bvh
+            .ray_traverse(ray, &mut hit, |r, id| self.tris[id].intersect(r))
+        {
+            Some(RawHit {
+                t: hit.t,
+                primitive: hit.primitive_id,
+            })
         } else {
             None
         }
@@ -122,7 +157,8 @@ impl SceneGeometry {
         if ng.dot(dir) > 0.0 {
             ng = -ng;
         }
-        let mut ns = (sh.normals[0] * b0 + sh.normals[1] * b1 + sh.normals[2] * b2).normalize_or_zero();
+        let mut ns =
+            (sh.normals[0] * b0 + sh.normals[1] * b1 + sh.normals[2] * b2).normalize_or_zero();
         if ns == Vec3::ZERO {
             ns = ng;
         }
@@ -143,7 +179,9 @@ impl SceneGeometry {
     #[inline]
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
         let ray = Ray::new(origin.into(), dir.into(), 0.0, tmax);
-        !self.bvh.ray_traverse_miss(ray, |r, id| self.tris[id].intersect(r))
+        !self
+            .bvh
+            .ray_traverse_miss(ray, |r, id| self.tris[id].intersect(r))
     }
 
     /// Ray origin just off the surface at `p` on the side of `n`: the offset scales with the
@@ -155,4 +193,3 @@ impl SceneGeometry {
         p + n * eps
     }
 }
-

@@ -63,12 +63,16 @@ impl CameraRays {
         match self.projection {
             Projection::Perspective => {
                 let origin = self.to_world.transform_point3(Vec3::ZERO);
-                let dir = (self.to_world * Vec4::new(px, py, -1.0, 0.0)).truncate().normalize();
+                let dir = (self.to_world * Vec4::new(px, py, -1.0, 0.0))
+                    .truncate()
+                    .normalize();
                 (origin + dir * self.clip_start, dir)
             }
             Projection::Orthographic => {
                 let origin = self.to_world.transform_point3(Vec3::new(px, py, 0.0));
-                let dir = (self.to_world * Vec4::new(0.0, 0.0, -1.0, 0.0)).truncate().normalize();
+                let dir = (self.to_world * Vec4::new(0.0, 0.0, -1.0, 0.0))
+                    .truncate()
+                    .normalize();
                 (origin + dir * self.clip_start, dir)
             }
         }
@@ -82,7 +86,12 @@ mod tests {
     fn camera(fit: SensorFit) -> Camera {
         Camera {
             projection: Projection::Perspective,
-            matrix_world: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 5.0], [0.0, 0.0, 0.0, 1.0]],
+            matrix_world: [
+                [1.0, 0.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0, 0.0],
+                [0.0, 0.0, 1.0, 5.0],
+                [0.0, 0.0, 0.0, 1.0],
+            ],
             lens_mm: 50.0,
             sensor_width_mm: 36.0,
             sensor_height_mm: 24.0,
@@ -98,17 +107,35 @@ mod tests {
     #[test]
     fn field_of_view_follows_blender() {
         // Horizontal fov of a 50 mm lens on a 36 mm sensor: 2·atan(18/50) = 39.6°.
-        let c = CameraRays::new(&camera(SensorFit::Auto), Resolution { width: 200, height: 100 });
+        let c = CameraRays::new(
+            &camera(SensorFit::Auto),
+            Resolution {
+                width: 200,
+                height: 100,
+            },
+        );
         let (o, d) = c.ray(200.0, 50.0);
         assert!((o - Vec3::new(0.0, 0.0, 5.0)).length() < 1e-6);
         let half = d.x.atan2(-d.z);
         assert!((half - (18.0f32 / 50.0).atan()).abs() < 1e-5, "{half}");
         // Portrait with auto fit: the sensor width spans the (larger) height.
-        let c = CameraRays::new(&camera(SensorFit::Auto), Resolution { width: 100, height: 200 });
+        let c = CameraRays::new(
+            &camera(SensorFit::Auto),
+            Resolution {
+                width: 100,
+                height: 200,
+            },
+        );
         let (_, d) = c.ray(50.0, 0.0);
         assert!((d.y.atan2(-d.z) - (18.0f32 / 50.0).atan()).abs() < 1e-5);
         // Vertical fit uses the sensor height.
-        let c = CameraRays::new(&camera(SensorFit::Vertical), Resolution { width: 200, height: 100 });
+        let c = CameraRays::new(
+            &camera(SensorFit::Vertical),
+            Resolution {
+                width: 200,
+                height: 100,
+            },
+        );
         let (_, d) = c.ray(100.0, 0.0);
         assert!((d.y.atan2(-d.z) - (12.0f32 / 50.0).atan()).abs() < 1e-5);
     }
@@ -117,7 +144,13 @@ mod tests {
     fn shift_moves_the_view_by_the_fitted_dimension() {
         let mut cam = camera(SensorFit::Auto);
         cam.shift_x = 0.5;
-        let c = CameraRays::new(&cam, Resolution { width: 200, height: 100 });
+        let c = CameraRays::new(
+            &cam,
+            Resolution {
+                width: 200,
+                height: 100,
+            },
+        );
         // The centre pixel now looks where the right edge looked.
         let (_, d) = c.ray(100.0, 50.0);
         assert!((d.x.atan2(-d.z) - (18.0f32 / 50.0).atan()).abs() < 1e-5);
@@ -127,7 +160,13 @@ mod tests {
     fn orthographic_rays_are_parallel() {
         let mut cam = camera(SensorFit::Auto);
         cam.projection = Projection::Orthographic;
-        let c = CameraRays::new(&cam, Resolution { width: 100, height: 100 });
+        let c = CameraRays::new(
+            &cam,
+            Resolution {
+                width: 100,
+                height: 100,
+            },
+        );
         let (o0, d0) = c.ray(0.0, 0.0);
         let (o1, d1) = c.ray(100.0, 100.0);
         assert!((d0 - d1).length() < 1e-6);

@@ -19,9 +19,14 @@ impl Environment {
     /// From the scene's world.
     pub fn new(world: &World) -> Environment {
         match world {
-            World::Color { color, strength } => Environment::Constant(Rgb::from(*color) * *strength),
+            World::Color { color, strength } => {
+                Environment::Constant(Rgb::from(*color) * *strength)
+            }
             World::Equirect { image, strength } => match Texture::from_ref(image) {
-                Some(image) => Environment::Equirect { image, strength: *strength },
+                Some(image) => Environment::Equirect {
+                    image,
+                    strength: *strength,
+                },
                 None => Environment::Constant(Rgb::ZERO),
             },
         }

@@ -34,9 +34,27 @@ pub struct LightSample {
 
 #[derive(Clone, Debug)]
 enum Emitter {
-    Point { position: Vec3, intensity: Rgb, radius: f32, spot: Option<Spot> },
-    Sun { to_light: Vec3, cos_half: f32, radiance_over_pdf: Rgb },
-    Area { centre: Vec3, u: Vec3, v: Vec3, normal: Vec3, half_u: f32, half_v: f32, elliptic: bool, radiance_times_area: Rgb },
+    Point {
+        position: Vec3,
+        intensity: Rgb,
+        radius: f32,
+        spot: Option<Spot>,
+    },
+    Sun {
+        to_light: Vec3,
+        cos_half: f32,
+        radiance_over_pdf: Rgb,
+    },
+    Area {
+        centre: Vec3,
+        u: Vec3,
+        v: Vec3,
+        normal: Vec3,
+        half_u: f32,
+        half_v: f32,
+        elliptic: bool,
+        radiance_times_area: Rgb,
+    },
     World,
 }
 
@@ -63,7 +81,10 @@ impl LightSet {
         if !environment.is_black() {
             emitters.push(Emitter::World);
         }
-        LightSet { emitters, environment }
+        LightSet {
+            emitters,
+            environment,
+        }
     }
 
     /// Number of emitters sampled at every shading point.
@@ -80,7 +101,12 @@ impl LightSet {
     /// sample carries no light (outside a spot cone, behind an area light, …).
     pub fn sample(&self, index: usize, p: Vec3, n: Vec3, u1: f32, u2: f32) -> Option<LightSample> {
         match &self.emitters[index] {
-            Emitter::Point { position, intensity, radius, spot } => {
+            Emitter::Point {
+                position,
+                intensity,
+                radius,
+                spot,
+            } => {
                 let mut target = *position;
                 if *radius > 0.0 {
                     let axis = (p - *position).normalize_or_zero();
@@ -113,14 +139,43 @@ impl LightSet {
                     }
                     li *= mask;
                 }
-                Some(LightSample { wi, distance: dist, radiance_over_pdf: li })
+                Some(LightSample {
+                    wi,
+                    distance: dist,
+                    radiance_over_pdf: li,
+                })
             }
-            Emitter::Sun { to_light, cos_half, radiance_over_pdf } => {
-                let wi = if *cos_half < 1.0 { to_world(*to_light, uniform_cone(u1, u2, *cos_half)) } else { *to_light };
-                Some(LightSample { wi, distance: f32::INFINITY, radiance_over_pdf: *radiance_over_pdf })
+            Emitter::Sun {
+                to_light,
+                cos_half,
+                radiance_over_pdf,
+            } => {
+                let wi = if *cos_half < 1.0 {
+                    to_world(*to_light, uniform_cone(u1, u2, *cos_half))
+                } else {
+                    *to_light
+                };
+                Some(LightSample {
+                    wi,
+                    distance: f32::INFINITY,
+                    radiance_over_pdf: *radiance_over_pdf,
+                })
             }
-            Emitter::Area { centre, u, v, normal, half_u, half_v, elliptic, radiance_times_area } => {
-                let (a, b) = if *elliptic { concentric_disk(u1, u2) } else { (2.0 * u1 - 1.0, 2.0 * u2 - 1.0) };
+            Emitter::Area {
+                centre,
+                u,
+                v,
+                normal,
+                half_u,
+                half_v,
+                elliptic,
+                radiance_times_area,
+            } => {
+                let (a, b) = if *elliptic {
+                    concentric_disk(u1, u2)
+                } else {
+                    (2.0 * u1 - 1.0, 2.0 * u2 - 1.0)
+                };
                 let q = *centre + *u * (a * half_u) + *v * (b * half_v);
                 let d = q - p;
                 let dist2 = d.length_squared();
@@ -133,7 +188,11 @@ impl LightSet {
                 if cos_light <= 0.0 {
                     return None;
                 }
-                Some(LightSample { wi, distance: dist, radiance_over_pdf: *radiance_times_area * (cos_light / dist2) })
+                Some(LightSample {
+                    wi,
+                    distance: dist,
+                    radiance_over_pdf: *radiance_times_area * (cos_light / dist2),
+                })
             }
             Emitter::World => {
                 let local = cosine_hemisphere(u1, u2);
@@ -142,7 +201,11 @@ impl LightSet {
                 }
                 let wi = to_world(n, local);
                 let li = self.environment.radiance(wi);
-                Some(LightSample { wi, distance: f32::INFINITY, radiance_over_pdf: li * (PI / local.z) })
+                Some(LightSample {
+                    wi,
+                    distance: f32::INFINITY,
+                    radiance_over_pdf: li * (PI / local.z),
+                })
             }
         }
     }
@@ -150,13 +213,26 @@ impl LightSet {
 
 fn prepare(light: &Light) -> Option<Emitter> {
     match light {
-        Light::Point { position, power, color, radius } => Some(Emitter::Point {
+        Light::Point {
+            position,
+            power,
+            color,
+            radius,
+        } => Some(Emitter::Point {
             position: Vec3::from(*position),
             intensity: Rgb::from(*color) * (*power / (4.0 * PI)),
             radius: *radius,
             spot: None,
         }),
-        Light::Spot { position, direction, power, color, radius, spot_size, spot_blend } => {
+        Light::Spot {
+            position,
+            direction,
+            power,
+            color,
+            radius,
+            spot_size,
+            spot_blend,
+        } => {
             let cos_half = (0.5 * spot_size).cos();
             Some(Emitter::Point {
                 position: Vec3::from(*position),
@@ -169,19 +245,37 @@ fn prepare(light: &Light) -> Option<Emitter> {
                 }),
             })
         }
-        Light::Sun { direction, strength, color, angle } => {
+        Light::Sun {
+            direction,
+            strength,
+            color,
+            angle,
+        } => {
             let half = 0.5 * angle;
             let cos_half = half.cos();
             // Irradiance S from a uniform disk of half-angle h: L = S/(π sin²h); ∫ L dω over the
             // cone = L·2π(1 − cos h) = S·2/(1 + cos h) → S as h → 0.
-            let factor = if half > 1e-6 { 2.0 / (1.0 + cos_half) } else { 1.0 };
+            let factor = if half > 1e-6 {
+                2.0 / (1.0 + cos_half)
+            } else {
+                1.0
+            };
             Some(Emitter::Sun {
                 to_light: -Vec3::from(*direction).normalize(),
                 cos_half: if half > 1e-6 { cos_half } else { 1.0 },
                 radiance_over_pdf: Rgb::from(*color) * (*strength * factor),
             })
         }
-        Light::Area { position, axis_u, axis_v, shape, size_x, size_y, power, color } => {
+        Light::Area {
+            position,
+            axis_u,
+            axis_v,
+            shape,
+            size_x,
+            size_y,
+            power,
+            color,
+        } => {
             let u = Vec3::from(*axis_u).normalize();
             let v = Vec3::from(*axis_v).normalize();
             let (sx, sy) = match shape {
@@ -189,7 +283,11 @@ fn prepare(light: &Light) -> Option<Emitter> {
                 AreaShape::Rectangle | AreaShape::Ellipse => (*size_x, size_y.unwrap_or(*size_x)),
             };
             let elliptic = matches!(shape, AreaShape::Disk | AreaShape::Ellipse);
-            let area = if elliptic { PI * sx * sy / 4.0 } else { sx * sy };
+            let area = if elliptic {
+                PI * sx * sy / 4.0
+            } else {
+                sx * sy
+            };
             // L = P/(π A); the area pdf is 1/A, so radiance/pdf (before cos/d²) is L·A = P/π.
             Some(Emitter::Area {
                 centre: Vec3::from(*position),
@@ -199,7 +297,9 @@ fn prepare(light: &Light) -> Option<Emitter> {
                 half_u: 0.5 * sx,
                 half_v: 0.5 * sy,
                 elliptic,
-                radiance_times_area: Rgb::from(*color) * (*power / PI) * if area > 0.0 { 1.0 } else { 0.0 },
+                radiance_times_area: Rgb::from(*color)
+                    * (*power / PI)
+                    * if area > 0.0 { 1.0 } else { 0.0 },
             })
         }
     }

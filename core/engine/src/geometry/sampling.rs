@@ -88,7 +88,11 @@ pub struct SampleStream {
 impl SampleStream {
     /// The stream of eye sample `sample` of pixel `pixel` for bake seed `seed`.
     pub fn new(seed: u64, pixel: u64, sample: u32) -> Self {
-        let key = mix64(seed ^ mix64(pixel.wrapping_mul(0x9E3779B97F4A7C15) ^ ((sample as u64) << 32 | 0x5bd1e995)));
+        let key = mix64(
+            seed ^ mix64(
+                pixel.wrapping_mul(0x9E3779B97F4A7C15) ^ ((sample as u64) << 32 | 0x5bd1e995),
+            ),
+        );
         SampleStream { key, next: 0 }
     }
     /// The next uniform number in [0, 1).
@@ -119,7 +123,13 @@ mod tests {
 
     #[test]
     fn frames_are_orthonormal() {
-        for n in [Vec3::Z, -Vec3::Z, Vec3::X, Vec3::new(0.3, -0.5, 0.8).normalize(), Vec3::new(1e-8, 0.0, -1.0).normalize()] {
+        for n in [
+            Vec3::Z,
+            -Vec3::Z,
+            Vec3::X,
+            Vec3::new(0.3, -0.5, 0.8).normalize(),
+            Vec3::new(1e-8, 0.0, -1.0).normalize(),
+        ] {
             let (t, b) = frame(n);
             assert!((t.length() - 1.0).abs() < 1e-5 && (b.length() - 1.0).abs() < 1e-5);
             assert!(t.dot(n).abs() < 1e-5 && b.dot(n).abs() < 1e-5 && t.dot(b).abs() < 1e-5);
@@ -140,7 +150,8 @@ mod tests {
                     let r = (1.0 - z * z).sqrt();
                     let wi = Vec3::new(r * phi.cos(), r * phi.sin(), z);
                     let h = (wi + wo).normalize();
-                    sum += blinn_phong_pdf(h.z, wo.dot(h), ns) as f64 * (4.0 * PI as f64 / (2 * n * n) as f64);
+                    sum += blinn_phong_pdf(h.z, wo.dot(h), ns) as f64
+                        * (4.0 * PI as f64 / (2 * n * n) as f64);
                 }
             }
             assert!((sum - 1.0).abs() < 0.02, "ns {ns}: {sum}");

@@ -91,7 +91,11 @@ impl Kernels {
     /// (`out.len() == 4 · src.len()`).
     #[inline]
     pub(crate) fn add_grey<S: Sample>(self, out: &mut [f32], src: &[S], w: [f32; 3]) {
-        assert_eq!(out.len(), 4 * src.len(), "grey segment: 4 outputs per sample");
+        assert_eq!(
+            out.len(),
+            4 * src.len(),
+            "grey segment: 4 outputs per sample"
+        );
         match self {
             Kernels::Portable => grey_portable(out, src, w),
             #[cfg(target_arch = "x86_64")]
@@ -171,9 +175,21 @@ mod x86 {
                 let v = S::load8(sp.add(i));
                 let o = op.add(4 * i);
                 let a0 = _mm256_fmadd_ps(_mm256_permutevar8x32_ps(v, i0), wv, _mm256_loadu_ps(o));
-                let a1 = _mm256_fmadd_ps(_mm256_permutevar8x32_ps(v, i1), wv, _mm256_loadu_ps(o.add(8)));
-                let a2 = _mm256_fmadd_ps(_mm256_permutevar8x32_ps(v, i2), wv, _mm256_loadu_ps(o.add(16)));
-                let a3 = _mm256_fmadd_ps(_mm256_permutevar8x32_ps(v, i3), wv, _mm256_loadu_ps(o.add(24)));
+                let a1 = _mm256_fmadd_ps(
+                    _mm256_permutevar8x32_ps(v, i1),
+                    wv,
+                    _mm256_loadu_ps(o.add(8)),
+                );
+                let a2 = _mm256_fmadd_ps(
+                    _mm256_permutevar8x32_ps(v, i2),
+                    wv,
+                    _mm256_loadu_ps(o.add(16)),
+                );
+                let a3 = _mm256_fmadd_ps(
+                    _mm256_permutevar8x32_ps(v, i3),
+                    wv,
+                    _mm256_loadu_ps(o.add(24)),
+                );
                 _mm256_storeu_ps(o, a0);
                 _mm256_storeu_ps(o.add(8), a1);
                 _mm256_storeu_ps(o.add(16), a2);
@@ -277,7 +293,11 @@ mod tests {
                     let mut expect = init.clone();
                     for p in 0..px {
                         for c in 0..3 {
-                            let v = if ch == 1 { halves[p] } else { halves[3 * p + c] };
+                            let v = if ch == 1 {
+                                halves[p]
+                            } else {
+                                halves[3 * p + c]
+                            };
                             expect[4 * p + c] += w[c] * v.to_f32();
                         }
                     }
@@ -294,8 +314,14 @@ mod tests {
                     for i in 0..expect.len() {
                         // FMA rounds once instead of twice: allow one ulp-scale difference.
                         let tol = 1e-6 * (1.0 + expect[i].abs());
-                        assert!((got16[i] - expect[i]).abs() <= tol, "{k:?} px {px} ch {ch} i {i}");
-                        assert!((got32[i] - expect[i]).abs() <= tol, "{k:?} px {px} ch {ch} i {i}");
+                        assert!(
+                            (got16[i] - expect[i]).abs() <= tol,
+                            "{k:?} px {px} ch {ch} i {i}"
+                        );
+                        assert!(
+                            (got32[i] - expect[i]).abs() <= tol,
+                            "{k:?} px {px} ch {ch} i {i}"
+                        );
                     }
                 }
             }

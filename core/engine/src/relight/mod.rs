@@ -156,7 +156,10 @@ impl CpuRelighter {
             if layer.channels != 1 && layer.channels != 3 {
                 return Err(RelumeError::invalid(
                     format!("layer {name}"),
-                    format!("{} channels; a layer has 1 (grey) or 3 (RGB)", layer.channels),
+                    format!(
+                        "{} channels; a layer has 1 (grey) or 3 (RGB)",
+                        layer.channels
+                    ),
                 ));
             }
             let expect = width * height * layer.channels as usize;
@@ -205,13 +208,23 @@ impl CpuRelighter {
             plans[l].spans[rows].iter().any(|s| s[0] < s[1])
         };
         let band_layers: Vec<Vec<u32>> = (0..n_bands)
-            .map(|b| (0..plans.len()).filter(|&l| touches(l, b)).map(|l| l as u32).collect())
+            .map(|b| {
+                (0..plans.len())
+                    .filter(|&l| touches(l, b))
+                    .map(|l| l as u32)
+                    .collect()
+            })
             .collect();
         let region_band_layers = region_layers
             .iter()
             .map(|ls| {
                 (0..n_bands)
-                    .map(|b| ls.iter().copied().filter(|&l| touches(l as usize, b)).collect())
+                    .map(|b| {
+                        ls.iter()
+                            .copied()
+                            .filter(|&l| touches(l as usize, b))
+                            .collect()
+                    })
                     .collect()
             })
             .collect();
@@ -369,7 +382,10 @@ impl CpuRelighter {
         }
         if let Some(b) = c.iter().position(|v| !v.is_finite()) {
             return Err(RelumeError::NonFinite {
-                what: format!("coefficient {b} of editable region {r} ({name}): {:?}", c[b]),
+                what: format!(
+                    "coefficient {b} of editable region {r} ({name}): {:?}",
+                    c[b]
+                ),
             });
         }
         Ok(())
@@ -451,7 +467,10 @@ fn plan_layer(layer: &crate::stack::Layer, width: usize, height: usize) -> Resul
 /// `Ok((first non-zero, last non-zero))` sample positions of a row, or `Err(position)` of
 /// its first non-finite sample. `test` gives (non-zero, finite).
 #[allow(clippy::type_complexity)]
-fn scan_row<T>(row: &[T], test: impl Fn(&T) -> (bool, bool)) -> Result<(Option<usize>, Option<usize>), usize> {
+fn scan_row<T>(
+    row: &[T],
+    test: impl Fn(&T) -> (bool, bool),
+) -> Result<(Option<usize>, Option<usize>), usize> {
     let mut first = None;
     let mut last = None;
     for (i, s) in row.iter().enumerate() {
@@ -487,7 +506,8 @@ fn sum_bands(
         .enumerate()
         .for_each(|(b, (out, list))| {
             if reset {
-                out.chunks_exact_mut(4).for_each(|p| p.copy_from_slice(&[0.0, 0.0, 0.0, 1.0]));
+                out.chunks_exact_mut(4)
+                    .for_each(|p| p.copy_from_slice(&[0.0, 0.0, 0.0, 1.0]));
             }
             let y0 = b * BAND_ROWS;
             let rows = out.len() / (4 * width).max(1);

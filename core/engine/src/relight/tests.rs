@@ -4,7 +4,9 @@
 use super::*;
 use crate::bake::signature::{LayerKey, PathVertex};
 use crate::brdf::{BlinnPhong, MaterialSpec};
-use crate::stack::{Layer, Precision, RegionInfo, StackHeader, TransferStack, STACK_FORMAT_VERSION};
+use crate::stack::{
+    Layer, Precision, RegionInfo, StackHeader, TransferStack, STACK_FORMAT_VERSION,
+};
 
 fn header(width: u32, height: u32) -> StackHeader {
     let camera = serde_json::from_str(
@@ -14,7 +16,11 @@ fn header(width: u32, height: u32) -> StackHeader {
     let region = |name: &str, editable| RegionInfo {
         name: name.into(),
         editable,
-        material: MaterialSpec::BlinnPhong(BlinnPhong { kd: [0.5; 3], ks: [0.1; 3], ns: 10.0 }),
+        material: MaterialSpec::BlinnPhong(BlinnPhong {
+            kd: [0.5; 3],
+            ks: [0.1; 3],
+            ns: 10.0,
+        }),
         basis: None,
         textured: false,
     };
@@ -51,7 +57,11 @@ fn simd_and_portable_paths_agree() {
     let mut layers = Vec::new();
     let mut x = 12345u32;
     for (i, k) in keys.iter().enumerate() {
-        for (ch, prec) in [(1u32, Precision::F16), (3, Precision::F32), (3, Precision::F16)] {
+        for (ch, prec) in [
+            (1u32, Precision::F16),
+            (3, Precision::F32),
+            (3, Precision::F16),
+        ] {
             let vals: Vec<f32> = (0..(w * h * ch) as usize)
                 .map(|j| {
                     x ^= x << 13;
@@ -68,13 +78,20 @@ fn simd_and_portable_paths_agree() {
             layers.push(Layer::from_f32(LayerKey::new(k.clone()), ch, &vals, prec));
         }
     }
-    let stack = Arc::new(TransferStack { header: header(w, h), layers });
+    let stack = Arc::new(TransferStack {
+        header: header(w, h),
+        layers,
+    });
     let fast = Kernels::detect();
     let mut a = CpuRelighter::with_kernels(stack.clone(), fast).unwrap();
     let mut b = CpuRelighter::with_kernels(stack, Kernels::Portable).unwrap();
     let coefs = vec![
         vec![Rgb::new(0.3, 0.5, 0.7), Rgb::new(-0.2, 0.1, 0.4)],
-        vec![Rgb::new(0.9, 0.2, 0.1), Rgb::splat(0.5), Rgb::new(0.05, -0.3, 0.6)],
+        vec![
+            Rgb::new(0.9, 0.2, 0.1),
+            Rgb::splat(0.5),
+            Rgb::new(0.05, -0.3, 0.6),
+        ],
     ];
     let check = |a: &[f32], b: &[f32]| {
         let scale = b.iter().fold(1.0f32, |m, v| m.max(v.abs()));

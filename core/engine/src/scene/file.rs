@@ -45,11 +45,20 @@ pub fn parse_scene(text: &str, path: &Path, dir: &Path) -> Result<Scene> {
         path: path.to_path_buf(),
         message,
     };
-    let probe: Probe = serde_json::from_str(text).map_err(|e| fail(format!("not valid JSON: {e}")))?;
+    let probe: Probe =
+        serde_json::from_str(text).map_err(|e| fail(format!("not valid JSON: {e}")))?;
     match probe.format.as_deref() {
         Some(SCENE_FORMAT) => {}
-        Some(other) => return Err(fail(format!("format is \"{other}\", expected \"{SCENE_FORMAT}\""))),
-        None => return Err(fail(format!("no \"format\": \"{SCENE_FORMAT}\" key: not a Relume scene file"))),
+        Some(other) => {
+            return Err(fail(format!(
+                "format is \"{other}\", expected \"{SCENE_FORMAT}\""
+            )))
+        }
+        None => {
+            return Err(fail(format!(
+                "no \"format\": \"{SCENE_FORMAT}\" key: not a Relume scene file"
+            )))
+        }
     }
     match probe.version {
         Some(SCENE_VERSION) => {}

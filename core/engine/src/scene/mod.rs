@@ -93,7 +93,9 @@ pub enum ImageRef {
         /// Row-major, top row first, RGB triples, scene-linear.
         rgb: Vec<f32>,
     },
-    Path { path: String },
+    Path {
+        path: String,
+    },
 }
 
 /// The shape of an area light, as in Blender.

@@ -56,7 +56,10 @@ pub fn validate_scene(scene: &Scene) -> Result<ValidationReport> {
         ));
     }
     for (ri, region) in scene.regions.iter().enumerate() {
-        validate_material(&format!("region {ri} \"{}\" material", region.name), &region.material)?;
+        validate_material(
+            &format!("region {ri} \"{}\" material", region.name),
+            &region.material,
+        )?;
         if let Some(img) = &region.albedo_texture {
             validate_image(&format!("region \"{}\" albedo texture", region.name), img)?;
         }
@@ -77,18 +80,31 @@ pub fn validate_scene(scene: &Scene) -> Result<ValidationReport> {
         }
     }
     for (mi, mesh) in scene.meshes.iter().enumerate() {
-        let name = if mesh.name.is_empty() { format!("mesh {mi}") } else { format!("mesh {mi} \"{}\"", mesh.name) };
+        let name = if mesh.name.is_empty() {
+            format!("mesh {mi}")
+        } else {
+            format!("mesh {mi} \"{}\"", mesh.name)
+        };
         let nv = mesh.positions.len();
-        finite(|| format!("{name} positions"), mesh.positions.as_flattened())?;
+        finite(
+            || format!("{name} positions"),
+            mesh.positions.as_flattened(),
+        )?;
         if let Some(n) = &mesh.normals {
             if n.len() != nv {
-                return Err(RelumeError::invalid(format!("{name} normals"), format!("{} normals for {nv} vertices", n.len())));
+                return Err(RelumeError::invalid(
+                    format!("{name} normals"),
+                    format!("{} normals for {nv} vertices", n.len()),
+                ));
             }
             finite(|| format!("{name} normals"), n.as_flattened())?;
         }
         if let Some(uv) = &mesh.uvs {
             if uv.len() != nv {
-                return Err(RelumeError::invalid(format!("{name} uvs"), format!("{} uvs for {nv} vertices", uv.len())));
+                return Err(RelumeError::invalid(
+                    format!("{name} uvs"),
+                    format!("{} uvs for {nv} vertices", uv.len()),
+                ));
             }
             finite(|| format!("{name} uvs"), uv.as_flattened())?;
         }
@@ -138,7 +154,10 @@ pub fn validate_scene(scene: &Scene) -> Result<ValidationReport> {
     }
     match &scene.world {
         World::Color { color, strength } => {
-            finite(|| "world colour".into(), &[color[0], color[1], color[2], *strength])?;
+            finite(
+                || "world colour".into(),
+                &[color[0], color[1], color[2], *strength],
+            )?;
             if color.iter().any(|c| *c < 0.0) || *strength < 0.0 {
                 return Err(RelumeError::invalid("world", "negative colour or strength"));
             }
@@ -154,10 +173,14 @@ pub fn validate_scene(scene: &Scene) -> Result<ValidationReport> {
         }
     }
     if !emits {
-        report.warnings.push("the scene has no light and a black world: every image will be black".into());
+        report
+            .warnings
+            .push("the scene has no light and a black world: every image will be black".into());
     }
     if !scene.regions.iter().any(|r| r.editable) {
-        report.warnings.push("no region is editable: a relight can change nothing".into());
+        report
+            .warnings
+            .push("no region is editable: a relight can change nothing".into());
     }
     validate_camera(scene)?;
     Ok(report)
@@ -166,17 +189,34 @@ pub fn validate_scene(scene: &Scene) -> Result<ValidationReport> {
 fn validate_material(what: &str, m: &MaterialSpec) -> Result<()> {
     match m {
         MaterialSpec::BlinnPhong(b) => {
-            finite(|| what.to_string(), &[b.kd[0], b.kd[1], b.kd[2], b.ks[0], b.ks[1], b.ks[2], b.ns])?;
+            finite(
+                || what.to_string(),
+                &[b.kd[0], b.kd[1], b.kd[2], b.ks[0], b.ks[1], b.ks[2], b.ns],
+            )?;
             if b.kd.iter().chain(b.ks.iter()).any(|v| *v < 0.0) {
                 return Err(RelumeError::invalid(what, "Kd and Ks must be ≥ 0"));
             }
             if b.ns <= 0.0 {
-                return Err(RelumeError::invalid(what, format!("ns = {} (must be > 0)", b.ns)));
+                return Err(RelumeError::invalid(
+                    what,
+                    format!("ns = {} (must be > 0)", b.ns),
+                ));
             }
         }
         MaterialSpec::Principled(p) => {
             let c = p.base_color;
-            finite(|| what.to_string(), &[c[0], c[1], c[2], p.metallic, p.roughness, p.ior, p.specular_ior_level])?;
+            finite(
+                || what.to_string(),
+                &[
+                    c[0],
+                    c[1],
+                    c[2],
+                    p.metallic,
+                    p.roughness,
+                    p.ior,
+                    p.specular_ior_level,
+                ],
+            )?;
         }
     }
     Ok(())
@@ -189,7 +229,10 @@ fn validate_image(what: &str, img: &ImageRef) -> Result<()> {
             if *width == 0 || *height == 0 || rgb.len() != expect {
                 return Err(RelumeError::invalid(
                     what,
-                    format!("{width}×{height} needs {expect} RGB values, has {}", rgb.len()),
+                    format!(
+                        "{width}×{height} needs {expect} RGB values, has {}",
+                        rgb.len()
+                    ),
                 ));
             }
             finite(|| what.to_string(), rgb)?;
@@ -198,7 +241,10 @@ fn validate_image(what: &str, img: &ImageRef) -> Result<()> {
             }
             Ok(())
         }
-        ImageRef::Path { path } => Err(RelumeError::invalid(what, format!("image {path} was not loaded"))),
+        ImageRef::Path { path } => Err(RelumeError::invalid(
+            what,
+            format!("image {path} was not loaded"),
+        )),
     }
 }
 
@@ -207,25 +253,69 @@ fn validate_light(li: usize, light: &Light) -> Result<bool> {
     let what = || format!("light {li}");
     let nonzero = |v: &[f32; 3]| glam::Vec3::from(*v).length_squared() > 0.0;
     let (power, color) = match light {
-        Light::Point { position, power, color, radius } => {
-            finite(what, &[position[0], position[1], position[2], *power, *radius])?;
+        Light::Point {
+            position,
+            power,
+            color,
+            radius,
+        } => {
+            finite(
+                what,
+                &[position[0], position[1], position[2], *power, *radius],
+            )?;
             if *radius < 0.0 {
                 return Err(RelumeError::invalid(what(), "negative radius"));
             }
             (*power, *color)
         }
-        Light::Spot { position, direction, power, color, radius, spot_size, spot_blend } => {
-            finite(what, &[position[0], position[1], position[2], direction[0], direction[1], direction[2], *power, *radius, *spot_size, *spot_blend])?;
+        Light::Spot {
+            position,
+            direction,
+            power,
+            color,
+            radius,
+            spot_size,
+            spot_blend,
+        } => {
+            finite(
+                what,
+                &[
+                    position[0],
+                    position[1],
+                    position[2],
+                    direction[0],
+                    direction[1],
+                    direction[2],
+                    *power,
+                    *radius,
+                    *spot_size,
+                    *spot_blend,
+                ],
+            )?;
             if !nonzero(direction) {
                 return Err(RelumeError::invalid(what(), "spot direction is zero"));
             }
-            if !(*spot_size > 0.0 && *spot_size <= std::f32::consts::PI) || !(0.0..=1.0).contains(spot_blend) || *radius < 0.0 {
-                return Err(RelumeError::invalid(what(), "spot_size must be in (0, π], spot_blend in [0, 1], radius ≥ 0"));
+            if !(*spot_size > 0.0 && *spot_size <= std::f32::consts::PI)
+                || !(0.0..=1.0).contains(spot_blend)
+                || *radius < 0.0
+            {
+                return Err(RelumeError::invalid(
+                    what(),
+                    "spot_size must be in (0, π], spot_blend in [0, 1], radius ≥ 0",
+                ));
             }
             (*power, *color)
         }
-        Light::Sun { direction, strength, color, angle } => {
-            finite(what, &[direction[0], direction[1], direction[2], *strength, *angle])?;
+        Light::Sun {
+            direction,
+            strength,
+            color,
+            angle,
+        } => {
+            finite(
+                what,
+                &[direction[0], direction[1], direction[2], *strength, *angle],
+            )?;
             if !nonzero(direction) {
                 return Err(RelumeError::invalid(what(), "sun direction is zero"));
             }
@@ -234,12 +324,40 @@ fn validate_light(li: usize, light: &Light) -> Result<bool> {
             }
             (*strength, *color)
         }
-        Light::Area { position, axis_u, axis_v, size_x, size_y, power, color, .. } => {
-            finite(what, &[position[0], position[1], position[2], axis_u[0], axis_u[1], axis_u[2], axis_v[0], axis_v[1], axis_v[2], *size_x, size_y.unwrap_or(1.0), *power])?;
+        Light::Area {
+            position,
+            axis_u,
+            axis_v,
+            size_x,
+            size_y,
+            power,
+            color,
+            ..
+        } => {
+            finite(
+                what,
+                &[
+                    position[0],
+                    position[1],
+                    position[2],
+                    axis_u[0],
+                    axis_u[1],
+                    axis_u[2],
+                    axis_v[0],
+                    axis_v[1],
+                    axis_v[2],
+                    *size_x,
+                    size_y.unwrap_or(1.0),
+                    *power,
+                ],
+            )?;
             let u = glam::Vec3::from(*axis_u);
             let v = glam::Vec3::from(*axis_v);
             if u.cross(v).length() < 1e-6 * u.length() * v.length() || u.length() == 0.0 {
-                return Err(RelumeError::invalid(what(), "area light axes are zero or parallel"));
+                return Err(RelumeError::invalid(
+                    what(),
+                    "area light axes are zero or parallel",
+                ));
             }
             if *size_x <= 0.0 || size_y.is_some_and(|s| s <= 0.0) {
                 return Err(RelumeError::invalid(what(), "area light size must be > 0"));
@@ -257,14 +375,39 @@ fn validate_light(li: usize, light: &Light) -> Result<bool> {
 fn validate_camera(scene: &Scene) -> Result<()> {
     let c = &scene.camera;
     finite(|| "camera matrix".into(), c.matrix_world.as_flattened())?;
-    finite(|| "camera".into(), &[c.lens_mm, c.sensor_width_mm, c.sensor_height_mm, c.shift_x, c.shift_y, c.ortho_scale, c.clip_start])?;
+    finite(
+        || "camera".into(),
+        &[
+            c.lens_mm,
+            c.sensor_width_mm,
+            c.sensor_height_mm,
+            c.shift_x,
+            c.shift_y,
+            c.ortho_scale,
+            c.clip_start,
+        ],
+    )?;
     let m = crate::geometry::camera::matrix_from_rows(&c.matrix_world);
-    let (x, y, z) = (m.x_axis.truncate(), m.y_axis.truncate(), m.z_axis.truncate());
+    let (x, y, z) = (
+        m.x_axis.truncate(),
+        m.y_axis.truncate(),
+        m.z_axis.truncate(),
+    );
     if x.cross(y).length() < 1e-8 || z.length() < 1e-8 {
-        return Err(RelumeError::invalid("camera matrix", "degenerate rotation (zero or parallel axes)"));
+        return Err(RelumeError::invalid(
+            "camera matrix",
+            "degenerate rotation (zero or parallel axes)",
+        ));
     }
-    if c.lens_mm <= 0.0 || c.sensor_width_mm <= 0.0 || c.sensor_height_mm <= 0.0 || c.ortho_scale <= 0.0 {
-        return Err(RelumeError::invalid("camera", "lens, sensor sizes and ortho_scale must be > 0"));
+    if c.lens_mm <= 0.0
+        || c.sensor_width_mm <= 0.0
+        || c.sensor_height_mm <= 0.0
+        || c.ortho_scale <= 0.0
+    {
+        return Err(RelumeError::invalid(
+            "camera",
+            "lens, sensor sizes and ortho_scale must be > 0",
+        ));
     }
     Ok(())
 }

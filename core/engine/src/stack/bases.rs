@@ -23,7 +23,10 @@ impl StackBases {
         let mut textured = Vec::new();
         for region in header.regions.iter().filter(|r| r.editable) {
             let cfg = region.basis.as_ref().ok_or_else(|| {
-                RelumeError::Basis(format!("editable region \"{}\" has no basis in the stack header", region.name))
+                RelumeError::Basis(format!(
+                    "editable region \"{}\" has no basis in the stack header",
+                    region.name
+                ))
             })?;
             let key = serde_json::to_string(cfg).unwrap_or_default();
             let basis = match cache.get(&key) {
@@ -49,13 +52,18 @@ impl StackBases {
                 self.bases.len()
             )));
         }
-        (0..self.bases.len()).map(|r| self.region_coefficients(r, &materials[r])).collect()
+        (0..self.bases.len())
+            .map(|r| self.region_coefficients(r, &materials[r]))
+            .collect()
     }
 
     /// Coefficients of one editable region.
     pub fn region_coefficients(&self, region: usize, material: &MaterialSpec) -> Result<Vec<Rgb>> {
         let basis = self.bases.get(region).ok_or_else(|| {
-            RelumeError::Materials(format!("editable region {region} does not exist ({} editable)", self.bases.len()))
+            RelumeError::Materials(format!(
+                "editable region {region} does not exist ({} editable)",
+                self.bases.len()
+            ))
         })?;
         let m = material.to_blinn_phong();
         if self.textured[region] && basis.spec_constant() {

@@ -138,7 +138,10 @@ impl Layer {
                     channels,
                     scale,
                     samples: LayerSamples::F16(
-                        values.iter().map(|v| half::f16::from_f32(v * inv)).collect(),
+                        values
+                            .iter()
+                            .map(|v| half::f16::from_f32(v * inv))
+                            .collect(),
                     ),
                 }
             }

@@ -6,7 +6,11 @@ use relume_engine::brdf::{BlinnPhong, MaterialSpec};
 use relume_engine::scene::*;
 
 pub fn bp(kd: f32, ks: f32, ns: f32) -> MaterialSpec {
-    MaterialSpec::BlinnPhong(BlinnPhong { kd: [kd; 3], ks: [ks; 3], ns })
+    MaterialSpec::BlinnPhong(BlinnPhong {
+        kd: [kd; 3],
+        ks: [ks; 3],
+        ns,
+    })
 }
 
 pub fn bp_rgb(kd: [f32; 3], ks: [f32; 3], ns: f32) -> MaterialSpec {
@@ -14,7 +18,13 @@ pub fn bp_rgb(kd: [f32; 3], ks: [f32; 3], ns: f32) -> MaterialSpec {
 }
 
 pub fn region(name: &str, editable: bool, material: MaterialSpec) -> Region {
-    Region { name: name.into(), editable, material, albedo_texture: None, ns_range: None }
+    Region {
+        name: name.into(),
+        editable,
+        material,
+        albedo_texture: None,
+        ns_range: None,
+    }
 }
 
 /// A quad (two triangles) with corners a, b, c, d counter-clockwise seen from its front.
@@ -31,15 +41,30 @@ pub fn quad(name: &str, a: [f32; 3], b: [f32; 3], c: [f32; 3], d: [f32; 3], regi
 }
 
 /// A UV sphere with smooth normals.
-pub fn sphere(name: &str, centre: [f32; 3], radius: f32, rings: u32, segments: u32, region: u32) -> Mesh {
+pub fn sphere(
+    name: &str,
+    centre: [f32; 3],
+    radius: f32,
+    rings: u32,
+    segments: u32,
+    region: u32,
+) -> Mesh {
     let mut positions = Vec::new();
     let mut normals = Vec::new();
     for i in 0..=rings {
         let theta = std::f32::consts::PI * i as f32 / rings as f32;
         for j in 0..=segments {
             let phi = 2.0 * std::f32::consts::PI * j as f32 / segments as f32;
-            let n = [theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos()];
-            positions.push([centre[0] + radius * n[0], centre[1] + radius * n[1], centre[2] + radius * n[2]]);
+            let n = [
+                theta.sin() * phi.cos(),
+                theta.sin() * phi.sin(),
+                theta.cos(),
+            ];
+            positions.push([
+                centre[0] + radius * n[0],
+                centre[1] + radius * n[1],
+                centre[2] + radius * n[2],
+            ]);
             normals.push(n);
         }
     }
@@ -47,7 +72,12 @@ pub fn sphere(name: &str, centre: [f32; 3], radius: f32, rings: u32, segments: u
     let w = segments + 1;
     for i in 0..rings {
         for j in 0..segments {
-            let (a, b, c, d) = (i * w + j, i * w + j + 1, (i + 1) * w + j + 1, (i + 1) * w + j);
+            let (a, b, c, d) = (
+                i * w + j,
+                i * w + j + 1,
+                (i + 1) * w + j + 1,
+                (i + 1) * w + j,
+            );
             if i != 0 {
                 indices.push([a, d, b]);
             }
@@ -56,20 +86,37 @@ pub fn sphere(name: &str, centre: [f32; 3], radius: f32, rings: u32, segments: u
             }
         }
     }
-    Mesh { name: name.into(), positions, normals: Some(normals), uvs: None, indices, region, triangle_regions: None }
+    Mesh {
+        name: name.into(),
+        positions,
+        normals: Some(normals),
+        uvs: None,
+        indices,
+        region,
+        triangle_regions: None,
+    }
 }
 
 /// A camera at `eye` looking at `target` (Z up), Blender conventions.
 pub fn look_at(eye: [f32; 3], target: [f32; 3], lens_mm: f32) -> Camera {
     let e = glam::Vec3::from(eye);
     let f = (glam::Vec3::from(target) - e).normalize();
-    let up = if f.cross(glam::Vec3::Z).length() < 1e-4 { glam::Vec3::Y } else { glam::Vec3::Z };
+    let up = if f.cross(glam::Vec3::Z).length() < 1e-4 {
+        glam::Vec3::Y
+    } else {
+        glam::Vec3::Z
+    };
     let x = f.cross(up).normalize();
     let y = x.cross(f);
     let z = -f;
     Camera {
         projection: Projection::Perspective,
-        matrix_world: [[x.x, y.x, z.x, e.x], [x.y, y.y, z.y, e.y], [x.z, y.z, z.z, e.z], [0.0, 0.0, 0.0, 1.0]],
+        matrix_world: [
+            [x.x, y.x, z.x, e.x],
+            [x.y, y.y, z.y, e.y],
+            [x.z, y.z, z.z, e.z],
+            [0.0, 0.0, 0.0, 1.0],
+        ],
         lens_mm,
         sensor_width_mm: 36.0,
         sensor_height_mm: 24.0,
@@ -87,10 +134,24 @@ pub fn look_at(eye: [f32; 3], target: [f32; 3], lens_mm: f32) -> Camera {
 pub fn cornell(size: u32) -> Scene {
     let s = 1.0;
     let meshes = vec![
-        quad("floor", [-s, -s, -s], [s, -s, -s], [s, s, -s], [-s, s, -s], 0),
+        quad(
+            "floor",
+            [-s, -s, -s],
+            [s, -s, -s],
+            [s, s, -s],
+            [-s, s, -s],
+            0,
+        ),
         quad("ceiling", [-s, -s, s], [-s, s, s], [s, s, s], [s, -s, s], 0),
         quad("back", [-s, s, -s], [s, s, -s], [s, s, s], [-s, s, s], 0),
-        quad("left", [-s, -s, -s], [-s, s, -s], [-s, s, s], [-s, -s, s], 2),
+        quad(
+            "left",
+            [-s, -s, -s],
+            [-s, s, -s],
+            [-s, s, s],
+            [-s, -s, s],
+            2,
+        ),
         quad("right", [s, -s, -s], [s, -s, s], [s, s, s], [s, s, -s], 3),
         sphere("object", [0.0, 0.2, -0.55], 0.45, 16, 32, 1),
     ];
@@ -112,9 +173,15 @@ pub fn cornell(size: u32) -> Scene {
             power: 40.0,
             color: [1.0, 1.0, 1.0],
         }],
-        world: World::Color { color: [0.0; 3], strength: 1.0 },
+        world: World::Color {
+            color: [0.0; 3],
+            strength: 1.0,
+        },
         camera: look_at([0.0, -3.9, 0.0], [0.0, 0.0, 0.0], 35.0),
-        resolution: Resolution { width: size, height: size },
+        resolution: Resolution {
+            width: size,
+            height: size,
+        },
     }
 }
 
@@ -124,8 +191,14 @@ pub fn furnace(material: MaterialSpec, editable: bool, size: u32) -> Scene {
         meshes: vec![sphere("ball", [0.0, 0.0, 0.0], 1.0, 48, 96, 0)],
         regions: vec![region("Ball", editable, material)],
         lights: vec![],
-        world: World::Color { color: [1.0; 3], strength: 1.0 },
+        world: World::Color {
+            color: [1.0; 3],
+            strength: 1.0,
+        },
         camera: look_at([0.0, -4.0, 0.0], [0.0, 0.0, 0.0], 50.0),
-        resolution: Resolution { width: size, height: size },
+        resolution: Resolution {
+            width: size,
+            height: size,
+        },
     }
 }

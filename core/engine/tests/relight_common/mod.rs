@@ -5,7 +5,9 @@
 
 use relume_engine::bake::signature::{LayerKey, PathVertex};
 use relume_engine::brdf::{BlinnPhong, MaterialSpec};
-use relume_engine::stack::{Layer, LayerSamples, Precision, RegionInfo, StackHeader, TransferStack, STACK_FORMAT_VERSION};
+use relume_engine::stack::{
+    Layer, LayerSamples, Precision, RegionInfo, StackHeader, TransferStack, STACK_FORMAT_VERSION,
+};
 use relume_engine::Rgb;
 
 /// xorshift64*: deterministic, dependency-free randomness for tests.
@@ -41,7 +43,11 @@ pub fn header(width: u32, height: u32) -> StackHeader {
     let region = |name: &str, editable| RegionInfo {
         name: name.into(),
         editable,
-        material: MaterialSpec::BlinnPhong(BlinnPhong { kd: [0.5; 3], ks: [0.2; 3], ns: 20.0 }),
+        material: MaterialSpec::BlinnPhong(BlinnPhong {
+            kd: [0.5; 3],
+            ks: [0.2; 3],
+            ns: 20.0,
+        }),
         basis: None,
         textured: false,
     };
@@ -55,7 +61,11 @@ pub fn header(width: u32, height: u32) -> StackHeader {
         bounces: 1,
         sampling: "uniform".into(),
         seed: 1,
-        regions: vec![region("Bunny", true), region("Walls", false), region("Floor", true)],
+        regions: vec![
+            region("Bunny", true),
+            region("Walls", false),
+            region("Floor", true),
+        ],
         lights: vec![],
         scene_hash: "test".into(),
         precision: Precision::F16,
@@ -156,7 +166,12 @@ pub fn assert_close(got: &[f32], reference: &[[f64; 3]], tol: f64, what: &str) {
         assert_eq!(got[4 * p + 3], 1.0, "{what}: alpha of pixel {p}");
         for c in 0..3 {
             let d = (got[4 * p + c] as f64 - r[c]).abs();
-            assert!(d <= tol * scale, "{what}: pixel {p} channel {c}: {} vs {} (|d| = {d:e}, scale {scale})", got[4 * p + c], r[c]);
+            assert!(
+                d <= tol * scale,
+                "{what}: pixel {p} channel {c}: {} vs {} (|d| = {d:e}, scale {scale})",
+                got[4 * p + c],
+                r[c]
+            );
         }
     }
 }
@@ -165,6 +180,16 @@ pub fn assert_close(got: &[f32], reference: &[[f64; 3]], tol: f64, what: &str) {
 pub fn random_coefs(rng: &mut Rng, counts: &[usize]) -> Vec<Vec<Rgb>> {
     counts
         .iter()
-        .map(|&n| (0..n).map(|_| Rgb::new(rng.range(-0.5, 1.5), rng.range(-0.5, 1.5), rng.range(-0.5, 1.5))).collect())
+        .map(|&n| {
+            (0..n)
+                .map(|_| {
+                    Rgb::new(
+                        rng.range(-0.5, 1.5),
+                        rng.range(-0.5, 1.5),
+                        rng.range(-0.5, 1.5),
+                    )
+                })
+                .collect()
+        })
         .collect()
 }
