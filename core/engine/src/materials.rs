@@ -76,9 +76,11 @@ pub fn parse_materials(json: &str) -> Result<MaterialsFile> {
     })?;
     match obj.get("format") {
         Some(serde_json::Value::String(f)) if f == MATERIALS_FORMAT => {}
-        Some(other) => return Err(RelumeError::Materials(format!(
+        Some(other) => {
+            return Err(RelumeError::Materials(format!(
             "\"format\" is {other}, expected \"{MATERIALS_FORMAT}\": not a Relume materials file"
-        ))),
+        )))
+        }
         None => {
             return Err(RelumeError::Materials(format!(
                 "no \"format\" field (expected \"{MATERIALS_FORMAT}\"): not a Relume materials file"
@@ -92,9 +94,11 @@ pub fn parse_materials(json: &str) -> Result<MaterialsFile> {
                 "materials file version {v}; this build reads version {MATERIALS_FORMAT_VERSION}"
             )))
         }
-        Some(None) => return Err(RelumeError::Materials(format!(
+        Some(None) => {
+            return Err(RelumeError::Materials(format!(
             "\"version\" must be an unsigned integer (this build reads {MATERIALS_FORMAT_VERSION})"
-        ))),
+        )))
+        }
         None => {
             return Err(RelumeError::Materials(format!(
                 "no \"version\" field (this build reads {MATERIALS_FORMAT_VERSION})"

@@ -211,3 +211,39 @@ fn editable_material_changes_do_not_change_the_hash_but_geometry_does() {
         "a fixed region's material is baked in"
     );
 }
+
+#[test]
+fn a_shared_light_colour_is_factored_out_of_the_layers() {
+    use relume_engine::scene::Light;
+    let mut scene = common::cornell(16);
+    if let Light::Area { color, .. } = &mut scene.lights[0] {
+        *color = [1.0, 0.8, 0.5];
+    }
+    let settings = BakeSettings {
+        spp: 1,
+        ..Default::default()
+    };
+    let (stack, report) = bake(&scene, &settings, &Progress::new()).unwrap();
+    assert_eq!(stack.header.light_tint, [1.0, 0.8, 0.5]);
+    // Paths that meet only editable regions stay grey even under a warm light.
+    assert!(
+        report.layers_grey > 0 && report.layers_rgb > 0,
+        "{report:?}"
+    );
+    let key = stack
+        .layers
+        .iter()
+        .find(|l| l.key.layer_name() == "E0b0")
+        .unwrap();
+    assert_eq!(key.channels, 1);
+    // Two lights of different colours share no tint: everything is RGB.
+    scene.lights.push(Light::Point {
+        position: [0.0, 0.0, 0.5],
+        power: 5.0,
+        color: [0.2, 0.4, 1.0],
+        radius: 0.0,
+    });
+    let (stack, report) = bake(&scene, &settings, &Progress::new()).unwrap();
+    assert_eq!(stack.header.light_tint, [1.0; 3]);
+    assert_eq!(report.layers_grey, 0);
+}

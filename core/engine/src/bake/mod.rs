@@ -224,6 +224,7 @@ pub fn bake(
         lights: scene.lights.clone(),
         scene_hash: scene_hash(scene),
         precision: settings.precision,
+        light_tint: ctx.lights.tint.to_array(),
     };
     let stack = TransferStack { header, layers };
     let assembly_seconds = assembly_start.elapsed().as_secs_f64();

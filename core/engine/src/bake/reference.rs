@@ -91,7 +91,8 @@ pub fn render_with_context(
                         s,
                     );
                 }
-                let c = sink.0 * inv_spp;
+                // The emitters' common colour was factored out of the lights (as in the bake).
+                let c = sink.0 * inv_spp * ctx.lights.tint;
                 let i = (ty * tile.width + tx) as usize * 4;
                 out[i..i + 4].copy_from_slice(&[c.x, c.y, c.z, 1.0]);
             }

@@ -18,7 +18,7 @@ use std::f32::consts::PI;
 
 use super::environment::Environment;
 use super::sampling::{concentric_disk, cosine_hemisphere, frame, to_world, uniform_cone};
-use crate::scene::{AreaShape, Light, Scene};
+use crate::scene::{AreaShape, Light, Scene, World};
 use crate::Rgb;
 
 /// One light sample at a shading point.
@@ -71,19 +71,86 @@ pub struct LightSet {
     emitters: Vec<Emitter>,
     /// The world's radiance (also for rays that escape).
     pub environment: Environment,
+    /// The colour factored out of every emitter (see [`common_tint`]); the emitters here
+    /// are grey multiples of it.
+    pub tint: Rgb,
+}
+
+/// The colour every emitter shares, if there is one: when all lights' colours (and a
+/// constant world's) are proportional to one colour c, the bake can use grey light and the
+/// relight multiply by c, so paths that meet no other colour stay grey layers (one channel
+/// instead of three: a third of the memory and of the relight's reads). Returns c scaled to
+/// a largest component of 1, or white when the emitters differ in colour or the world is an
+/// image. Proportional means equal after scaling within 1e-6 relative.
+pub fn common_tint(scene: &Scene) -> Rgb {
+    let mut colours: Vec<Rgb> = scene
+        .lights
+        .iter()
+        .map(|l| match l {
+            Light::Point { color, power, .. }
+            | Light::Spot { color, power, .. }
+            | Light::Area { color, power, .. } => Rgb::from(*color) * power.signum().max(0.0),
+            Light::Sun {
+                color, strength, ..
+            } => Rgb::from(*color) * strength.signum().max(0.0),
+        })
+        .collect();
+    match &scene.world {
+        World::Color { color, strength } => colours.push(Rgb::from(*color) * *strength),
+        World::Equirect { strength, .. } => {
+            if *strength > 0.0 {
+                return Rgb::ONE;
+            }
+        }
+    }
+    let normalised: Vec<Rgb> = colours
+        .iter()
+        .filter(|c| c.max_element() > 0.0)
+        .map(|c| *c / c.max_element())
+        .collect();
+    let Some(first) = normalised.first() else {
+        return Rgb::ONE;
+    };
+    if normalised
+        .iter()
+        .all(|c| (*c - *first).abs().max_element() <= 1e-6)
+    {
+        *first
+    } else {
+        Rgb::ONE
+    }
+}
+
+/// `colour` with the tint factored out: a grey of the same largest component when the tint
+/// is not white (so the bake's grey layers are bit-exact), the colour itself otherwise.
+fn untinted(colour: Rgb, tint: Rgb) -> Rgb {
+    if tint == Rgb::ONE {
+        colour
+    } else {
+        Rgb::splat(colour.max_element())
+    }
 }
 
 impl LightSet {
     /// Prepares the scene's lights; the world is one more emitter when it is not black.
     pub fn new(scene: &Scene) -> LightSet {
-        let mut emitters: Vec<Emitter> = scene.lights.iter().filter_map(prepare).collect();
-        let environment = Environment::new(&scene.world);
+        let tint = common_tint(scene);
+        let mut emitters: Vec<Emitter> = scene
+            .lights
+            .iter()
+            .filter_map(|l| prepare(l, tint))
+            .collect();
+        let environment = match Environment::new(&scene.world) {
+            Environment::Constant(c) => Environment::Constant(untinted(c, tint)),
+            other => other,
+        };
         if !environment.is_black() {
             emitters.push(Emitter::World);
         }
         LightSet {
             emitters,
             environment,
+            tint,
         }
     }
 
@@ -211,7 +278,8 @@ impl LightSet {
     }
 }
 
-fn prepare(light: &Light) -> Option<Emitter> {
+fn prepare(light: &Light, tint: Rgb) -> Option<Emitter> {
+    let colour = |c: &[f32; 3]| untinted(Rgb::from(*c), tint);
     match light {
         Light::Point {
             position,
@@ -220,7 +288,7 @@ fn prepare(light: &Light) -> Option<Emitter> {
             radius,
         } => Some(Emitter::Point {
             position: Vec3::from(*position),
-            intensity: Rgb::from(*color) * (*power / (4.0 * PI)),
+            intensity: colour(color) * (*power / (4.0 * PI)),
             radius: *radius,
             spot: None,
         }),
@@ -236,7 +304,7 @@ fn prepare(light: &Light) -> Option<Emitter> {
             let cos_half = (0.5 * spot_size).cos();
             Some(Emitter::Point {
                 position: Vec3::from(*position),
-                intensity: Rgb::from(*color) * (*power / (4.0 * PI)),
+                intensity: colour(color) * (*power / (4.0 * PI)),
                 radius: *radius,
                 spot: Some(Spot {
                     axis: Vec3::from(*direction).normalize(),
@@ -263,7 +331,7 @@ fn prepare(light: &Light) -> Option<Emitter> {
             Some(Emitter::Sun {
                 to_light: -Vec3::from(*direction).normalize(),
                 cos_half: if half > 1e-6 { cos_half } else { 1.0 },
-                radiance_over_pdf: Rgb::from(*color) * (*strength * factor),
+                radiance_over_pdf: colour(color) * (*strength * factor),
             })
         }
         Light::Area {
@@ -297,7 +365,7 @@ fn prepare(light: &Light) -> Option<Emitter> {
                 half_u: 0.5 * sx,
                 half_v: 0.5 * sy,
                 elliptic,
-                radiance_times_area: Rgb::from(*color)
+                radiance_times_area: colour(color)
                     * (*power / PI)
                     * if area > 0.0 { 1.0 } else { 0.0 },
             })

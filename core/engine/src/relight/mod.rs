@@ -125,6 +125,8 @@ pub struct CpuRelighter {
     edits_since_full: usize,
     stats: RelightStats,
     kernels: Kernels,
+    /// The emitters' common colour, factored out of the layers at bake time.
+    tint: Rgb,
 }
 
 impl CpuRelighter {
@@ -232,7 +234,15 @@ impl CpuRelighter {
         let n_layers = stack.layers.len();
         let mut image = vec![0.0f32; width * height * 4];
         image.chunks_exact_mut(4).for_each(|p| p[3] = 1.0);
+        let tint = Rgb::from(stack.header.light_tint);
+        if !tint.is_finite() || tint.min_element() < 0.0 {
+            return Err(RelumeError::StackFormat {
+                path: Default::default(),
+                message: format!("light tint {tint} is not a finite non-negative colour"),
+            });
+        }
         Ok(CpuRelighter {
+            tint,
             stack,
             width,
             height,
@@ -341,7 +351,7 @@ impl CpuRelighter {
         let mut bytes_read = 0;
         for &l in &self.region_layers[region] {
             let l = l as usize;
-            let new = layer_weight(&self.stack.layers[l].key, &self.coefs);
+            let new = layer_weight(&self.stack.layers[l].key, &self.coefs) * self.tint;
             let delta = new - self.weights[l];
             self.weights[l] = new;
             self.effective[l] = delta * self.stack.layers[l].scale;
@@ -396,7 +406,7 @@ impl CpuRelighter {
         let mut layers_summed = 0;
         let mut bytes_read = 0;
         for (l, layer) in self.stack.layers.iter().enumerate() {
-            let w = layer_weight(&layer.key, &self.coefs);
+            let w = layer_weight(&layer.key, &self.coefs) * self.tint;
             self.weights[l] = w;
             self.effective[l] = w * layer.scale;
             if self.effective[l] != Rgb::ZERO && self.plans[l].span_bytes > 0 {

@@ -38,6 +38,7 @@ fn header(width: u32, height: u32) -> StackHeader {
         lights: vec![],
         scene_hash: String::new(),
         precision: Precision::F16,
+        light_tint: [1.0; 3],
     }
 }
 

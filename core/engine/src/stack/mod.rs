@@ -40,6 +40,15 @@ pub struct StackHeader {
     /// Hash of everything in the scene that the bake depends on ([`crate::scene::hash`]).
     pub scene_hash: String,
     pub precision: Precision,
+    /// The colour shared by every emitter, factored out of the layers (see
+    /// [`crate::geometry::lights::common_tint`]): layers are baked with grey light and every
+    /// layer weight is multiplied by this at relight. [1, 1, 1] when the lights differ in colour.
+    #[serde(default = "white_tint")]
+    pub light_tint: [f32; 3],
+}
+
+fn white_tint() -> [f32; 3] {
+    [1.0; 3]
 }
 
 /// One region as the stack knows it.

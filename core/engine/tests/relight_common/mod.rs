@@ -69,6 +69,7 @@ pub fn header(width: u32, height: u32) -> StackHeader {
         lights: vec![],
         scene_hash: "test".into(),
         precision: Precision::F16,
+        light_tint: [1.0; 3],
     }
 }
 
