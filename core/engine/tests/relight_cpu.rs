@@ -209,7 +209,8 @@ fn zero_rows_and_columns_are_skipped_and_correct() {
     let layers = vec![
         // All zero: never read.
         random_layer(&mut rng, keys[0].clone(), W, H, 3, Precision::F16, 0..H, 0),
-        // Rows 0..30 zero, and the left 13 columns: 7 rows × 32 px × 1 ch × 2 B.
+        // Rows 0..30 zero, and the left 13 columns: 7 rows × 37 px × 1 ch × 2 B (the span
+        // [13, 45) is widened to whole groups of 8 pixels: [8, 45)).
         random_layer(
             &mut rng,
             keys[1].clone(),
@@ -237,7 +238,7 @@ fn zero_rows_and_columns_are_skipped_and_correct() {
     assert_close(&img, &reference(&stack, &coefs), 2e-6, "sparse layers");
     let s = r.last_stats();
     assert_eq!(s.layers_summed, 3, "the all-zero layer is not summed");
-    assert_eq!(s.bytes_read, 7 * 32 * 2 + 3 * 45 * 3 * 4 + 37 * 45 * 2);
+    assert_eq!(s.bytes_read, 7 * 37 * 2 + 3 * 45 * 3 * 4 + 37 * 45 * 2);
 
     // Interior zeros do not shrink a span; a single isolated value does define one.
     let mut v = vec![0.0f32; W * H];
@@ -264,7 +265,8 @@ fn zero_rows_and_columns_are_skipped_and_correct() {
         &img[4 * (20 * W + 44)..4 * (20 * W + 44) + 4],
         &[3.0, 6.0, 9.0, 1.0]
     );
-    assert_eq!(r.last_stats().bytes_read, (36 * 4) + 4);
+    // Row 10's span [5, 41) widens to [0, 45), row 20's [44, 45) to [40, 45).
+    assert_eq!(r.last_stats().bytes_read, (45 * 4) + (5 * 4));
 }
 
 #[test]

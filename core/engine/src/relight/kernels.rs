@@ -87,175 +87,153 @@ impl Kernels {
         Kernels::Portable
     }
 
-    /// `out[4p + c] += w[c] · src[p]` for every pixel p of a grey row segment
-    /// (`out.len() == 4 · src.len()`).
+    /// Planar grey: `r[p] += w[0]·src[p]`, `g[p] += w[1]·src[p]`, `b[p] += w[2]·src[p]`.
+    /// Three fused multiply-adds per 8 pixels and no permutes: the form the packed row sum
+    /// uses for grey layers (the majority), merged into RGBA once per row.
     #[inline]
-    pub(crate) fn add_grey<S: Sample>(self, out: &mut [f32], src: &[S], w: [f32; 3]) {
-        assert_eq!(
-            out.len(),
-            4 * src.len(),
-            "grey segment: 4 outputs per sample"
+    pub(crate) fn add_grey_planar<S: Sample>(
+        self,
+        r: &mut [f32],
+        g: &mut [f32],
+        b: &mut [f32],
+        src: &[S],
+        w: [f32; 3],
+    ) {
+        assert!(
+            r.len() == src.len() && g.len() == src.len() && b.len() == src.len(),
+            "planar grey: one output per sample"
         );
         match self {
-            Kernels::Portable => grey_portable(out, src, w),
+            Kernels::Portable => grey_planar_portable(r, g, b, src, w),
             #[cfg(target_arch = "x86_64")]
             // SAFETY: `Avx2` is only built by `detect` after checking AVX2, FMA and F16C;
             // the lengths were checked above.
-            Kernels::Avx2 => unsafe { x86::grey_avx2(out, src, w) },
+            Kernels::Avx2 => unsafe { x86::grey_planar_avx2(r, g, b, src, w) },
         }
     }
 
-    /// `out[4p + c] += w[c] · src[3p + c]` for every pixel p of an RGB row segment
-    /// (`out.len() / 4 == src.len() / 3`).
+    /// Interleaved RGB: `acc[i] += w[i mod 3]·src[i]`. With weights rotated per 8-lane
+    /// vector (period 24) it needs no permutes either.
     #[inline]
-    pub(crate) fn add_rgb<S: Sample>(self, out: &mut [f32], src: &[S], w: [f32; 3]) {
+    pub(crate) fn add_rgb_interleaved<S: Sample>(self, acc: &mut [f32], src: &[S], w: [f32; 3]) {
         assert!(
-            src.len() % 3 == 0 && out.len() == src.len() / 3 * 4,
-            "RGB segment: 4 outputs per 3 samples"
+            acc.len() == src.len() && src.len() % 3 == 0,
+            "interleaved RGB: one output per sample"
         );
         match self {
-            Kernels::Portable => rgb_portable(out, src, w),
+            Kernels::Portable => rgb_interleaved_portable(acc, src, w),
             #[cfg(target_arch = "x86_64")]
-            // SAFETY: as in `add_grey`.
-            Kernels::Avx2 => unsafe { x86::rgb_avx2(out, src, w) },
+            // SAFETY: as in `add_grey_planar`.
+            Kernels::Avx2 => unsafe { x86::rgb_interleaved_avx2(acc, src, w) },
         }
     }
 }
 
-fn grey_portable<S: Sample>(out: &mut [f32], src: &[S], w: [f32; 3]) {
+fn grey_planar_portable<S: Sample>(
+    r: &mut [f32],
+    g: &mut [f32],
+    b: &mut [f32],
+    src: &[S],
+    w: [f32; 3],
+) {
     let mut buf = [0.0f32; CHUNK];
-    for (o, s) in out.chunks_mut(4 * CHUNK).zip(src.chunks(CHUNK)) {
-        let b = &mut buf[..s.len()];
-        S::convert(s, b);
-        for (px, &v) in o.chunks_exact_mut(4).zip(b.iter()) {
-            px[0] += w[0] * v;
-            px[1] += w[1] * v;
-            px[2] += w[2] * v;
+    for (k, chunk) in src.chunks(CHUNK).enumerate() {
+        let t = &mut buf[..chunk.len()];
+        S::convert(chunk, t);
+        let o = k * CHUNK;
+        for (i, v) in t.iter().enumerate() {
+            r[o + i] += w[0] * v;
+            g[o + i] += w[1] * v;
+            b[o + i] += w[2] * v;
         }
     }
 }
 
-fn rgb_portable<S: Sample>(out: &mut [f32], src: &[S], w: [f32; 3]) {
+fn rgb_interleaved_portable<S: Sample>(acc: &mut [f32], src: &[S], w: [f32; 3]) {
     let mut buf = [0.0f32; 3 * CHUNK];
-    for (o, s) in out.chunks_mut(4 * CHUNK).zip(src.chunks(3 * CHUNK)) {
-        let b = &mut buf[..s.len()];
-        S::convert(s, b);
-        for (px, v) in o.chunks_exact_mut(4).zip(b.chunks_exact(3)) {
-            px[0] += w[0] * v[0];
-            px[1] += w[1] * v[1];
-            px[2] += w[2] * v[2];
+    for (k, chunk) in src.chunks(3 * CHUNK).enumerate() {
+        let t = &mut buf[..chunk.len()];
+        S::convert(chunk, t);
+        let o = k * 3 * CHUNK;
+        for (i, v) in t.iter().enumerate() {
+            acc[o + i] += w[i % 3] * v;
         }
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 mod x86 {
-    use super::{grey_portable, rgb_portable, Sample};
+    use super::{grey_planar_portable, rgb_interleaved_portable, Sample};
     use std::arch::x86_64::*;
 
-    /// Grey: 8 samples → 32 RGBA floats; each output vector (2 pixels) is the sample
-    /// vector permuted to `[a a a a b b b b]` times `[wr wg wb 0 wr wg wb 0]`.
+    /// Planar grey, 8 samples per step.
     ///
     /// # Safety
-    /// AVX2, FMA and F16C present; `out.len() == 4 · src.len()`.
+    /// AVX2, FMA and F16C present; all slices as long as `src`.
     #[target_feature(enable = "avx2,fma,f16c")]
-    pub(super) unsafe fn grey_avx2<S: Sample>(out: &mut [f32], src: &[S], w: [f32; 3]) {
+    pub(super) unsafe fn grey_planar_avx2<S: Sample>(
+        r: &mut [f32],
+        g: &mut [f32],
+        b: &mut [f32],
+        src: &[S],
+        w: [f32; 3],
+    ) {
         let n8 = src.len() / 8 * 8;
-        let wv = _mm256_setr_ps(w[0], w[1], w[2], 0.0, w[0], w[1], w[2], 0.0);
-        let i0 = _mm256_setr_epi32(0, 0, 0, 0, 1, 1, 1, 1);
-        let i1 = _mm256_setr_epi32(2, 2, 2, 2, 3, 3, 3, 3);
-        let i2 = _mm256_setr_epi32(4, 4, 4, 4, 5, 5, 5, 5);
-        let i3 = _mm256_setr_epi32(6, 6, 6, 6, 7, 7, 7, 7);
-        let sp = src.as_ptr();
-        let op = out.as_mut_ptr();
+        let (wr, wg, wb) = (
+            _mm256_set1_ps(w[0]),
+            _mm256_set1_ps(w[1]),
+            _mm256_set1_ps(w[2]),
+        );
+        let (rp, gp, bp, sp) = (r.as_mut_ptr(), g.as_mut_ptr(), b.as_mut_ptr(), src.as_ptr());
         let mut i = 0;
         while i < n8 {
-            // SAFETY: i + 8 ≤ src.len() and 4·(i + 8) ≤ out.len().
+            // SAFETY: i + 8 ≤ len of every slice.
             unsafe {
                 let v = S::load8(sp.add(i));
-                let o = op.add(4 * i);
-                let a0 = _mm256_fmadd_ps(_mm256_permutevar8x32_ps(v, i0), wv, _mm256_loadu_ps(o));
-                let a1 = _mm256_fmadd_ps(
-                    _mm256_permutevar8x32_ps(v, i1),
-                    wv,
-                    _mm256_loadu_ps(o.add(8)),
+                _mm256_storeu_ps(
+                    rp.add(i),
+                    _mm256_fmadd_ps(v, wr, _mm256_loadu_ps(rp.add(i))),
                 );
-                let a2 = _mm256_fmadd_ps(
-                    _mm256_permutevar8x32_ps(v, i2),
-                    wv,
-                    _mm256_loadu_ps(o.add(16)),
+                _mm256_storeu_ps(
+                    gp.add(i),
+                    _mm256_fmadd_ps(v, wg, _mm256_loadu_ps(gp.add(i))),
                 );
-                let a3 = _mm256_fmadd_ps(
-                    _mm256_permutevar8x32_ps(v, i3),
-                    wv,
-                    _mm256_loadu_ps(o.add(24)),
+                _mm256_storeu_ps(
+                    bp.add(i),
+                    _mm256_fmadd_ps(v, wb, _mm256_loadu_ps(bp.add(i))),
                 );
-                _mm256_storeu_ps(o, a0);
-                _mm256_storeu_ps(o.add(8), a1);
-                _mm256_storeu_ps(o.add(16), a2);
-                _mm256_storeu_ps(o.add(24), a3);
             }
             i += 8;
         }
-        grey_portable(&mut out[4 * n8..], &src[n8..], w);
+        grey_planar_portable(&mut r[n8..], &mut g[n8..], &mut b[n8..], &src[n8..], w);
     }
 
-    /// RGB: 24 samples (8 pixels) in three vectors
-    /// `v0 = r0 g0 b0 r1 g1 b1 r2 g2`, `v1 = b2 r3 g3 b3 r4 g4 b4 r5`,
-    /// `v2 = g5 b5 r6 g6 b6 r7 g7 b7` are regrouped into four RGBx pairs by six
-    /// permutes and two blends; the x lane is multiplied by weight 0.
+    /// Interleaved RGB, 24 samples (8 pixels) per step with three rotated weight vectors.
     ///
     /// # Safety
-    /// AVX2, FMA and F16C present; `out.len() / 4 == src.len() / 3`.
+    /// AVX2, FMA and F16C present; `acc.len() == src.len()`.
     #[target_feature(enable = "avx2,fma,f16c")]
-    pub(super) unsafe fn rgb_avx2<S: Sample>(out: &mut [f32], src: &[S], w: [f32; 3]) {
-        let px = src.len() / 3;
-        let n8 = px / 8 * 8;
-        let wv = _mm256_setr_ps(w[0], w[1], w[2], 0.0, w[0], w[1], w[2], 0.0);
-        // Pixels 0,1 from v0.
-        let p0 = _mm256_setr_epi32(0, 1, 2, 2, 3, 4, 5, 5);
-        // Pixels 2,3: r2 g2 from v0[6,7], b2 r3 g3 b3 from v1[0..4].
-        let p1a = _mm256_setr_epi32(6, 7, 7, 7, 7, 7, 7, 7);
-        let p1b = _mm256_setr_epi32(0, 0, 0, 0, 1, 2, 3, 3);
-        // Pixels 4,5: r4 g4 b4 r5 from v1[4..8], g5 b5 from v2[0,1].
-        let p2a = _mm256_setr_epi32(4, 5, 6, 6, 7, 7, 7, 7);
-        let p2b = _mm256_setr_epi32(0, 0, 0, 0, 0, 0, 1, 1);
-        // Pixels 6,7 from v2.
-        let p3 = _mm256_setr_epi32(2, 3, 4, 4, 5, 6, 7, 7);
-        let sp = src.as_ptr();
-        let op = out.as_mut_ptr();
+    pub(super) unsafe fn rgb_interleaved_avx2<S: Sample>(acc: &mut [f32], src: &[S], w: [f32; 3]) {
+        let n24 = src.len() / 24 * 24;
+        let w0 = _mm256_setr_ps(w[0], w[1], w[2], w[0], w[1], w[2], w[0], w[1]);
+        let w1 = _mm256_setr_ps(w[2], w[0], w[1], w[2], w[0], w[1], w[2], w[0]);
+        let w2 = _mm256_setr_ps(w[1], w[2], w[0], w[1], w[2], w[0], w[1], w[2]);
+        let (ap, sp) = (acc.as_mut_ptr(), src.as_ptr());
         let mut i = 0;
-        while i < n8 {
-            // SAFETY: 3·(i + 8) ≤ src.len() and 4·(i + 8) ≤ out.len().
+        while i < n24 {
+            // SAFETY: i + 24 ≤ len of both slices.
             unsafe {
-                let s = sp.add(3 * i);
-                let v0 = S::load8(s);
-                let v1 = S::load8(s.add(8));
-                let v2 = S::load8(s.add(16));
-                let q0 = _mm256_permutevar8x32_ps(v0, p0);
-                // Blend mask bit k set = take lane k from the second operand.
-                let q1 = _mm256_blend_ps::<0b1111_1100>(
-                    _mm256_permutevar8x32_ps(v0, p1a),
-                    _mm256_permutevar8x32_ps(v1, p1b),
-                );
-                let q2 = _mm256_blend_ps::<0b1110_0000>(
-                    _mm256_permutevar8x32_ps(v1, p2a),
-                    _mm256_permutevar8x32_ps(v2, p2b),
-                );
-                let q3 = _mm256_permutevar8x32_ps(v2, p3);
-                let o = op.add(4 * i);
-                let a0 = _mm256_fmadd_ps(q0, wv, _mm256_loadu_ps(o));
-                let a1 = _mm256_fmadd_ps(q1, wv, _mm256_loadu_ps(o.add(8)));
-                let a2 = _mm256_fmadd_ps(q2, wv, _mm256_loadu_ps(o.add(16)));
-                let a3 = _mm256_fmadd_ps(q3, wv, _mm256_loadu_ps(o.add(24)));
-                _mm256_storeu_ps(o, a0);
-                _mm256_storeu_ps(o.add(8), a1);
-                _mm256_storeu_ps(o.add(16), a2);
-                _mm256_storeu_ps(o.add(24), a3);
+                for (k, wk) in [(0, w0), (8, w1), (16, w2)] {
+                    let v = S::load8(sp.add(i + k));
+                    _mm256_storeu_ps(
+                        ap.add(i + k),
+                        _mm256_fmadd_ps(v, wk, _mm256_loadu_ps(ap.add(i + k))),
+                    );
+                }
             }
-            i += 8;
+            i += 24;
         }
-        rgb_portable(&mut out[4 * n8..], &src[3 * n8..], w);
+        rgb_interleaved_portable(&mut acc[n24..], &src[n24..], w);
     }
 }
 
@@ -275,11 +253,41 @@ mod tests {
             .collect()
     }
 
+    const W: [f32; 3] = [0.5, -1.25, 2.0];
+
+    /// The planar grey kernel applied to an RGBA buffer (split, add, merge).
+    fn add_grey_rgba<S: Sample>(k: Kernels, rgba: &mut [f32], src: &[S]) {
+        let n = src.len();
+        let mut planes: Vec<Vec<f32>> = (0..3)
+            .map(|c| (0..n).map(|p| rgba[4 * p + c]).collect())
+            .collect();
+        let (r, gb) = planes.split_at_mut(1);
+        let (g, b) = gb.split_at_mut(1);
+        k.add_grey_planar(&mut r[0], &mut g[0], &mut b[0], src, W);
+        for p in 0..n {
+            for c in 0..3 {
+                rgba[4 * p + c] = planes[c][p];
+            }
+        }
+    }
+
+    /// The interleaved RGB kernel applied to an RGBA buffer.
+    fn add_rgb_rgba<S: Sample>(k: Kernels, rgba: &mut [f32], src: &[S]) {
+        let n = src.len() / 3;
+        let mut acc: Vec<f32> = (0..n)
+            .flat_map(|p| rgba[4 * p..4 * p + 3].to_vec())
+            .collect();
+        k.add_rgb_interleaved(&mut acc, src, W);
+        for p in 0..n {
+            rgba[4 * p..4 * p + 3].copy_from_slice(&acc[3 * p..3 * p + 3]);
+        }
+    }
+
     /// Every kernel against a scalar sum, for lengths that exercise the 8-pixel steps and
     /// the tails (0..=8 leftover pixels), f16 and f32, grey and RGB.
     #[test]
     fn kernels_match_scalar() {
-        let w = [0.5f32, -1.25, 2.0];
+        let w = W;
         let mut kinds = vec![Kernels::Portable];
         if Kernels::detect() != Kernels::Portable {
             kinds.push(Kernels::detect());
@@ -305,11 +313,11 @@ mod tests {
                     let exact: Vec<f32> = halves.iter().map(|h| h.to_f32()).collect();
                     let mut got32 = init.clone();
                     if ch == 1 {
-                        k.add_grey(&mut got16, &halves, w);
-                        k.add_grey(&mut got32, &exact, w);
+                        add_grey_rgba(k, &mut got16, &halves);
+                        add_grey_rgba(k, &mut got32, &exact);
                     } else {
-                        k.add_rgb(&mut got16, &halves, w);
-                        k.add_rgb(&mut got32, &exact, w);
+                        add_rgb_rgba(k, &mut got16, &halves);
+                        add_rgb_rgba(k, &mut got32, &exact);
                     }
                     for i in 0..expect.len() {
                         // FMA rounds once instead of twice: allow one ulp-scale difference.

@@ -44,6 +44,7 @@
 
 pub mod bandwidth;
 pub(crate) mod kernels;
+mod packed;
 
 use std::sync::Arc;
 
@@ -53,6 +54,7 @@ use crate::bake::signature::{LayerKey, PathVertex};
 use crate::stack::{LayerSamples, TransferStack};
 use crate::{RelumeError, Result, Rgb};
 use kernels::Kernels;
+use packed::PackedRows;
 
 /// Rows per parallel task. 512 rows give 32 tasks: enough for rayon to balance two to
 /// sixteen threads when the layers cover the frame unevenly, while each task still reads
@@ -93,8 +95,6 @@ pub struct RelightStats {
 struct LayerPlan {
     /// Per row, the span `[x0, x1)` of pixels with a non-zero sample; `x0 == x1` if none.
     spans: Vec<[u32; 2]>,
-    /// Bytes of samples inside the spans (what summing this layer reads).
-    span_bytes: usize,
 }
 
 /// The CPU relighter of one stack. Build it once per loaded stack (the build scans every
@@ -106,12 +106,10 @@ pub struct CpuRelighter {
     height: usize,
     editable_names: Vec<String>,
     basis_counts: Vec<usize>,
-    plans: Vec<LayerPlan>,
-    /// Per band, the layers with a non-zero row in it.
-    band_layers: Vec<Vec<u32>>,
-    /// Per editable region, per band, the layers containing the region with a non-zero row
-    /// in the band.
-    region_band_layers: Vec<Vec<Vec<u32>>>,
+    /// The non-zero samples in row order (what the sums read).
+    packed: PackedRows,
+    /// Per editable region, whether each layer's key contains it.
+    region_member: Vec<Vec<bool>>,
     /// Per editable region, the layers whose key contains it.
     region_layers: Vec<Vec<u32>>,
     /// Coefficients of the current image.
@@ -204,30 +202,13 @@ impl CpuRelighter {
             .map(|l| plan_layer(l, width, height))
             .collect::<Result<Vec<_>>>()?;
 
-        let n_bands = height.div_ceil(BAND_ROWS);
-        let touches = |l: usize, b: usize| {
-            let rows = b * BAND_ROWS..((b + 1) * BAND_ROWS).min(height);
-            plans[l].spans[rows].iter().any(|s| s[0] < s[1])
-        };
-        let band_layers: Vec<Vec<u32>> = (0..n_bands)
-            .map(|b| {
-                (0..plans.len())
-                    .filter(|&l| touches(l, b))
-                    .map(|l| l as u32)
-                    .collect()
-            })
-            .collect();
-        let region_band_layers = region_layers
+        let packed = PackedRows::build(&stack, &plans, width, height);
+        let region_member: Vec<Vec<bool>> = region_layers
             .iter()
             .map(|ls| {
-                (0..n_bands)
-                    .map(|b| {
-                        ls.iter()
-                            .copied()
-                            .filter(|&l| touches(l as usize, b))
-                            .collect()
-                    })
-                    .collect()
+                let mut m = vec![false; plans.len()];
+                ls.iter().for_each(|&l| m[l as usize] = true);
+                m
             })
             .collect();
 
@@ -248,9 +229,8 @@ impl CpuRelighter {
             height,
             editable_names,
             basis_counts,
-            plans,
-            band_layers,
-            region_band_layers,
+            packed,
+            region_member,
             region_layers,
             coefs: Vec::new(),
             weights: vec![Rgb::ZERO; n_layers],
@@ -355,18 +335,17 @@ impl CpuRelighter {
             let delta = new - self.weights[l];
             self.weights[l] = new;
             self.effective[l] = delta * self.stack.layers[l].scale;
-            if self.effective[l] != Rgb::ZERO && self.plans[l].span_bytes > 0 {
+            if self.effective[l] != Rgb::ZERO && self.packed.layer_bytes(l) > 0 {
                 layers_summed += 1;
-                bytes_read += self.plans[l].span_bytes;
+                bytes_read += self.packed.layer_bytes(l);
             }
         }
         sum_bands(
             &mut self.image,
             self.width,
-            &self.stack,
-            &self.plans,
-            &self.region_band_layers[region],
+            &self.packed,
             &self.effective,
+            Some(&self.region_member[region]),
             false,
             self.kernels,
         );
@@ -409,18 +388,17 @@ impl CpuRelighter {
             let w = layer_weight(&layer.key, &self.coefs) * self.tint;
             self.weights[l] = w;
             self.effective[l] = w * layer.scale;
-            if self.effective[l] != Rgb::ZERO && self.plans[l].span_bytes > 0 {
+            if self.effective[l] != Rgb::ZERO && self.packed.layer_bytes(l) > 0 {
                 layers_summed += 1;
-                bytes_read += self.plans[l].span_bytes;
+                bytes_read += self.packed.layer_bytes(l);
             }
         }
         sum_bands(
             &mut self.image,
             self.width,
-            &self.stack,
-            &self.plans,
-            &self.band_layers,
+            &self.packed,
             &self.effective,
+            None,
             true,
             self.kernels,
         );
@@ -438,9 +416,7 @@ impl CpuRelighter {
 fn plan_layer(layer: &crate::stack::Layer, width: usize, height: usize) -> Result<LayerPlan> {
     let ch = layer.channels as usize;
     let row_len = width * ch;
-    let bytes_per = layer.samples.bytes() / layer.samples.len().max(1);
     let mut spans = Vec::with_capacity(height);
-    let mut span_bytes = 0;
     for y in 0..height {
         let row = y * row_len..(y + 1) * row_len;
         // (first, last) non-zero sample index in the row, or the first non-finite one.
@@ -468,10 +444,9 @@ fn plan_layer(layer: &crate::stack::Layer, width: usize, height: usize) -> Resul
             (Some(f), Some(l)) => [(f / ch) as u32, (l / ch + 1) as u32],
             _ => [0, 0],
         };
-        span_bytes += (span[1] - span[0]) as usize * ch * bytes_per;
         spans.push(span);
     }
-    Ok(LayerPlan { spans, span_bytes })
+    Ok(LayerPlan { spans })
 }
 
 /// `Ok((first non-zero, last non-zero))` sample positions of a row, or `Err(position)` of
@@ -502,51 +477,22 @@ fn scan_row<T>(
 fn sum_bands(
     image: &mut [f32],
     width: usize,
-    stack: &TransferStack,
-    plans: &[LayerPlan],
-    band_lists: &[Vec<u32>],
+    packed: &PackedRows,
     weights: &[Rgb],
+    include: Option<&[bool]>,
     reset: bool,
     kernels: Kernels,
 ) {
     let band_len = (BAND_ROWS * width * 4).max(4);
     image
         .par_chunks_mut(band_len)
-        .zip(band_lists.par_iter())
         .enumerate()
-        .for_each(|(b, (out, list))| {
+        .for_each(|(b, out)| {
             if reset {
                 out.chunks_exact_mut(4)
                     .for_each(|p| p.copy_from_slice(&[0.0, 0.0, 0.0, 1.0]));
             }
-            let y0 = b * BAND_ROWS;
-            let rows = out.len() / (4 * width).max(1);
-            for &l in list {
-                let l = l as usize;
-                let w = weights[l];
-                if w == Rgb::ZERO {
-                    continue;
-                }
-                let w = w.to_array();
-                let layer = &stack.layers[l];
-                let ch = layer.channels as usize;
-                for dy in 0..rows {
-                    let y = y0 + dy;
-                    let [x0, x1] = plans[l].spans[y];
-                    if x0 == x1 {
-                        continue;
-                    }
-                    let (x0, x1) = (x0 as usize, x1 as usize);
-                    let dst = &mut out[(dy * width + x0) * 4..(dy * width + x1) * 4];
-                    let src = (y * width + x0) * ch..(y * width + x1) * ch;
-                    match (&layer.samples, ch) {
-                        (LayerSamples::F16(v), 1) => kernels.add_grey(dst, &v[src], w),
-                        (LayerSamples::F16(v), _) => kernels.add_rgb(dst, &v[src], w),
-                        (LayerSamples::F32(v), 1) => kernels.add_grey(dst, &v[src], w),
-                        (LayerSamples::F32(v), _) => kernels.add_rgb(dst, &v[src], w),
-                    }
-                }
-            }
+            packed.add_rows(out, b * BAND_ROWS, weights, include, kernels);
         });
 }
 
