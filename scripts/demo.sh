@@ -12,14 +12,14 @@ command -v python3 >/dev/null || { echo "demo: needs python3" >&2; exit 1; }
 
 echo "== building (release)"
 cargo build --release -p relume-cli --quiet
-relume=target/release/relume
+relume="$(cargo metadata --format-version 1 --no-deps | python3 -c 'import json, sys; print(json.load(sys.stdin)["target_directory"])')/release/relume"
 echo "   built in $(elapsed "$t0") s"
 
 echo "== generating the asset scenes"
 python3 assets/build_scenes.py --out assets cornell >/dev/null
 
 mkdir -p out
-res=${RELUME_DEMO_RESOLUTION:-256x256}
+res=${RELUME_DEMO_RESOLUTION:-512x512}
 echo "== baking assets/cornell.scene.json at $res (preview: 16 spp, 4 light samples, one bounce, N_b = 6)"
 tb=$(date +%s.%N)
 $relume bake assets/cornell.scene.json -o out/cornell.stack.exr --resolution "$res" --spp 16 --light-samples 4 --json > out/bake.json

@@ -42,6 +42,23 @@ pub struct SurfaceHit {
     pub region: u32,
 }
 
+/// Barycentric weights of `p` (on the triangle's plane) for v0, v1, v2, clamped to the
+/// triangle. Computed here because obvhs 0.4's `compute_barycentric` divides by the
+/// *normalised* normal, which scales the result by twice the triangle's area.
+pub fn barycentric(tri: &Triangle, p: Vec3) -> [f32; 3] {
+    let (v0, v1, v2) = (Vec3::from(tri.v0), Vec3::from(tri.v1), Vec3::from(tri.v2));
+    let (e1, e2, vp) = (v1 - v0, v2 - v0, p - v0);
+    let (d00, d01, d11) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+    let (d20, d21) = (vp.dot(e1), vp.dot(e2));
+    let denom = d00 * d11 - d01 * d01;
+    if !(denom > 0.0) {
+        return [1.0, 0.0, 0.0];
+    }
+    let b1 = ((d11 * d20 - d01 * d21) / denom).clamp(0.0, 1.0);
+    let b2 = ((d00 * d21 - d01 * d20) / denom).clamp(0.0, 1.0 - b1);
+    [1.0 - b1 - b2, b1, b2]
+}
+
 /// Raw BVH hit (for throughput measurements): distance and primitive.
 #[derive(Clone, Copy, Debug)]
 pub struct RawHit {
@@ -148,10 +165,8 @@ impl SceneGeometry {
     pub fn intersect(&self, origin: Vec3, dir: Vec3, tmin: f32, tmax: f32) -> Option<SurfaceHit> {
         let raw = self.intersect_raw(origin, dir, tmin, tmax)?;
         let tri = &self.tris[raw.primitive as usize];
-        let ray = Ray::new(origin.into(), dir.into(), tmin, tmax);
-        let bary = tri.compute_barycentric(&ray);
-        let (b1, b2) = (bary.x.clamp(0.0, 1.0), bary.y.clamp(0.0, 1.0));
-        let b0 = (1.0 - b1 - b2).max(0.0);
+        let position = origin + dir * raw.t;
+        let [b0, b1, b2] = barycentric(tri, position);
         let sh = &self.shading[raw.primitive as usize];
         let mut ng: Vec3 = Vec3::from(tri.compute_normal());
         if ng.dot(dir) > 0.0 {
@@ -167,7 +182,7 @@ impl SceneGeometry {
         }
         Some(SurfaceHit {
             t: raw.t,
-            position: origin + dir * raw.t,
+            position,
             geometric_normal: ng,
             shading_normal: ns,
             uv: sh.uvs[0] * b0 + sh.uvs[1] * b1 + sh.uvs[2] * b2,
@@ -191,5 +206,29 @@ impl SceneGeometry {
     pub fn offset(&self, p: Vec3, n: Vec3) -> Vec3 {
         let eps = 1e-5 * p.abs().max_element() + 1e-7 * self.extent;
         p + n * eps
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn barycentrics_interpolate_uv_and_normals() {
+        // A large triangle (area 50): obvhs' own barycentrics would be off by a factor 100.
+        let tri = Triangle {
+            v0: Vec3::new(0.0, 0.0, 0.0).into(),
+            v1: Vec3::new(10.0, 0.0, 0.0).into(),
+            v2: Vec3::new(0.0, 10.0, 0.0).into(),
+        };
+        let b = barycentric(&tri, Vec3::new(2.0, 3.0, 0.0));
+        assert!(
+            (b[0] - 0.5).abs() < 1e-6 && (b[1] - 0.2).abs() < 1e-6 && (b[2] - 0.3).abs() < 1e-6,
+            "{b:?}"
+        );
+        let b = barycentric(&tri, Vec3::new(20.0, 20.0, 0.0));
+        assert!(
+            b.iter().all(|w| (0.0..=1.0).contains(w)) && (b.iter().sum::<f32>() - 1.0).abs() < 1e-6
+        );
     }
 }
