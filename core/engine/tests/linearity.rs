@@ -160,3 +160,46 @@ fn relight_equals_true_brdf_reference_with_a_tight_basis() {
     );
     eprintln!("tolerance 0.1 %: worst relit vs projected {projected:.2e}, vs true {truth:.2e}");
 }
+
+#[test]
+fn wide_exponent_range_stays_finite_and_linear() {
+    // ns up to 10,000 (roughness ≈ 0.1 through the Principled mapping): basis by tolerance.
+    let scene = common::cornell(24);
+    let basis = BasisConfig {
+        ns_min: 1.0,
+        ns_max: 10_000.0,
+        count: BasisCount::Tolerance(0.03),
+        ..BasisConfig::default()
+    };
+    let settings = BakeSettings {
+        spp: 2,
+        light_samples: 2,
+        basis,
+        ..Default::default()
+    };
+    let (stack, _) = bake(&scene, &settings, &Progress::new()).unwrap();
+    let m = |kd: f32, ks: f32, ns: f32| BlinnPhong {
+        kd: [kd; 3],
+        ks: [ks; 3],
+        ns,
+    };
+    for mats in [
+        [m(0.0, 1.0, 10_000.0), m(0.0, 1.0, 10_000.0)],
+        [m(0.5, 0.5, 1.0), m(0.0, 1.0, 3000.0)],
+        [m(0.0, 1.0, 1e6), m(1.0, 0.0, 1e-3)],
+    ] {
+        let relit = relight(stack.clone(), &mats);
+        assert!(relit.iter().all(|v| v.is_finite()), "ns {}", mats[0].ns);
+        // Beyond the range ns is clamped to it, in the relight and the projected reference alike.
+        let projected = render_reference(
+            &scene,
+            &settings,
+            &mats,
+            ReferenceBrdf::Projected,
+            &Progress::new(),
+        )
+        .unwrap();
+        let d = compare_rgb(&relit, &projected.rgba, 4).unwrap();
+        assert!(d.rel_l2 <= 5e-4, "ns {}: {}", mats[0].ns, d.rel_l2);
+    }
+}
