@@ -183,12 +183,18 @@ fn benches_print_figures() {
     ]));
     for k in [
         "full_ms",
-        "incremental_ms",
+        "fastest_incremental_ms",
         "bandwidth_gb_s",
         "bandwidth_bound_ms",
     ] {
         assert!(r[k].as_f64().unwrap() > 0.0, "{k}: {r}");
     }
+    let regions = r["incremental_per_region"].as_array().unwrap();
+    assert_eq!(
+        regions.len(),
+        2,
+        "one incremental figure per editable region: {r}"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 

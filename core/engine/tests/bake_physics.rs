@@ -53,6 +53,36 @@ fn white_furnace_diffuse_is_exact() {
 }
 
 #[test]
+fn white_furnace_through_bake_and_relight() {
+    // The same furnace with the sphere editable: bake once, relight as white Lambertian.
+    // The relit image must be 1 on the sphere up to f16 storage rounding (2⁻¹¹).
+    use relume_engine::relight::CpuRelighter;
+    use relume_engine::stack::bases::StackBases;
+    let size = 32;
+    let scene = common::furnace(common::bp(0.3, 0.5, 40.0), true, size);
+    let settings = BakeSettings {
+        spp: 2,
+        light_samples: 2,
+        ..Default::default()
+    };
+    let (stack, _) = bake(&scene, &settings, &Progress::new()).unwrap();
+    let bases = StackBases::from_header(&stack.header).unwrap();
+    let white = MaterialSpec::BlinnPhong(BlinnPhong {
+        kd: [1.0; 3],
+        ks: [0.0; 3],
+        ns: 1.0,
+    });
+    let coefs = bases.coefficients(&[white]).unwrap();
+    let mut relighter = CpuRelighter::new(Arc::new(stack)).unwrap();
+    let img = relighter.relight(&coefs).unwrap();
+    let px = sphere_pixels(img, size);
+    assert!(px.len() > 100);
+    for v in px {
+        assert!((v - 1.0).abs() < 1e-3, "{v}");
+    }
+}
+
+#[test]
 fn no_energy_is_created_when_kd_plus_ks_is_one() {
     let size = 32;
     for (kd, ks, ns) in [

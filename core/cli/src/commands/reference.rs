@@ -52,13 +52,7 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
     let infos: Vec<RegionInfo> = scene
         .regions
         .iter()
-        .map(|r| RegionInfo {
-            name: r.name.clone(),
-            editable: r.editable,
-            material: r.material.clone(),
-            basis: None,
-            textured: false,
-        })
+        .map(|r| RegionInfo::from_region(r, None))
         .collect();
     let materials: Vec<_> = resolve_materials(&infos, &edits)?
         .iter()

@@ -211,14 +211,12 @@ pub fn bake(
         regions: scene
             .regions
             .iter()
-            .map(|r| RegionInfo {
-                name: r.name.clone(),
-                editable: r.editable,
-                material: r.material.clone(),
-                basis: r
-                    .editable
-                    .then(|| context::basis_config_for(&settings.basis, r.ns_range)),
-                textured: r.editable && r.albedo_texture.is_some(),
+            .map(|r| {
+                RegionInfo::from_region(
+                    r,
+                    r.editable
+                        .then(|| context::basis_config_for(&settings.basis, r.ns_range)),
+                )
             })
             .collect(),
         lights: scene.lights.clone(),

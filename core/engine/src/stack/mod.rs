@@ -67,6 +67,20 @@ pub struct RegionInfo {
     pub textured: bool,
 }
 
+impl RegionInfo {
+    /// What a stack records of scene region `region` baked with basis `basis` (editable
+    /// regions; `None` for fixed ones).
+    pub fn from_region(region: &crate::scene::Region, basis: Option<BasisConfig>) -> RegionInfo {
+        RegionInfo {
+            name: region.name.clone(),
+            editable: region.editable,
+            material: region.material.clone(),
+            basis,
+            textured: region.editable && region.albedo_texture.is_some(),
+        }
+    }
+}
+
 /// Samples of one layer: interleaved per pixel (1 channel for grey layers, 3 for RGB),
 /// rows top to bottom.
 #[derive(Clone, Debug, PartialEq)]
