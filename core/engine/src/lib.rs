@@ -16,6 +16,10 @@
 //! - [`relight`]: the CPU relight (the reference for the GPU one).
 //! - [`materials`]: material edits (JSON) applied at relight time.
 
+// `!(x > 0.0)` is written on purpose throughout: it also rejects NaN, which
+// `x <= 0.0` would let through.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod bake;
 pub mod brdf;
 pub mod error;

@@ -70,7 +70,7 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
-fn bench_relight(path: &PathBuf, repeats: usize, json: bool) -> Result<(), RelumeError> {
+fn bench_relight(path: &std::path::Path, repeats: usize, json: bool) -> Result<(), RelumeError> {
     let stack = read_stack(path)?;
     let materials = resolve_materials(
         &stack.header.regions,

@@ -158,8 +158,8 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(
             &mut values,
             &mut bounce_light,
         );
-        for e in 0..eye_count {
-            let fe = eye_values[e] * weight;
+        for (e, value) in eye_values.iter().enumerate().take(eye_count) {
+            let fe = *value * weight;
             if fe == Rgb::ZERO {
                 continue;
             }

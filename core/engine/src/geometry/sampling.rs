@@ -96,6 +96,7 @@ impl SampleStream {
         SampleStream { key, next: 0 }
     }
     /// The next uniform number in [0, 1).
+    #[allow(clippy::should_implement_trait)]
     #[inline]
     pub fn next(&mut self) -> f32 {
         let h = mix64(self.key ^ (self.next as u64).wrapping_mul(0xD1B54A32D192ED03));

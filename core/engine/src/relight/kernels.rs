@@ -117,7 +117,7 @@ impl Kernels {
     #[inline]
     pub(crate) fn add_rgb_interleaved<S: Sample>(self, acc: &mut [f32], src: &[S], w: [f32; 3]) {
         assert!(
-            acc.len() == src.len() && src.len() % 3 == 0,
+            acc.len() == src.len() && src.len().is_multiple_of(3),
             "interleaved RGB: one output per sample"
         );
         match self {

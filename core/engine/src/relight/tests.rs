@@ -69,7 +69,7 @@ fn simd_and_portable_paths_agree() {
                     x ^= x >> 17;
                     x ^= x << 5;
                     // Zero the left third of every row of some layers: partial spans.
-                    if i % 2 == 1 && (j / ch as usize) % w as usize % 3 == 0 {
+                    if i % 2 == 1 && ((j / ch as usize) % w as usize).is_multiple_of(3) {
                         0.0
                     } else {
                         (x % 1000) as f32 / 250.0 - 1.0

@@ -295,10 +295,8 @@ fn validate_light(li: usize, light: &Light) -> Result<bool> {
             if !nonzero(direction) {
                 return Err(RelumeError::invalid(what(), "spot direction is zero"));
             }
-            if !(*spot_size > 0.0 && *spot_size <= std::f32::consts::PI)
-                || !(0.0..=1.0).contains(spot_blend)
-                || *radius < 0.0
-            {
+            let size_ok = *spot_size > 0.0 && *spot_size <= std::f32::consts::PI;
+            if !size_ok || !(0.0..=1.0).contains(spot_blend) || *radius < 0.0 {
                 return Err(RelumeError::invalid(
                     what(),
                     "spot_size must be in (0, π], spot_blend in [0, 1], radius ≥ 0",

@@ -100,6 +100,7 @@ pub fn one_bounce_keys(nb: u16) -> Vec<LayerKey> {
 
 /// A random layer: values in [−1, 4) (basis layers can be negative), with the rows in
 /// `zero_rows` and the columns `x < zero_left` all zero.
+#[allow(clippy::too_many_arguments)]
 pub fn random_layer(
     rng: &mut Rng,
     key: LayerKey,
