@@ -131,7 +131,7 @@ fn no_light_warns_and_bakes_black() {
         "{:?}",
         report.warnings
     );
-    let (stack, _) = bake(
+    let (stack, report) = bake(
         &s,
         &BakeSettings {
             spp: 1,
@@ -140,7 +140,30 @@ fn no_light_warns_and_bakes_black() {
         &Progress::new(),
     )
     .unwrap();
-    assert!(stack.layers.is_empty(), "a black scene stores no layer");
+    assert_eq!(
+        report.layers_grey + report.layers_rgb,
+        0,
+        "no path carried light"
+    );
+    // The stack still writes, reads back and relights to black.
+    let dir = std::env::temp_dir().join(format!("relume-black-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("black.exr");
+    relume_engine::stack::exr_file::write_stack(&path, &stack).unwrap();
+    let back = relume_engine::stack::exr_file::read_stack(&path).unwrap();
+    let bases = relume_engine::stack::bases::StackBases::from_header(&back.header).unwrap();
+    let materials: Vec<_> = s
+        .regions
+        .iter()
+        .filter(|r| r.editable)
+        .map(|r| r.material.clone())
+        .collect();
+    let coefs = bases.coefficients(&materials).unwrap();
+    let mut relighter =
+        relume_engine::relight::CpuRelighter::new(std::sync::Arc::new(back)).unwrap();
+    let img = relighter.relight(&coefs).unwrap();
+    assert!(img.chunks_exact(4).all(|p| p == [0.0, 0.0, 0.0, 1.0]));
+    std::fs::remove_dir_all(&dir).ok();
 }
 
 #[test]

@@ -195,9 +195,19 @@ pub fn bake(
     let assembled: Vec<Option<Layer>> =
         pool.install(|| store.into_par_iter().enumerate().map(assemble).collect());
     let empty = assembled.iter().filter(|l| l.is_none()).count();
-    let layers: Vec<Layer> = assembled.into_iter().flatten().collect();
+    let mut layers: Vec<Layer> = assembled.into_iter().flatten().collect();
     let grey = layers.iter().filter(|l| l.channels == 1).count();
     let rgb = layers.len() - grey;
+    if layers.is_empty() {
+        // Nothing reached the eye (no light, black world: validation warned). Keep one black
+        // layer so the stack is a valid file and relights to a black image.
+        layers.push(Layer::from_f32(
+            LayerKey::new(vec![]),
+            1,
+            &vec![0.0; width * height],
+            settings.precision,
+        ));
+    }
     let header = StackHeader {
         format_version: STACK_FORMAT_VERSION,
         width: res.width,
