@@ -59,6 +59,10 @@ pub struct BakeOptions {
     /// Worker threads (0: all cores); the result does not depend on it.
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
+    /// Leave out layers whose worst-case contribution to any relit image stays within this
+    /// relative L2 error (e.g. 0.001); 0 keeps every layer a path reached.
+    #[arg(long, default_value_t = 0.0)]
+    pub drop_budget: f32,
 }
 
 impl BakeOptions {
@@ -93,6 +97,7 @@ impl BakeOptions {
                 ..BasisConfig::default()
             },
             threads: self.threads,
+            drop_budget: self.drop_budget,
         })
     }
 }

@@ -8,6 +8,7 @@
 
 pub mod bench;
 pub mod context;
+pub mod drop;
 pub mod integrator;
 pub mod progress;
 pub mod reference;
@@ -25,6 +26,7 @@ use crate::scene::{hash::scene_hash, Scene};
 use crate::stack::{Layer, RegionInfo, StackHeader, TransferStack, STACK_FORMAT_VERSION};
 use crate::{Result, Rgb};
 use context::BakeContext;
+use drop::RawLayer;
 use integrator::{trace_eye_sample, CountingTracer, PathSink};
 use progress::Progress;
 pub use settings::{BakeSettings, IndirectSampling};
@@ -57,6 +59,8 @@ pub struct BakeReport {
     /// Layers no path reached (e.g. a region never seen from another): not stored.
     pub layers_empty: usize,
     pub sample_bytes: usize,
+    /// Layers kept and left out, per region, and what leaving them out costs.
+    pub layers: drop::DropReport,
 }
 
 /// Accumulates one pixel of a tile densely: the tile buffer is pixel-major (all layers of
@@ -174,28 +178,57 @@ pub fn bake(
 
     let assembly_start = Instant::now();
     let inv_spp = 1.0 / settings.spp as f32;
-    let assemble = |(index, slot): (usize, Mutex<Vec<f32>>)| -> Option<Layer> {
+    // Whole-image layers: averaged over the eye samples, grey when the three channels are
+    // bit-identical everywhere (the path met no colour), `None` when nothing reached them.
+    let assemble = |(index, slot): (usize, Mutex<Vec<f32>>)| -> Result<RawLayer, LayerKey> {
         let mut image = slot.into_inner().unwrap_or_else(|e| e.into_inner());
+        let key = layer_key(&ctx, index);
         if image.is_empty() || image.iter().all(|v| *v == 0.0) {
-            return None;
+            return Err(key);
         }
         image.iter_mut().for_each(|v| *v *= inv_spp);
-        let key = layer_key(&ctx, index);
         if image.chunks_exact(3).all(|c| c[0] == c[1] && c[1] == c[2]) {
             let y: Vec<f32> = image.chunks_exact(3).map(|c| c[0]).collect();
-            Some(Layer::from_f32(key, 1, &y, settings.precision))
+            Ok(RawLayer {
+                key,
+                channels: 1,
+                data: y,
+            })
         } else {
-            Some(Layer::from_f32(key, 3, &image, settings.precision))
+            Ok(RawLayer {
+                key,
+                channels: 3,
+                data: image,
+            })
         }
     };
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(settings.threads)
         .build()
         .map_err(|e| crate::RelumeError::invalid("threads", e.to_string()))?;
-    let assembled: Vec<Option<Layer>> =
+    let assembled: Vec<Result<RawLayer, LayerKey>> =
         pool.install(|| store.into_par_iter().enumerate().map(assemble).collect());
-    let empty = assembled.iter().filter(|l| l.is_none()).count();
-    let mut layers: Vec<Layer> = assembled.into_iter().flatten().collect();
+    let mut reached = Vec::new();
+    let mut unreached = Vec::new();
+    for a in assembled {
+        match a {
+            Ok(l) => reached.push(l),
+            Err(k) => unreached.push(k),
+        }
+    }
+    let empty = unreached.len();
+    let (kept, drop_report) = drop::drop_negligible(
+        &ctx,
+        scene,
+        reached,
+        &unreached,
+        settings.drop_budget as f64,
+    );
+    let mut layers: Vec<Layer> = pool.install(|| {
+        kept.into_par_iter()
+            .map(|l| Layer::from_f32(l.key, l.channels, &l.data, settings.precision))
+            .collect()
+    });
     let grey = layers.iter().filter(|l| l.channels == 1).count();
     let rgb = layers.len() - grey;
     if layers.is_empty() {
@@ -256,6 +289,7 @@ pub fn bake(
         layers_rgb: rgb,
         layers_empty: empty,
         sample_bytes: stack.sample_bytes(),
+        layers: drop_report,
     };
     Ok((stack, report))
 }

@@ -48,6 +48,10 @@ pub struct BakeSettings {
     pub basis: BasisConfig,
     /// Worker threads (0: all cores). The result does not depend on it.
     pub threads: usize,
+    /// Relative L2 error a relit image may lose to leaving out negligible layers (see
+    /// [`crate::bake::drop`]); 0 keeps every layer a path reached.
+    #[serde(default)]
+    pub drop_budget: f32,
 }
 
 impl Default for BakeSettings {
@@ -63,6 +67,7 @@ impl Default for BakeSettings {
             precision: Precision::F16,
             basis: BasisConfig::default(),
             threads: 0,
+            drop_budget: 0.0,
         }
     }
 }

@@ -4,7 +4,7 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use crate::brdf::{BrdfBasis, MaterialSpec};
+use crate::brdf::{BlinnPhong, BrdfBasis, MaterialSpec};
 use crate::stack::StackHeader;
 use crate::{RelumeError, Result, Rgb};
 
@@ -65,15 +65,24 @@ impl StackBases {
                 self.bases.len()
             ))
         })?;
-        let m = material.to_blinn_phong();
-        if self.textured[region] && basis.spec_constant() {
-            // [Kd (textured diffuse layer), Ks·c̃₁, …, Ks·c₀ (untextured constant layer)].
-            let (kd, ks_c0, mut rest) = basis.split_coefficients(&m);
-            rest.insert(0, kd);
-            rest.push(ks_c0);
-            Ok(rest)
-        } else {
-            Ok(basis.material_coefficients(&m))
-        }
+        Ok(slot_coefficients(
+            basis,
+            self.textured[region],
+            &material.to_blinn_phong(),
+        ))
+    }
+}
+
+/// The coefficient of every slot of an editable region for material `m`: the basis
+/// coefficients, except that a textured region (with the diffuse basis in the specular fit)
+/// has [Kd (textured diffuse layer), Ks·c̃₁, …, Ks·c₀ (untextured constant layer)].
+pub fn slot_coefficients(basis: &BrdfBasis, textured: bool, m: &BlinnPhong) -> Vec<Rgb> {
+    if textured && basis.spec_constant() {
+        let (kd, ks_c0, mut rest) = basis.split_coefficients(m);
+        rest.insert(0, kd);
+        rest.push(ks_c0);
+        rest
+    } else {
+        basis.material_coefficients(m)
     }
 }
