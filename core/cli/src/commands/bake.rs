@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use relume_engine::bake::bake;
+use relume_engine::bake::{bake_progressive, doubling_passes};
 use relume_engine::scene::file::load_scene;
 use relume_engine::stack::exr_file::write_stack;
 use relume_engine::RelumeError;
@@ -20,6 +20,10 @@ pub struct Args {
     pub output: PathBuf,
     #[command(flatten)]
     pub options: BakeOptions,
+    /// Bake progressively in this many passes of doubling samples, ending at --spp: after
+    /// each pass the output is a complete, usable stack (replaced atomically).
+    #[arg(long, default_value_t = 1)]
+    pub passes: u32,
     /// Print one JSON summary on stdout.
     #[arg(long)]
     pub json: bool,
@@ -28,10 +32,31 @@ pub struct Args {
 pub fn run(args: Args) -> Result<(), RelumeError> {
     let scene = load_scene(&args.scene)?;
     let settings = args.options.settings()?;
-    let (stack, report) = with_progress("baking", move |p| bake(&scene, &settings, &p))?;
-    let t = std::time::Instant::now();
-    let bytes = write_stack(&args.output, &stack)?;
-    let write_seconds = t.elapsed().as_secs_f64();
+    let passes = doubling_passes(settings.spp, args.passes);
+    let output = args.output.clone();
+    let quiet = args.json;
+    let (stack, report, pass_reports, bytes, write_seconds) = with_progress("baking", move |p| {
+        let mut bytes = 0;
+        let mut write_seconds = 0.0;
+        let (stack, report, passes) =
+            bake_progressive(&scene, &settings, &passes, &p, |stack, _, pass| {
+                let t = std::time::Instant::now();
+                bytes = write_stack(&output, stack)?;
+                write_seconds = t.elapsed().as_secs_f64();
+                if !quiet && pass.estimated_rel_error.is_some() {
+                    eprintln!(
+                        "pass {}: {} spp at {:.1} s, estimated noise {:.3} % → {}",
+                        pass.pass,
+                        pass.spp,
+                        pass.seconds,
+                        pass.estimated_rel_error.unwrap_or(0.0) * 100.0,
+                        output.display()
+                    );
+                }
+                Ok(())
+            })?;
+        Ok::<_, RelumeError>((stack, report, passes, bytes, write_seconds))
+    })?;
     if args.json {
         super::print_json(&json!({
             "command": "bake",
@@ -39,6 +64,7 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
             "file_bytes": bytes,
             "write_seconds": write_seconds,
             "layers": stack.layers.len(),
+            "passes": pass_reports,
             "report": report,
         }));
     } else {

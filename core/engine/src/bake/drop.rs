@@ -119,18 +119,9 @@ fn accumulate(acc: &mut [f64], layer: &RawLayer, w: Rgb) {
     }
 }
 
-/// Leaves out the layers whose worst-case contribution fits in `budget` (see the module
-/// docs) and reports, per region, what was kept, unreached and left out.
-pub fn drop_negligible(
-    ctx: &BakeContext,
-    scene: &Scene,
-    layers: Vec<RawLayer>,
-    unreached: &[LayerKey],
-    budget: f64,
-) -> (Vec<RawLayer>, DropReport) {
-    let pixels = (ctx.resolution.width * ctx.resolution.height) as usize;
-    let tint = ctx.lights.tint;
-    let bake_coefs: Vec<Vec<Rgb>> = ctx
+/// Slot coefficients of the editable regions' bake-time materials, and the light tint.
+fn bake_time_coefficients(ctx: &BakeContext, scene: &Scene) -> (Vec<Vec<Rgb>>, Rgb) {
+    let coefs = ctx
         .regions
         .iter()
         .zip(&scene.regions)
@@ -143,11 +134,38 @@ pub fn drop_negligible(
             RegionModel::Fixed { .. } => None,
         })
         .collect();
-    let weight = |key: &LayerKey| path_product(key, &bake_coefs, Rgb::ONE, |a, b| a * b) * tint;
-    let mut full = vec![0.0f64; pixels * 3];
-    for layer in &layers {
-        accumulate(&mut full, layer, weight(&layer.key));
+    (coefs, ctx.lights.tint)
+}
+
+/// The relit image (RGB, f64) of `layers` at the scene's bake-time materials.
+pub fn bake_time_image(ctx: &BakeContext, scene: &Scene, layers: &[RawLayer]) -> Vec<f64> {
+    let (coefs, tint) = bake_time_coefficients(ctx, scene);
+    let pixels = (ctx.resolution.width * ctx.resolution.height) as usize;
+    let mut image = vec![0.0f64; pixels * 3];
+    for layer in layers {
+        accumulate(
+            &mut image,
+            layer,
+            path_product(&layer.key, &coefs, Rgb::ONE, |a, b| a * b) * tint,
+        );
     }
+    image
+}
+
+/// Leaves out the layers whose worst-case contribution fits in `budget` (see the module
+/// docs) and reports, per region, what was kept, unreached and left out. `full` is
+/// [`bake_time_image`] of `layers`.
+pub fn drop_negligible(
+    ctx: &BakeContext,
+    scene: &Scene,
+    layers: Vec<RawLayer>,
+    full: &[f64],
+    unreached: &[LayerKey],
+    budget: f64,
+) -> (Vec<RawLayer>, DropReport) {
+    let pixels = (ctx.resolution.width * ctx.resolution.height) as usize;
+    let (bake_coefs, tint) = bake_time_coefficients(ctx, scene);
+    let weight = |key: &LayerKey| path_product(key, &bake_coefs, Rgb::ONE, |a, b| a * b) * tint;
     let reference = full.iter().map(|v| v * v).sum::<f64>().sqrt();
 
     let mut kept = layers;

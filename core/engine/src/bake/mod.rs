@@ -116,10 +116,58 @@ pub fn bake(
     settings: &BakeSettings,
     progress: &Progress,
 ) -> Result<(TransferStack, BakeReport)> {
+    let (stack, report, _) =
+        bake_progressive(scene, settings, &[settings.spp], progress, |_, _, _| Ok(()))?;
+    Ok((stack, report))
+}
+
+/// One pass of a progressive bake.
+#[derive(Clone, Debug, Serialize)]
+pub struct PassReport {
+    pub pass: usize,
+    /// Eye samples per pixel so far.
+    pub spp: u32,
+    /// Seconds since the bake started, when this pass's stack was ready.
+    pub seconds: f64,
+    /// Estimated relative L2 noise of the image at the bake-time materials after this pass
+    /// (from the change since the previous pass: for cumulative sample counts n₋ < n, the
+    /// noise is ‖I − I₋‖·√(r/(1 − r)) with r = n₋/n); `None` for the first pass.
+    pub estimated_rel_error: Option<f64>,
+}
+
+/// Sample counts of a progressive bake of `passes` passes ending at `spp`: doubling, so
+/// each pass's estimate of the remaining noise is plain (see [`PassReport`]).
+pub fn doubling_passes(spp: u32, passes: u32) -> Vec<u32> {
+    let mut out: Vec<u32> = (0..passes.max(1))
+        .rev()
+        .map(|k| (spp >> k).max(1))
+        .collect();
+    out.dedup();
+    out
+}
+
+/// A bake in passes: after pass k the stack holds `passes[k]` eye samples per pixel
+/// (cumulative, increasing, the last one is the bake) and `on_pass` gets it — complete and
+/// usable, e.g. to write it (atomically) and relight a first noisy image within seconds.
+/// The paths are the same as one bake of `passes.last()` samples.
+pub fn bake_progressive(
+    scene: &Scene,
+    settings: &BakeSettings,
+    passes: &[u32],
+    progress: &Progress,
+    mut on_pass: impl FnMut(&TransferStack, &BakeReport, &PassReport) -> Result<()>,
+) -> Result<(TransferStack, BakeReport, Vec<PassReport>)> {
+    if passes.is_empty() || passes.windows(2).any(|w| w[0] >= w[1]) || passes[0] == 0 {
+        return Err(crate::RelumeError::invalid(
+            "bake passes",
+            format!("{passes:?}: sample counts must increase from ≥ 1"),
+        ));
+    }
     let start = Instant::now();
-    let (ctx, validation) = BakeContext::new(scene, settings)?;
+    let mut settings = settings.clone();
+    settings.spp = *passes.last().unwrap_or(&1);
+    let (ctx, validation) = BakeContext::new(scene, &settings)?;
     let setup_seconds = start.elapsed().as_secs_f64();
-    let trace_start = Instant::now();
     let res = ctx.resolution;
     let (width, height) = (res.width as usize, res.height as usize);
     let layer_count = ctx.layer_count();
@@ -127,66 +175,171 @@ pub fn bake(
     let store: Vec<Mutex<Vec<f32>>> = (0..layer_count).map(|_| Mutex::new(Vec::new())).collect();
     let rays = std::sync::atomic::AtomicU64::new(0);
     let brdf = BasisBrdf { ctx: &ctx };
-
-    tiles::run_tiles(res, settings.threads, progress, |tile| {
-        let tp = tile.pixels();
-        let mut buf = vec![0.0f32; layer_count * tp * 3];
-        let mut tracer = CountingTracer::default();
-        for ty in 0..tile.height {
-            if progress.is_cancelled() {
-                return false;
-            }
-            for tx in 0..tile.width {
-                let pixel = (ty * tile.width + tx) as usize;
-                let mut sink = TileSink {
-                    buf: &mut buf[pixel * layer_count * 3..(pixel + 1) * layer_count * 3],
+    let tile_count = tiles::tiles(res).len() as u64;
+    progress.start(tile_count * settings.spp as u64);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(settings.threads)
+        .build()
+        .map_err(|e| crate::RelumeError::invalid("threads", e.to_string()))?;
+    let mut pass_reports = Vec::new();
+    let mut previous_image: Option<Vec<f64>> = None;
+    let mut done = 0u32;
+    let mut result = None;
+    for (pass, &upto) in passes.iter().enumerate() {
+        let trace_start = Instant::now();
+        let (from, to) = (done, upto);
+        tiles::run_tiles(
+            res,
+            settings.threads,
+            progress,
+            (to - from) as u64,
+            |tile| {
+                trace_tile(
+                    &ctx,
+                    &brdf,
+                    &store,
+                    tile,
+                    from..to,
                     slots,
-                };
-                for s in 0..settings.spp {
-                    trace_eye_sample(
-                        &ctx,
-                        &brdf,
-                        &mut sink,
-                        &mut tracer,
-                        tile.x0 + tx,
-                        tile.y0 + ty,
-                        s,
-                    );
-                }
-            }
-        }
-        rays.fetch_add(tracer.rays, std::sync::atomic::Ordering::Relaxed);
-        let stride = layer_count * 3;
-        for (layer, slot) in store.iter().enumerate() {
-            let texel = |p: usize| &buf[p * stride + layer * 3..p * stride + layer * 3 + 3];
-            if (0..tp).all(|p| texel(p) == [0.0; 3]) {
-                continue;
-            }
-            let mut image = slot.lock().unwrap_or_else(|e| e.into_inner());
-            if image.is_empty() {
-                *image = vec![0.0; width * height * 3];
-            }
-            for ty in 0..tile.height as usize {
-                for tx in 0..tile.width as usize {
-                    let dst = ((tile.y0 as usize + ty) * width + tile.x0 as usize + tx) * 3;
-                    image[dst..dst + 3].copy_from_slice(texel(ty * tile.width as usize + tx));
-                }
-            }
-        }
-        true
-    })?;
+                    width,
+                    progress,
+                    &rays,
+                )
+            },
+        )?;
+        done = upto;
+        let (stack, mut report, image) =
+            assemble(&ctx, scene, &settings, &store, done, &pool, width, height)?;
+        let norm = image.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let estimated_rel_error = previous_image.as_ref().map(|prev| {
+            let diff = prev
+                .iter()
+                .zip(&image)
+                .map(|(a, b)| (a - b) * (a - b))
+                .sum::<f64>()
+                .sqrt();
+            let r = from as f64 / to as f64;
+            diff * (r / (1.0 - r)).sqrt() / norm.max(1e-300)
+        });
+        previous_image = Some(image);
+        let trace_seconds = trace_start.elapsed().as_secs_f64();
+        let total_rays = rays.load(std::sync::atomic::Ordering::Relaxed);
+        report.seconds = start.elapsed().as_secs_f64();
+        report.setup_seconds = setup_seconds;
+        report.trace_seconds = report.seconds - setup_seconds;
+        report.rays = total_rays;
+        report.rays_per_second = total_rays as f64 / report.trace_seconds.max(1e-9);
+        report.triangles = validation.triangles;
+        report.degenerate_triangles = validation.degenerate_triangles;
+        report.warnings = validation.warnings.clone();
+        let _ = trace_seconds;
+        let pass_report = PassReport {
+            pass,
+            spp: done,
+            seconds: report.seconds,
+            estimated_rel_error,
+        };
+        on_pass(&stack, &report, &pass_report)?;
+        pass_reports.push(pass_report);
+        result = Some((stack, report));
+    }
+    let (stack, report) = result.expect("at least one pass");
+    Ok((stack, report, pass_reports))
+}
 
+/// Traces eye samples `samples` of every pixel of `tile` and adds them to the store.
+#[allow(clippy::too_many_arguments)]
+fn trace_tile(
+    ctx: &BakeContext,
+    brdf: &BasisBrdf,
+    store: &[Mutex<Vec<f32>>],
+    tile: &tiles::Tile,
+    samples: std::ops::Range<u32>,
+    slots: usize,
+    width: usize,
+    progress: &Progress,
+    rays: &std::sync::atomic::AtomicU64,
+) -> bool {
+    let layer_count = store.len();
+    let height = ctx.resolution.height as usize;
+    let tp = tile.pixels();
+    let mut buf = vec![0.0f32; layer_count * tp * 3];
+    let mut tracer = CountingTracer::default();
+    for ty in 0..tile.height {
+        if progress.is_cancelled() {
+            return false;
+        }
+        for tx in 0..tile.width {
+            let pixel = (ty * tile.width + tx) as usize;
+            let mut sink = TileSink {
+                buf: &mut buf[pixel * layer_count * 3..(pixel + 1) * layer_count * 3],
+                slots,
+            };
+            for s in samples.clone() {
+                trace_eye_sample(
+                    ctx,
+                    brdf,
+                    &mut sink,
+                    &mut tracer,
+                    tile.x0 + tx,
+                    tile.y0 + ty,
+                    s,
+                );
+            }
+        }
+    }
+    rays.fetch_add(tracer.rays, std::sync::atomic::Ordering::Relaxed);
+    let stride = layer_count * 3;
+    for (layer, slot) in store.iter().enumerate() {
+        let texel = |p: usize| &buf[p * stride + layer * 3..p * stride + layer * 3 + 3];
+        if (0..tp).all(|p| texel(p) == [0.0; 3]) {
+            continue;
+        }
+        let mut image = slot.lock().unwrap_or_else(|e| e.into_inner());
+        if image.is_empty() {
+            *image = vec![0.0; width * height * 3];
+        }
+        for ty in 0..tile.height as usize {
+            for tx in 0..tile.width as usize {
+                let dst = ((tile.y0 as usize + ty) * width + tile.x0 as usize + tx) * 3;
+                for (d, v) in image[dst..dst + 3]
+                    .iter_mut()
+                    .zip(texel(ty * tile.width as usize + tx))
+                {
+                    *d += v;
+                }
+            }
+        }
+    }
+    true
+}
+
+/// Turns the store (sums over `spp` eye samples) into a stack, the report of its layers, and
+/// the image at the bake-time materials (for the progressive error estimate).
+#[allow(clippy::too_many_arguments)]
+fn assemble(
+    ctx: &BakeContext,
+    scene: &Scene,
+    settings: &BakeSettings,
+    store: &[Mutex<Vec<f32>>],
+    spp: u32,
+    pool: &rayon::ThreadPool,
+    width: usize,
+    height: usize,
+) -> Result<(TransferStack, BakeReport, Vec<f64>)> {
     let assembly_start = Instant::now();
-    let inv_spp = 1.0 / settings.spp as f32;
+    let res = ctx.resolution;
+    let layer_count = store.len();
+    let inv_spp = 1.0 / spp as f32;
     // Whole-image layers: averaged over the eye samples, grey when the three channels are
     // bit-identical everywhere (the path met no colour), `None` when nothing reached them.
-    let assemble = |(index, slot): (usize, Mutex<Vec<f32>>)| -> Result<RawLayer, LayerKey> {
-        let mut image = slot.into_inner().unwrap_or_else(|e| e.into_inner());
-        let key = layer_key(&ctx, index);
-        if image.is_empty() || image.iter().all(|v| *v == 0.0) {
+    let assemble = |(index, slot): (usize, &Mutex<Vec<f32>>)| -> Result<RawLayer, LayerKey> {
+        let sums = slot.lock().unwrap_or_else(|e| e.into_inner());
+        let key = layer_key(ctx, index);
+        if sums.is_empty() || sums.iter().all(|v| *v == 0.0) {
             return Err(key);
         }
-        image.iter_mut().for_each(|v| *v *= inv_spp);
+        let image: Vec<f32> = sums.iter().map(|v| v * inv_spp).collect();
         if image.chunks_exact(3).all(|c| c[0] == c[1] && c[1] == c[2]) {
             let y: Vec<f32> = image.chunks_exact(3).map(|c| c[0]).collect();
             Ok(RawLayer {
@@ -202,12 +355,8 @@ pub fn bake(
             })
         }
     };
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(settings.threads)
-        .build()
-        .map_err(|e| crate::RelumeError::invalid("threads", e.to_string()))?;
     let assembled: Vec<Result<RawLayer, LayerKey>> =
-        pool.install(|| store.into_par_iter().enumerate().map(assemble).collect());
+        pool.install(|| store.par_iter().enumerate().map(assemble).collect());
     let mut reached = Vec::new();
     let mut unreached = Vec::new();
     for a in assembled {
@@ -217,10 +366,12 @@ pub fn bake(
         }
     }
     let empty = unreached.len();
+    let image = drop::bake_time_image(ctx, scene, &reached);
     let (kept, drop_report) = drop::drop_negligible(
-        &ctx,
+        ctx,
         scene,
         reached,
+        &image,
         &unreached,
         settings.drop_budget as f64,
     );
@@ -246,7 +397,7 @@ pub fn bake(
         width: res.width,
         height: res.height,
         camera: scene.camera.clone(),
-        spp: settings.spp,
+        spp,
         light_samples: settings.light_samples,
         bounces: settings.bounces,
         sampling: settings.sampling.name().into(),
@@ -269,21 +420,19 @@ pub fn bake(
     };
     let stack = TransferStack { header, layers };
     let assembly_seconds = assembly_start.elapsed().as_secs_f64();
-    let trace_seconds = trace_start.elapsed().as_secs_f64();
-    let seconds = start.elapsed().as_secs_f64();
-    let rays = rays.into_inner();
+    // Timing, ray and validation fields are filled in by the caller.
     let report = BakeReport {
-        seconds,
-        rays,
-        setup_seconds,
-        trace_seconds,
+        seconds: 0.0,
+        rays: 0,
+        setup_seconds: 0.0,
+        trace_seconds: 0.0,
         assembly_seconds,
-        rays_per_second: rays as f64 / trace_seconds.max(1e-9),
+        rays_per_second: 0.0,
         width: res.width,
         height: res.height,
-        triangles: validation.triangles,
-        degenerate_triangles: validation.degenerate_triangles,
-        warnings: validation.warnings,
+        triangles: 0,
+        degenerate_triangles: 0,
+        warnings: Vec::new(),
         layers_possible: layer_count,
         layers_grey: grey,
         layers_rgb: rgb,
@@ -291,5 +440,5 @@ pub fn bake(
         sample_bytes: stack.sample_bytes(),
         layers: drop_report,
     };
-    Ok((stack, report))
+    Ok((stack, report, image))
 }

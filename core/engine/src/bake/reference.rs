@@ -9,7 +9,7 @@ use crate::bake::context::BakeContext;
 use crate::bake::integrator::{trace_eye_sample, CountingTracer, PathSink};
 use crate::bake::progress::Progress;
 use crate::bake::settings::BakeSettings;
-use crate::bake::tiles::run_tiles;
+use crate::bake::tiles::{run_tiles, tiles};
 use crate::bake::vertex_brdf::MaterialBrdf;
 use crate::brdf::BlinnPhong;
 use crate::scene::Scene;
@@ -71,7 +71,8 @@ pub fn render_with_context(
     let vertex = MaterialBrdf::new(ctx, materials.to_vec(), brdf == ReferenceBrdf::Projected)?;
     let image = Mutex::new(vec![0.0f32; width * res.height as usize * 4]);
     let inv_spp = 1.0 / ctx.settings.spp as f32;
-    run_tiles(res, ctx.settings.threads, progress, |tile| {
+    progress.start(tiles(res).len() as u64);
+    run_tiles(res, ctx.settings.threads, progress, 1, |tile| {
         let mut tracer = CountingTracer::default();
         let mut out = vec![0.0f32; tile.pixels() * 4];
         for ty in 0..tile.height {

@@ -45,14 +45,20 @@ pub fn tiles(res: Resolution) -> Vec<Tile> {
 }
 
 /// Runs `work` on every tile in a pool of `threads` threads (0: all cores), advancing
-/// `progress` and stopping with [`RelumeError::Cancelled`] when it is cancelled. `work`
-/// gets the tile and returns `false` if it saw the cancel flag midway.
-pub fn run_tiles<F>(res: Resolution, threads: usize, progress: &Progress, work: F) -> Result<()>
+/// `progress` by `weight` per tile (the caller has started it with the total) and stopping
+/// with [`RelumeError::Cancelled`] when it is cancelled. `work` gets the tile and returns
+/// `false` if it saw the cancel flag midway.
+pub fn run_tiles<F>(
+    res: Resolution,
+    threads: usize,
+    progress: &Progress,
+    weight: u64,
+    work: F,
+) -> Result<()>
 where
     F: Fn(&Tile) -> bool + Sync,
 {
     let all = tiles(res);
-    progress.start(all.len() as u64);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
@@ -63,7 +69,7 @@ where
                 return;
             }
             if work(tile) {
-                progress.advance(1);
+                progress.advance(weight);
             }
         })
     });
