@@ -1,7 +1,7 @@
 //! Options shared by the commands that trace paths (bake, reference, bench bake).
 
 use clap::{Args, ValueEnum};
-use relume_engine::bake::{BakeSettings, IndirectSampling};
+use relume_engine::bake::{BakeSettings, IndirectSampling, LightGrouping};
 use relume_engine::brdf::{BasisConfig, BasisCount};
 use relume_engine::scene::Resolution;
 use relume_engine::stack::Precision;
@@ -11,6 +11,16 @@ use relume_engine::RelumeError;
 pub enum SamplingArg {
     Uniform,
     Mixture,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum LightGroupsArg {
+    /// All lights share the layers.
+    None,
+    /// One group per light (and one for the world): every light's strength and colour live.
+    PerLight,
+    /// The scene file's light groups (Blender's light groups).
+    Scene,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -63,6 +73,10 @@ pub struct BakeOptions {
     /// relative L2 error (e.g. 0.001); 0 keeps every layer a path reached.
     #[arg(long, default_value_t = 0.0)]
     pub drop_budget: f32,
+    /// Keep light groups apart so their strength and colour can be edited at relight time
+    /// (storage and relight cost grow with the number of groups).
+    #[arg(long, value_enum, default_value = "none")]
+    pub light_groups: LightGroupsArg,
 }
 
 impl BakeOptions {
@@ -98,6 +112,11 @@ impl BakeOptions {
             },
             threads: self.threads,
             drop_budget: self.drop_budget,
+            light_grouping: match self.light_groups {
+                LightGroupsArg::None => LightGrouping::All,
+                LightGroupsArg::PerLight => LightGrouping::PerLight,
+                LightGroupsArg::Scene => LightGrouping::Scene,
+            },
         })
     }
 }

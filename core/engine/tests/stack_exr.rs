@@ -75,6 +75,7 @@ fn header(width: u32, height: u32, precision: Precision) -> StackHeader {
         scene_hash: "3f2a9c0e1b7d4455".into(),
         precision,
         light_tint: [1.0; 3],
+        light_groups: Vec::new(),
     }
 }
 

@@ -87,9 +87,9 @@ impl Tracer for RecordingTracer {
 
 struct NullSink;
 impl PathSink for NullSink {
-    fn world(&mut self, _: Rgb) {}
-    fn direct(&mut self, _: u32, _: Rgb) {}
-    fn bounce(&mut self, _: u32, _: u32, _: Rgb) {}
+    fn world(&mut self, _: usize, _: Rgb) {}
+    fn direct(&mut self, _: usize, _: u32, _: Rgb) {}
+    fn bounce(&mut self, _: usize, _: u32, _: u32, _: Rgb) {}
 }
 
 /// Runs the bench.

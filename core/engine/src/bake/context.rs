@@ -153,6 +153,17 @@ impl BakeContext {
                 r.mixture_lobes.clear();
             }
         }
+        let lights = LightSet::new(scene, settings.light_grouping);
+        if lights.groups.len() > crate::bake::integrator::MAX_GROUPS {
+            return Err(RelumeError::invalid(
+                "light groups",
+                format!(
+                    "{} groups (at most {}): group the lights in the scene file's light_groups",
+                    lights.groups.len(),
+                    crate::bake::integrator::MAX_GROUPS
+                ),
+            ));
+        }
         let geometry = SceneGeometry::build(scene);
         report.triangles = geometry.triangle_count();
         let camera = CameraRays::new(&scene.camera, resolution);
@@ -165,7 +176,7 @@ impl BakeContext {
             BakeContext {
                 geometry,
                 camera,
-                lights: LightSet::new(scene),
+                lights,
                 regions,
                 slot_vertex,
                 resolution,
@@ -181,11 +192,16 @@ impl BakeContext {
         self.slot_vertex.len()
     }
 
-    /// Layers a bake with these slots can fill: the world, one per slot, and with one bounce
-    /// one per (eye slot, bounce slot) pair.
-    pub fn layer_count(&self) -> usize {
+    /// Layers one light group can fill: the world, one per slot, and with one bounce one per
+    /// (eye slot, bounce slot) pair.
+    pub fn layers_per_group(&self) -> usize {
         let s = self.slot_count();
         1 + s + if self.settings.bounces >= 1 { s * s } else { 0 }
+    }
+
+    /// Layers the bake can fill: [`Self::layers_per_group`] per light group.
+    pub fn layer_count(&self) -> usize {
+        self.layers_per_group() * self.lights.groups.len()
     }
 
     /// Editable regions' bases, in editable order.

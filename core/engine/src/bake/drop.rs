@@ -119,8 +119,13 @@ fn accumulate(acc: &mut [f64], layer: &RawLayer, w: Rgb) {
     }
 }
 
-/// Slot coefficients of the editable regions' bake-time materials, and the light tint.
-fn bake_time_coefficients(ctx: &BakeContext, scene: &Scene) -> (Vec<Vec<Rgb>>, Rgb) {
+/// The tint of the light group of `key` (see [`crate::stack::StackHeader::group_tint`]).
+fn key_tint(ctx: &BakeContext, key: &LayerKey) -> Rgb {
+    ctx.lights.groups[key.light_group.saturating_sub(1) as usize].tint
+}
+
+/// Slot coefficients of the editable regions' bake-time materials.
+fn bake_time_coefficients(ctx: &BakeContext, scene: &Scene) -> Vec<Vec<Rgb>> {
     let coefs = ctx
         .regions
         .iter()
@@ -134,19 +139,19 @@ fn bake_time_coefficients(ctx: &BakeContext, scene: &Scene) -> (Vec<Vec<Rgb>>, R
             RegionModel::Fixed { .. } => None,
         })
         .collect();
-    (coefs, ctx.lights.tint)
+    coefs
 }
 
 /// The relit image (RGB, f64) of `layers` at the scene's bake-time materials.
 pub fn bake_time_image(ctx: &BakeContext, scene: &Scene, layers: &[RawLayer]) -> Vec<f64> {
-    let (coefs, tint) = bake_time_coefficients(ctx, scene);
+    let coefs = bake_time_coefficients(ctx, scene);
     let pixels = (ctx.resolution.width * ctx.resolution.height) as usize;
     let mut image = vec![0.0f64; pixels * 3];
     for layer in layers {
         accumulate(
             &mut image,
             layer,
-            path_product(&layer.key, &coefs, Rgb::ONE, |a, b| a * b) * tint,
+            path_product(&layer.key, &coefs, Rgb::ONE, |a, b| a * b) * key_tint(ctx, &layer.key),
         );
     }
     image
@@ -164,8 +169,10 @@ pub fn drop_negligible(
     budget: f64,
 ) -> (Vec<RawLayer>, DropReport) {
     let pixels = (ctx.resolution.width * ctx.resolution.height) as usize;
-    let (bake_coefs, tint) = bake_time_coefficients(ctx, scene);
-    let weight = |key: &LayerKey| path_product(key, &bake_coefs, Rgb::ONE, |a, b| a * b) * tint;
+    let bake_coefs = bake_time_coefficients(ctx, scene);
+    let weight = |key: &LayerKey| {
+        path_product(key, &bake_coefs, Rgb::ONE, |a, b| a * b) * key_tint(ctx, key)
+    };
     let reference = full.iter().map(|v| v * v).sum::<f64>().sqrt();
 
     let mut kept = layers;
@@ -173,14 +180,17 @@ pub fn drop_negligible(
     let mut bound = 0.0f64;
     if budget > 0.0 && reference > 0.0 {
         let maxima = max_coefficients(ctx);
-        let tint_max = tint.max_element() as f64;
+
         let mut order: Vec<(f64, usize)> = kept
             .iter()
             .enumerate()
             .map(|(i, l)| {
                 let w = path_product(&l.key, &maxima, 1.0f32, |a, b| a * b) as f64;
                 let spread = if l.channels == 1 { 3f64.sqrt() } else { 1.0 };
-                (w * tint_max * spread * norm(&l.data), i)
+                (
+                    w * key_tint(ctx, &l.key).max_element() as f64 * spread * norm(&l.data),
+                    i,
+                )
             })
             .collect();
         order.sort_by(|a, b| a.0.total_cmp(&b.0));

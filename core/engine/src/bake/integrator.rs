@@ -34,16 +34,19 @@ pub trait VertexBrdf: Sync {
     ) -> (u32, usize);
 }
 
-/// Where the integrator puts radiance.
+/// Where the integrator puts radiance, by light group.
 pub trait PathSink {
-    /// The world seen directly through the pixel.
-    fn world(&mut self, value: Rgb);
-    /// Direct light reflected at the eye vertex through slot `slot`.
-    fn direct(&mut self, slot: u32, value: Rgb);
-    /// Light reflected at the bounce vertex through `bounce_slot`, then at the eye vertex
-    /// through `eye_slot`.
-    fn bounce(&mut self, eye_slot: u32, bounce_slot: u32, value: Rgb);
+    /// The world (of light group `group`) seen directly through the pixel.
+    fn world(&mut self, group: usize, value: Rgb);
+    /// Direct light of group `group` reflected at the eye vertex through slot `slot`.
+    fn direct(&mut self, group: usize, slot: u32, value: Rgb);
+    /// Light of group `group` reflected at the bounce vertex through `bounce_slot`, then at
+    /// the eye vertex through `eye_slot`.
+    fn bounce(&mut self, group: usize, eye_slot: u32, bounce_slot: u32, value: Rgb);
 }
+
+/// Most light groups a bake keeps apart: bounds the per-vertex scratch arrays.
+pub const MAX_GROUPS: usize = 16;
 
 /// Ray queries, counted (and recordable for throughput measurements).
 pub trait Tracer {
@@ -100,12 +103,16 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(
     let (jx, jy) = stream.next2();
     let (origin, dir) = ctx.camera.ray(px as f32 + jx, py as f32 + jy);
     let Some(hit) = tracer.intersect(ctx, origin, dir, 0.0, ctx.clip_end) else {
-        sink.world(ctx.lights.environment.radiance(dir));
+        sink.world(
+            ctx.lights.world_group(),
+            ctx.lights.environment.radiance(dir),
+        );
         return;
     };
+    let groups = ctx.lights.groups.len();
     let wo = -dir;
     let mut values = [Rgb::ZERO; MAX_BASES];
-    let mut eye_light = [Rgb::ZERO; MAX_BASES];
+    let mut eye_light = [Rgb::ZERO; MAX_GROUPS * MAX_BASES];
     let (first, count) = direct_light(
         ctx,
         brdf,
@@ -116,8 +123,12 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(
         &mut values,
         &mut eye_light,
     );
-    for (k, v) in eye_light.iter().enumerate().take(count) {
-        sink.direct(first + k as u32, *v);
+    for g in 0..groups {
+        for (k, v) in eye_light[g * MAX_BASES..].iter().enumerate().take(count) {
+            if *v != Rgb::ZERO {
+                sink.direct(g, first + k as u32, *v);
+            }
+        }
     }
     if settings.bounces == 0 {
         return;
@@ -126,7 +137,7 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(
     let n = hit.shading_normal;
     let inv_indirect = 1.0 / settings.indirect_samples as f32;
     let mut eye_values = [Rgb::ZERO; MAX_BASES];
-    let mut bounce_light = [Rgb::ZERO; MAX_BASES];
+    let mut bounce_light = [Rgb::ZERO; MAX_GROUPS * MAX_BASES];
     for _ in 0..settings.indirect_samples {
         let Some((wi, pdf)) =
             sample_indirect(settings.sampling, &region.mixture_lobes, n, wo, &mut stream)
@@ -163,8 +174,21 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(
             if fe == Rgb::ZERO {
                 continue;
             }
-            for (b, light) in bounce_light.iter().enumerate().take(bounce_count) {
-                sink.bounce(eye_first + e as u32, bounce_first + b as u32, fe * *light);
+            for g in 0..groups {
+                for (b, light) in bounce_light[g * MAX_BASES..]
+                    .iter()
+                    .enumerate()
+                    .take(bounce_count)
+                {
+                    if *light != Rgb::ZERO {
+                        sink.bounce(
+                            g,
+                            eye_first + e as u32,
+                            bounce_first + b as u32,
+                            fe * *light,
+                        );
+                    }
+                }
             }
         }
     }
@@ -172,7 +196,7 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(
 
 /// Direct light at `hit` towards `wo`: for every emitter and light sample, every BRDF value
 /// of the vertex times cos θ times radiance/pdf, averaged over the light samples, summed per
-/// slot into `light` (cleared first). Returns the vertex's first slot and slot count (count
+/// light group and slot into `light[group · MAX_BASES + slot]` (cleared first). Returns the vertex's first slot and slot count (count
 /// 0 when no sample arrived). Consumes 2 random numbers per light sample always.
 #[allow(clippy::too_many_arguments)]
 fn direct_light<B: VertexBrdf, T: Tracer>(
@@ -183,7 +207,7 @@ fn direct_light<B: VertexBrdf, T: Tracer>(
     wo: Vec3,
     stream: &mut SampleStream,
     values: &mut [Rgb; MAX_BASES],
-    light: &mut [Rgb; MAX_BASES],
+    light: &mut [Rgb; MAX_GROUPS * MAX_BASES],
 ) -> (u32, usize) {
     let mut first = 0u32;
     let mut count = 0usize;
@@ -213,10 +237,17 @@ fn direct_light<B: VertexBrdf, T: Tracer>(
             let (f, c) = brdf.eval(hit.region, hit.uv, n, s.wi, wo, values);
             if count == 0 {
                 (first, count) = (f, c);
-                light[..c].fill(Rgb::ZERO);
+                for g in 0..ctx.lights.groups.len() {
+                    light[g * MAX_BASES..g * MAX_BASES + c].fill(Rgb::ZERO);
+                }
             }
             let li = s.radiance_over_pdf * (cos * inv);
-            for (l, v) in light.iter_mut().zip(values.iter()).take(count) {
+            let g = ctx.lights.group_of(emitter);
+            for (l, v) in light[g * MAX_BASES..]
+                .iter_mut()
+                .zip(values.iter())
+                .take(count)
+            {
                 *l += *v * li;
             }
         }

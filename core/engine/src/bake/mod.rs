@@ -23,13 +23,15 @@ use std::sync::Mutex;
 use std::time::Instant;
 
 use crate::scene::{hash::scene_hash, Scene};
-use crate::stack::{Layer, RegionInfo, StackHeader, TransferStack, STACK_FORMAT_VERSION};
+use crate::stack::{
+    Layer, LightGroupInfo, RegionInfo, StackHeader, TransferStack, STACK_FORMAT_VERSION,
+};
 use crate::{Result, Rgb};
 use context::BakeContext;
 use drop::RawLayer;
 use integrator::{trace_eye_sample, CountingTracer, PathSink};
 use progress::Progress;
-pub use settings::{BakeSettings, IndirectSampling};
+pub use settings::{BakeSettings, IndirectSampling, LightGrouping};
 use signature::LayerKey;
 use vertex_brdf::BasisBrdf;
 
@@ -69,6 +71,8 @@ struct TileSink<'a> {
     /// The layers of the current pixel.
     buf: &'a mut [f32],
     slots: usize,
+    /// Layers per light group.
+    per_group: usize,
 }
 
 impl TileSink<'_> {
@@ -83,22 +87,36 @@ impl TileSink<'_> {
 
 impl PathSink for TileSink<'_> {
     #[inline]
-    fn world(&mut self, v: Rgb) {
-        self.add(0, v);
+    fn world(&mut self, group: usize, v: Rgb) {
+        self.add(group * self.per_group, v);
     }
     #[inline]
-    fn direct(&mut self, slot: u32, v: Rgb) {
-        self.add(1 + slot as usize, v);
+    fn direct(&mut self, group: usize, slot: u32, v: Rgb) {
+        self.add(group * self.per_group + 1 + slot as usize, v);
     }
     #[inline]
-    fn bounce(&mut self, eye: u32, bounce: u32, v: Rgb) {
+    fn bounce(&mut self, group: usize, eye: u32, bounce: u32, v: Rgb) {
         let s = self.slots;
-        self.add(1 + s + eye as usize * s + bounce as usize, v);
+        self.add(
+            group * self.per_group + 1 + s + eye as usize * s + bounce as usize,
+            v,
+        );
     }
 }
 
-/// The key of dense layer index `layer` for `ctx`'s slots.
+/// The key of dense layer index `layer` for `ctx`'s slots and light groups (light group
+/// g + 1 in the key when the bake keeps groups apart, 0 when all lights share the layers).
 pub fn layer_key(ctx: &BakeContext, layer: usize) -> LayerKey {
+    let per_group = ctx.layers_per_group();
+    let group = layer / per_group;
+    let mut key = path_key(ctx, layer % per_group);
+    if ctx.settings.light_grouping != LightGrouping::All {
+        key.light_group = group as u16 + 1;
+    }
+    key
+}
+
+fn path_key(ctx: &BakeContext, layer: usize) -> LayerKey {
     let s = ctx.slot_count();
     if layer == 0 {
         LayerKey::new(vec![])
@@ -274,6 +292,7 @@ fn trace_tile(
             let mut sink = TileSink {
                 buf: &mut buf[pixel * layer_count * 3..(pixel + 1) * layer_count * 3],
                 slots,
+                per_group: ctx.layers_per_group(),
             };
             for s in samples.clone() {
                 trace_eye_sample(
@@ -416,7 +435,19 @@ fn assemble(
         lights: scene.lights.clone(),
         scene_hash: scene_hash(scene),
         precision: settings.precision,
-        light_tint: ctx.lights.tint.to_array(),
+        light_tint: ctx.lights.groups[0].tint.to_array(),
+        light_groups: if ctx.settings.light_grouping == LightGrouping::All {
+            Vec::new()
+        } else {
+            ctx.lights
+                .groups
+                .iter()
+                .map(|g| LightGroupInfo {
+                    name: g.name.clone(),
+                    tint: g.tint.to_array(),
+                })
+                .collect()
+        },
     };
     let stack = TransferStack { header, layers };
     let assembly_seconds = assembly_start.elapsed().as_secs_f64();

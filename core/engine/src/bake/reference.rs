@@ -24,17 +24,22 @@ pub enum ReferenceBrdf {
     Projected,
 }
 
-struct PixelSink(Rgb);
+/// One pixel's sum; each light group's common colour (factored out of its emitters, as in
+/// the bake) multiplies its contributions back.
+struct PixelSink<'a> {
+    sum: Rgb,
+    tints: &'a [Rgb],
+}
 
-impl PathSink for PixelSink {
-    fn world(&mut self, v: Rgb) {
-        self.0 += v;
+impl PathSink for PixelSink<'_> {
+    fn world(&mut self, g: usize, v: Rgb) {
+        self.sum += v * self.tints[g];
     }
-    fn direct(&mut self, _: u32, v: Rgb) {
-        self.0 += v;
+    fn direct(&mut self, g: usize, _: u32, v: Rgb) {
+        self.sum += v * self.tints[g];
     }
-    fn bounce(&mut self, _: u32, _: u32, v: Rgb) {
-        self.0 += v;
+    fn bounce(&mut self, g: usize, _: u32, _: u32, v: Rgb) {
+        self.sum += v * self.tints[g];
     }
 }
 
@@ -71,6 +76,7 @@ pub fn render_with_context(
     let vertex = MaterialBrdf::new(ctx, materials.to_vec(), brdf == ReferenceBrdf::Projected)?;
     let image = Mutex::new(vec![0.0f32; width * res.height as usize * 4]);
     let inv_spp = 1.0 / ctx.settings.spp as f32;
+    let tints: Vec<Rgb> = ctx.lights.groups.iter().map(|g| g.tint).collect();
     progress.start(tiles(res).len() as u64);
     run_tiles(res, ctx.settings.threads, progress, 1, |tile| {
         let mut tracer = CountingTracer::default();
@@ -80,7 +86,10 @@ pub fn render_with_context(
                 return false;
             }
             for tx in 0..tile.width {
-                let mut sink = PixelSink(Rgb::ZERO);
+                let mut sink = PixelSink {
+                    sum: Rgb::ZERO,
+                    tints: &tints,
+                };
                 for s in 0..ctx.settings.spp {
                     trace_eye_sample(
                         ctx,
@@ -92,8 +101,7 @@ pub fn render_with_context(
                         s,
                     );
                 }
-                // The emitters' common colour was factored out of the lights (as in the bake).
-                let c = sink.0 * inv_spp * ctx.lights.tint;
+                let c = sink.sum * inv_spp;
                 let i = (ty * tile.width + tx) as usize * 4;
                 out[i..i + 4].copy_from_slice(&[c.x, c.y, c.z, 1.0]);
             }

@@ -28,6 +28,21 @@ impl IndirectSampling {
     }
 }
 
+/// Which lights share layers. Light groups make each group's strength and colour live at
+/// relight time; storage and relight cost grow with the number of groups.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum LightGrouping {
+    /// All lights (and the world) in one set of layers.
+    #[default]
+    All,
+    /// One group per light, and one for the world.
+    PerLight,
+    /// The scene file's `light_groups` (Blender's light groups); lights in none share a
+    /// "default" group.
+    Scene,
+}
+
 /// Everything that controls a bake (and the reference render that mirrors it).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct BakeSettings {
@@ -52,6 +67,8 @@ pub struct BakeSettings {
     /// [`crate::bake::drop`]); 0 keeps every layer a path reached.
     #[serde(default)]
     pub drop_budget: f32,
+    #[serde(default)]
+    pub light_grouping: LightGrouping,
 }
 
 impl Default for BakeSettings {
@@ -68,6 +85,7 @@ impl Default for BakeSettings {
             basis: BasisConfig::default(),
             threads: 0,
             drop_budget: 0.0,
+            light_grouping: LightGrouping::All,
         }
     }
 }

@@ -18,6 +18,7 @@ use std::f32::consts::PI;
 
 use super::environment::Environment;
 use super::sampling::{concentric_disk, cosine_hemisphere, frame, to_world, uniform_cone};
+use crate::bake::settings::LightGrouping;
 use crate::scene::{AreaShape, Light, Scene, World};
 use crate::Rgb;
 
@@ -71,37 +72,22 @@ pub struct LightSet {
     emitters: Vec<Emitter>,
     /// The world's radiance (also for rays that escape).
     pub environment: Environment,
-    /// The colour factored out of every emitter (see [`common_tint`]); the emitters here
-    /// are grey multiples of it.
-    pub tint: Rgb,
+    /// The light groups; each group's emitters here are grey multiples of its tint when it
+    /// has one (see [`common_tint`]).
+    pub groups: Vec<LightGroup>,
+    /// Group of every emitter.
+    emitter_group: Vec<u16>,
 }
 
-/// The colour every emitter shares, if there is one: when all lights' colours (and a
-/// constant world's) are proportional to one colour c, the bake can use grey light and the
-/// relight multiply by c, so paths that meet no other colour stay grey layers (one channel
-/// instead of three: a third of the memory and of the relight's reads). Returns c scaled to
-/// a largest component of 1, or white when the emitters differ in colour or the world is an
-/// image. Proportional means equal after scaling within 1e-6 relative.
-pub fn common_tint(scene: &Scene) -> Rgb {
-    let mut colours: Vec<Rgb> = scene
-        .lights
-        .iter()
-        .map(|l| match l {
-            Light::Point { color, power, .. }
-            | Light::Spot { color, power, .. }
-            | Light::Area { color, power, .. } => Rgb::from(*color) * power.signum().max(0.0),
-            Light::Sun {
-                color, strength, ..
-            } => Rgb::from(*color) * strength.signum().max(0.0),
-        })
-        .collect();
-    match &scene.world {
-        World::Color { color, strength } => colours.push(Rgb::from(*color) * *strength),
-        World::Equirect { strength, .. } => {
-            if *strength > 0.0 {
-                return Rgb::ONE;
-            }
-        }
+/// The colour shared by a set of emitter colours, if there is one: when all are
+/// proportional to one colour c, the bake can use grey light and the relight multiply by c,
+/// so paths that meet no other colour stay grey layers (one channel instead of three: a
+/// third of the memory and of the relight's reads). Returns c scaled to a largest component
+/// of 1, or white when the colours differ or `image_world` (an environment image is never
+/// one colour). Proportional means equal after scaling within 1e-6 relative.
+pub fn common_tint(colours: &[Rgb], image_world: bool) -> Rgb {
+    if image_world {
+        return Rgb::ONE;
     }
     let normalised: Vec<Rgb> = colours
         .iter()
@@ -121,6 +107,62 @@ pub fn common_tint(scene: &Scene) -> Rgb {
     }
 }
 
+/// The emitted colour of a light (zero when it emits nothing).
+fn light_colour(light: &Light) -> Rgb {
+    match light {
+        Light::Point { color, power, .. }
+        | Light::Spot { color, power, .. }
+        | Light::Area { color, power, .. } => Rgb::from(*color) * power.signum().max(0.0),
+        Light::Sun {
+            color, strength, ..
+        } => Rgb::from(*color) * strength.signum().max(0.0),
+    }
+}
+
+/// A set of emitters whose layers are kept apart (a light group), and its common colour.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LightGroup {
+    pub name: String,
+    pub tint: Rgb,
+}
+
+/// Which group each light and the world fall in, with the groups' names.
+fn group_membership(scene: &Scene, grouping: LightGrouping) -> (Vec<String>, Vec<usize>, usize) {
+    match grouping {
+        LightGrouping::All => (vec!["all".into()], vec![0; scene.lights.len()], 0),
+        LightGrouping::PerLight => {
+            let mut names: Vec<String> = (0..scene.lights.len())
+                .map(|i| format!("light {i}"))
+                .collect();
+            names.push("world".into());
+            (
+                (names),
+                (0..scene.lights.len()).collect(),
+                scene.lights.len(),
+            )
+        }
+        LightGrouping::Scene => {
+            let mut names: Vec<String> =
+                scene.light_groups.iter().map(|g| g.name.clone()).collect();
+            let default = names.len();
+            names.push("default".into());
+            let mut member = vec![default; scene.lights.len()];
+            let mut world = default;
+            for (g, spec) in scene.light_groups.iter().enumerate() {
+                for &l in &spec.lights {
+                    if let Some(m) = member.get_mut(l as usize) {
+                        *m = g;
+                    }
+                }
+                if spec.world {
+                    world = g;
+                }
+            }
+            (names, member, world)
+        }
+    }
+}
+
 /// `colour` with the tint factored out: a grey of the same largest component when the tint
 /// is not white (so the bake's grey layers are bit-exact), the colour itself otherwise.
 fn untinted(colour: Rgb, tint: Rgb) -> Rgb {
@@ -132,26 +174,74 @@ fn untinted(colour: Rgb, tint: Rgb) -> Rgb {
 }
 
 impl LightSet {
-    /// Prepares the scene's lights; the world is one more emitter when it is not black.
-    pub fn new(scene: &Scene) -> LightSet {
-        let tint = common_tint(scene);
+    /// Prepares the scene's lights, grouped by `grouping`; the world is one more emitter
+    /// when it is not black. Each group's common colour is factored out of its emitters.
+    pub fn new(scene: &Scene, grouping: LightGrouping) -> LightSet {
+        let (names, member, world_group) = group_membership(scene, grouping);
+        let image_world =
+            matches!(&scene.world, World::Equirect { strength, .. } if *strength > 0.0);
+        let world_colour = match &scene.world {
+            World::Color { color, strength } => Rgb::from(*color) * *strength,
+            World::Equirect { .. } => Rgb::ZERO,
+        };
+        let groups: Vec<LightGroup> = names
+            .into_iter()
+            .enumerate()
+            .map(|(g, name)| {
+                let mut colours: Vec<Rgb> = scene
+                    .lights
+                    .iter()
+                    .zip(&member)
+                    .filter(|(_, m)| **m == g)
+                    .map(|(l, _)| light_colour(l))
+                    .collect();
+                if world_group == g {
+                    colours.push(world_colour);
+                }
+                LightGroup {
+                    name,
+                    tint: common_tint(&colours, image_world && world_group == g),
+                }
+            })
+            .collect();
         let mut emitters: Vec<Emitter> = scene
             .lights
             .iter()
-            .filter_map(|l| prepare(l, tint))
+            .zip(&member)
+            .filter_map(|(l, m)| prepare(l, groups[*m].tint))
             .collect();
+        let mut emitter_group: Vec<u16> = member.iter().map(|m| *m as u16).collect();
         let environment = match Environment::new(&scene.world) {
-            Environment::Constant(c) => Environment::Constant(untinted(c, tint)),
+            Environment::Constant(c) => {
+                Environment::Constant(untinted(c, groups[world_group].tint))
+            }
             other => other,
         };
         if !environment.is_black() {
             emitters.push(Emitter::World);
+            emitter_group.push(world_group as u16);
         }
         LightSet {
             emitters,
             environment,
-            tint,
+            groups,
+            emitter_group,
         }
+    }
+
+    /// The group of emitter `index`.
+    #[inline]
+    pub fn group_of(&self, index: usize) -> usize {
+        self.emitter_group[index] as usize
+    }
+
+    /// The group the world belongs to (for the world seen directly).
+    pub fn world_group(&self) -> usize {
+        self.emitter_group
+            .last()
+            .copied()
+            .filter(|_| matches!(self.emitters.last(), Some(Emitter::World)))
+            .unwrap_or(0) as usize
     }
 
     /// Number of emitters sampled at every shading point.

@@ -123,8 +123,9 @@ pub struct CpuRelighter {
     edits_since_full: usize,
     stats: RelightStats,
     kernels: Kernels,
-    /// The emitters' common colour, factored out of the layers at bake time.
-    tint: Rgb,
+    /// Per layer-key light group (0: all lights; g + 1: group g), the colour factored out
+    /// of its layers at bake time times the group's live gain.
+    group_factor: Vec<Rgb>,
 }
 
 impl CpuRelighter {
@@ -215,15 +216,34 @@ impl CpuRelighter {
         let n_layers = stack.layers.len();
         let mut image = vec![0.0f32; width * height * 4];
         image.chunks_exact_mut(4).for_each(|p| p[3] = 1.0);
-        let tint = Rgb::from(stack.header.light_tint);
-        if !tint.is_finite() || tint.min_element() < 0.0 {
+        let mut group_factor = vec![Rgb::from(stack.header.light_tint)];
+        group_factor.extend(stack.header.light_groups.iter().map(|g| Rgb::from(g.tint)));
+        if let Some(bad) = group_factor
+            .iter()
+            .find(|t| !t.is_finite() || t.min_element() < 0.0)
+        {
             return Err(RelumeError::StackFormat {
                 path: Default::default(),
-                message: format!("light tint {tint} is not a finite non-negative colour"),
+                message: format!("light tint {bad} is not a finite non-negative colour"),
+            });
+        }
+        if let Some(l) = stack
+            .layers
+            .iter()
+            .find(|l| l.key.light_group as usize >= group_factor.len())
+        {
+            return Err(RelumeError::StackFormat {
+                path: Default::default(),
+                message: format!(
+                    "layer {} names light group {} of {}",
+                    l.key.layer_name(),
+                    l.key.light_group,
+                    stack.header.light_groups.len()
+                ),
             });
         }
         Ok(CpuRelighter {
-            tint,
+            group_factor,
             stack,
             width,
             height,
@@ -301,6 +321,44 @@ impl CpuRelighter {
         Ok(&self.image)
     }
 
+    /// Light groups' live strength × colour (one RGB gain per group of the stack's
+    /// `light_groups`, 1 leaves the group as baked), then a full re-sum: every layer of a
+    /// group scales by its gain, since radiance is linear in each light's emission.
+    pub fn set_light_group_gains(&mut self, gains: &[Rgb]) -> Result<&[f32]> {
+        let groups = &self.stack.header.light_groups;
+        if gains.len() != groups.len() {
+            return Err(RelumeError::invalid(
+                "light group gains",
+                format!(
+                    "{} gains for {} light groups ({})",
+                    gains.len(),
+                    groups.len(),
+                    groups
+                        .iter()
+                        .map(|g| g.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            ));
+        }
+        if let Some(g) = gains.iter().find(|g| !g.is_finite()) {
+            return Err(RelumeError::NonFinite {
+                what: format!("light group gain {g}"),
+            });
+        }
+        for (k, (group, gain)) in groups.iter().zip(gains).enumerate() {
+            self.group_factor[k + 1] = Rgb::from(group.tint) * *gain;
+        }
+        if !self.has_image {
+            return Err(RelumeError::invalid(
+                "light group gains",
+                "there is no image yet: call relight with every region's coefficients first",
+            ));
+        }
+        self.full_sum();
+        Ok(&self.image)
+    }
+
     /// Incremental relight: only editable region `region` changed, to `coefs` (its basis
     /// coefficients). Adds `(w_new − w_old) · layer` for the layers whose key contains the
     /// region and whose weight changed; every [`FULL_RESUM_EVERY`]-th call re-sums all
@@ -331,7 +389,8 @@ impl CpuRelighter {
         let mut bytes_read = 0;
         for &l in &self.region_layers[region] {
             let l = l as usize;
-            let new = layer_weight(&self.stack.layers[l].key, &self.coefs) * self.tint;
+            let key = &self.stack.layers[l].key;
+            let new = layer_weight(key, &self.coefs) * self.group_factor[key.light_group as usize];
             let delta = new - self.weights[l];
             self.weights[l] = new;
             self.effective[l] = delta * self.stack.layers[l].scale;
@@ -385,7 +444,8 @@ impl CpuRelighter {
         let mut layers_summed = 0;
         let mut bytes_read = 0;
         for (l, layer) in self.stack.layers.iter().enumerate() {
-            let w = layer_weight(&layer.key, &self.coefs) * self.tint;
+            let w = layer_weight(&layer.key, &self.coefs)
+                * self.group_factor[layer.key.light_group as usize];
             self.weights[l] = w;
             self.effective[l] = w * layer.scale;
             if self.effective[l] != Rgb::ZERO && self.packed.layer_bytes(l) > 0 {

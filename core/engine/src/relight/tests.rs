@@ -39,6 +39,7 @@ fn header(width: u32, height: u32) -> StackHeader {
         scene_hash: String::new(),
         precision: Precision::F16,
         light_tint: [1.0; 3],
+        light_groups: Vec::new(),
     }
 }
 

@@ -23,6 +23,19 @@ pub struct Scene {
     pub world: World,
     pub camera: Camera,
     pub resolution: Resolution,
+    /// Named groups of lights (Blender's light groups), for bakes whose lights stay live.
+    #[serde(default)]
+    pub light_groups: Vec<LightGroupSpec>,
+}
+
+/// A named group of lights: indices into `Scene::lights`, and whether the world is in it.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct LightGroupSpec {
+    pub name: String,
+    #[serde(default)]
+    pub lights: Vec<u32>,
+    #[serde(default)]
+    pub world: bool,
 }
 
 /// Output image size in pixels.

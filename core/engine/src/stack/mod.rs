@@ -45,6 +45,31 @@ pub struct StackHeader {
     /// layer weight is multiplied by this at relight. [1, 1, 1] when the lights differ in colour.
     #[serde(default = "white_tint")]
     pub light_tint: [f32; 3],
+    /// Light groups kept apart (layer keys `G<g+1>_…`), each with its own tint in place of
+    /// `light_tint`; empty when all lights share the layers (keys with light group 0).
+    #[serde(default)]
+    pub light_groups: Vec<LightGroupInfo>,
+}
+
+/// A light group of a stack: its name and the colour factored out of its layers.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct LightGroupInfo {
+    pub name: String,
+    pub tint: [f32; 3],
+}
+
+impl StackHeader {
+    /// The colour factored out of the layers of light group `key_group` (a layer key's
+    /// `light_group`: 0 for all lights together, g + 1 for group g).
+    pub fn group_tint(&self, key_group: u16) -> Option<[f32; 3]> {
+        if key_group == 0 {
+            Some(self.light_tint)
+        } else {
+            self.light_groups
+                .get(key_group as usize - 1)
+                .map(|g| g.tint)
+        }
+    }
 }
 
 fn white_tint() -> [f32; 3] {

@@ -182,6 +182,7 @@ pub fn cornell(size: u32) -> Scene {
             width: size,
             height: size,
         },
+        light_groups: Vec::new(),
     }
 }
 
@@ -200,5 +201,6 @@ pub fn furnace(material: MaterialSpec, editable: bool, size: u32) -> Scene {
             width: size,
             height: size,
         },
+        light_groups: Vec::new(),
     }
 }

@@ -70,6 +70,7 @@ pub fn header(width: u32, height: u32) -> StackHeader {
         scene_hash: "test".into(),
         precision: Precision::F16,
         light_tint: [1.0; 3],
+        light_groups: Vec::new(),
     }
 }
 
