@@ -22,6 +22,9 @@
 //!   `"roughnes"` would otherwise silently leave the default in place.
 //! - Only editable regions can be edited; naming a fixed region is an error, because its
 //!   material was baked into the layers.
+//! - `light_groups` (optional) maps light group names of a stack baked with
+//!   `--light-groups` to `{"strength": s, "color": [r, g, b]}` (defaults 1 and white):
+//!   that group's light is multiplied by `color × strength`.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -37,10 +40,72 @@ pub const MATERIALS_FORMAT: &str = "relume-materials";
 /// The only `version` this build reads.
 pub const MATERIALS_FORMAT_VERSION: u32 = 1;
 
-/// A parsed materials file: material per region name.
+/// A parsed materials file: material per region name, and live light-group edits.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct MaterialsFile {
     pub regions: BTreeMap<String, MaterialSpec>,
+    /// Strength and colour per light group name (stacks baked with light groups).
+    pub light_groups: BTreeMap<String, LightGroupEdit>,
+}
+
+/// A light group's live edit: its layers are multiplied by `color × strength`.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LightGroupEdit {
+    #[serde(default = "one")]
+    pub strength: f32,
+    #[serde(default = "white")]
+    pub color: [f32; 3],
+}
+
+fn one() -> f32 {
+    1.0
+}
+fn white() -> [f32; 3] {
+    [1.0; 3]
+}
+
+/// The gain of every light group of `header` (editable order of its `light_groups`) from
+/// `edits`, or `None` when the file edits no group. Errors: a group the stack does not have
+/// (its groups are listed), a negative or non-finite strength or colour.
+pub fn resolve_light_gains(
+    header: &crate::stack::StackHeader,
+    edits: &MaterialsFile,
+) -> Result<Option<Vec<crate::Rgb>>> {
+    if edits.light_groups.is_empty() {
+        return Ok(None);
+    }
+    let names: Vec<&str> = header
+        .light_groups
+        .iter()
+        .map(|g| g.name.as_str())
+        .collect();
+    for (name, e) in &edits.light_groups {
+        if !names.contains(&name.as_str()) {
+            return Err(RelumeError::Materials(format!(
+                "light group \"{name}\" is not in this stack (its groups: {}; bake with --light-groups to keep lights apart)",
+                if names.is_empty() { "none".to_string() } else { names.join(", ") }
+            )));
+        }
+        let values = [e.strength, e.color[0], e.color[1], e.color[2]];
+        if values.iter().any(|v| !v.is_finite() || *v < 0.0) {
+            return Err(RelumeError::Materials(format!(
+                "light group \"{name}\": strength and colour must be finite and ≥ 0"
+            )));
+        }
+    }
+    Ok(Some(
+        header
+            .light_groups
+            .iter()
+            .map(|g| {
+                edits
+                    .light_groups
+                    .get(&g.name)
+                    .map_or(crate::Rgb::ONE, |e| crate::Rgb::from(e.color) * e.strength)
+            })
+            .collect(),
+    ))
 }
 
 #[derive(Deserialize)]
@@ -50,7 +115,10 @@ struct RawFile {
     format: String,
     #[allow(dead_code)]
     version: u32,
+    #[serde(default)]
     regions: BTreeMap<String, MaterialSpec>,
+    #[serde(default)]
+    light_groups: BTreeMap<String, LightGroupEdit>,
 }
 
 /// Reads and parses a materials file. Errors: the file cannot be read
@@ -132,6 +200,7 @@ pub fn parse_materials(json: &str) -> Result<MaterialsFile> {
     }
     Ok(MaterialsFile {
         regions: raw.regions,
+        light_groups: raw.light_groups,
     })
 }
 

@@ -138,3 +138,32 @@ fn scene_groups_and_the_default_group() {
         .iter()
         .any(|l| l.key.layer_name().starts_with("G1_")));
 }
+
+#[test]
+fn materials_files_edit_light_groups_by_name() {
+    use relume_engine::materials::{parse_materials, resolve_light_gains};
+    let scene = two_lights();
+    let (stack, _) = bake(
+        &scene,
+        &BakeSettings {
+            spp: 1,
+            light_grouping: LightGrouping::PerLight,
+            ..Default::default()
+        },
+        &Progress::new(),
+    )
+    .unwrap();
+    let edits = parse_materials(r#"{"format": "relume-materials", "version": 1, "light_groups": {"light 1": {"strength": 3, "color": [1, 0.5, 0]}}}"#).unwrap();
+    let gains = resolve_light_gains(&stack.header, &edits).unwrap().unwrap();
+    assert_eq!(gains, vec![Rgb::ONE, Rgb::new(3.0, 1.5, 0.0), Rgb::ONE]);
+    let bad = parse_materials(
+        r#"{"format": "relume-materials", "version": 1, "light_groups": {"sun": {"strength": 3}}}"#,
+    )
+    .unwrap();
+    let err = resolve_light_gains(&stack.header, &bad)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("sun") && err.contains("light 0"), "{err}");
+    let none = parse_materials(r#"{"format": "relume-materials", "version": 1}"#).unwrap();
+    assert_eq!(resolve_light_gains(&stack.header, &none).unwrap(), None);
+}

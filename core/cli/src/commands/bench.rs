@@ -72,12 +72,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 
 fn bench_relight(path: &std::path::Path, repeats: usize, json: bool) -> Result<(), RelumeError> {
     let stack = read_stack(path)?;
-    let materials = resolve_materials(
-        &stack.header.regions,
-        &MaterialsFile {
-            regions: Default::default(),
-        },
-    )?;
+    let materials = resolve_materials(&stack.header.regions, &MaterialsFile::default())?;
     let bases = StackBases::from_header(&stack.header)?;
     let coefs = bases.coefficients(&materials)?;
     let (width, height, layers, stack_bytes) = (

@@ -45,9 +45,7 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
     let settings = args.options.settings()?;
     let edits = match &args.materials {
         Some(p) => load_materials(p)?,
-        None => MaterialsFile {
-            regions: Default::default(),
-        },
+        None => MaterialsFile::default(),
     };
     let infos: Vec<RegionInfo> = scene
         .regions

@@ -55,9 +55,7 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
     }
     let edits = match &args.materials {
         Some(p) => load_materials(p)?,
-        None => MaterialsFile {
-            regions: Default::default(),
-        },
+        None => MaterialsFile::default(),
     };
     let materials = resolve_materials(&stack.header.regions, &edits)?;
     let bases = StackBases::from_header(&stack.header)?;
