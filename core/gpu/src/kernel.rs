@@ -22,7 +22,8 @@ use relume_engine::Rgb;
 
 use crate::device::adapter_label;
 use crate::error::GpuError;
-use crate::layout::{pack_layer, Layout, CHUNKS_PER_GROUP};
+use crate::layout::{pack_layer, Format, Layout, CHUNKS_PER_GROUP};
+use crate::tiles::{layer_mask, mask_words, TILE_PIXELS};
 
 /// Invocations per workgroup (`@workgroup_size` in `kernel.wgsl`).
 const WORKGROUP: u32 = 256;
@@ -84,6 +85,8 @@ pub(crate) struct Kernel {
     pub layout: Layout,
     /// Wall time of creating the buffers and copying the layers into them.
     pub upload_ms: f64,
+    /// Per layer, the bytes a relight reads: those of its non-zero tiles.
+    pub read_bytes: Vec<usize>,
     device: wgpu::Device,
     queue: wgpu::Queue,
     pipeline: wgpu::ComputePipeline,
@@ -95,6 +98,8 @@ pub(crate) struct Kernel {
     timestamps: Option<Timestamps>,
     health: Arc<Health>,
     pixels: u32,
+    /// Words of tile mask per layer.
+    mask_words: u32,
     workgroups: [u32; 2],
 }
 
@@ -189,7 +194,7 @@ impl Kernel {
                 },
             });
         }
-        let buffers = uploaded?;
+        let (buffers, read_bytes) = uploaded?;
         health.check("the layer upload")?;
 
         let timestamps = timed.then(|| Timestamps {
@@ -237,6 +242,7 @@ impl Kernel {
                     bind(0, &buffers.image),
                     bind(1, &params[g]),
                     bind(2, &buffers.entries),
+                    bind(7, &buffers.masks),
                 ];
                 for c in 0..CHUNKS_PER_GROUP {
                     let chunk = buffers
@@ -262,6 +268,7 @@ impl Kernel {
             adapter: info,
             layout,
             upload_ms,
+            read_bytes,
             device,
             queue,
             pipeline,
@@ -273,6 +280,7 @@ impl Kernel {
             timestamps,
             health,
             pixels,
+            mask_words: mask_words(pixels as usize) as u32,
             workgroups,
         })
     }
@@ -303,7 +311,7 @@ impl Kernel {
                 w.x.to_bits(),
                 w.y.to_bits(),
                 w.z.to_bits(),
-                0,
+                l * self.mask_words,
                 p.chunk % CHUNKS_PER_GROUP as u32,
                 p.offset_words,
                 p.channels,
@@ -448,17 +456,23 @@ struct Buffers {
     empty: wgpu::Buffer,
     image: wgpu::Buffer,
     entries: wgpu::Buffer,
+    masks: wgpu::Buffer,
     readback: wgpu::Buffer,
 }
 
-/// Creates every buffer; the chunks are filled while mapped at creation (no staging copy).
+/// Creates every buffer; the chunks and the tile masks are filled while mapped at creation
+/// (no staging copy). Also returns the bytes a relight reads of each layer.
 fn upload(
     device: &wgpu::Device,
     stack: &TransferStack,
     layout: &Layout,
     image_bytes: u64,
     timed: bool,
-) -> Result<Buffers, GpuError> {
+) -> Result<(Buffers, Vec<usize>), GpuError> {
+    let pixels = image_bytes as usize / 16;
+    let words = mask_words(pixels);
+    let mut masks = vec![0u32; words * stack.layers.len().max(1)];
+    let mut read_bytes = Vec::with_capacity(stack.layers.len());
     let storage = |label: &str, size: u64, mapped: bool, extra: wgpu::BufferUsages| {
         device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
@@ -488,6 +502,16 @@ fn upload(
                 what: format!("layer {}, sample {i}", layer.key.layer_name()),
             })
         })?;
+        let tiles = layer_mask(
+            layer,
+            pixels,
+            &mut masks[read_bytes.len() * words..][..words],
+        );
+        let sample_bytes = match p.format {
+            Format::F16Pairs => 2,
+            Format::F32 => 4,
+        };
+        read_bytes.push(tiles * TILE_PIXELS * p.channels as usize * sample_bytes);
         let at = p.offset_words as usize * 4;
         views[p.chunk as usize]
             .slice(at..at + scratch.len())
@@ -497,7 +521,23 @@ fn upload(
     chunks.iter_mut().for_each(|c| c.unmap());
     let entry_bytes = (stack.layers.len() * ENTRY_BYTES) as u64;
     let readback_bytes = image_bytes + if timed { TIMESTAMP_BYTES } else { 0 };
-    Ok(Buffers {
+    let mask_buffer = storage(
+        "relume tile masks",
+        masks.len() as u64 * 4,
+        true,
+        wgpu::BufferUsages::empty(),
+    );
+    mask_buffer
+        .get_mapped_range_mut(..)
+        .map_err(|e| GpuError::Backend {
+            during: "mapping the tile masks for the upload".into(),
+            message: e.to_string(),
+        })?
+        .slice(..masks.len() * 4)
+        .copy_from_slice(bytemuck::cast_slice(&masks));
+    mask_buffer.unmap();
+    let buffers = Buffers {
+        masks: mask_buffer,
         chunks,
         empty: storage("relume empty chunk", 16, false, wgpu::BufferUsages::empty()),
         image: storage(
@@ -518,5 +558,6 @@ fn upload(
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         }),
-    })
+    };
+    Ok((buffers, read_bytes))
 }

@@ -9,8 +9,11 @@
 
 // One layer to add. 32 bytes, std430-aligned to 16.
 struct Entry {
-    // Weight × light tint × layer scale, per RGB channel (w unused).
-    weight: vec4<f32>,
+    // Weight × light tint × layer scale, per RGB channel.
+    weight: vec3<f32>,
+    // First word of the layer's tile mask in `masks` (tiles.rs): bit t set when tile t,
+    // the pixels of workgroup t, holds a non-zero sample.
+    mask: u32,
     // Which chunk binding holds the layer (0..3).
     chunk: u32,
     // First 32-bit word of the layer in its chunk.
@@ -39,6 +42,7 @@ const WORKGROUP: u32 = 256u;
 @group(0) @binding(4) var<storage, read> chunk1: array<u32>;
 @group(0) @binding(5) var<storage, read> chunk2: array<u32>;
 @group(0) @binding(6) var<storage, read> chunk3: array<u32>;
+@group(0) @binding(7) var<storage, read> masks: array<u32>;
 
 // The chunk index is the same for every invocation of a dispatch at a given entry, so the
 // switch does not diverge.
@@ -74,9 +78,14 @@ fn main(
     if params.reset == 0u {
         acc = image[p].xyz;
     }
+    // The tile is the workgroup, so the skip below is uniform across it.
+    let tile = p / WORKGROUP;
     let end = params.first + params.count;
     for (var k = params.first; k < end; k++) {
         let e = entries[k];
+        if ((masks[e.mask + (tile >> 5u)] >> (tile & 31u)) & 1u) == 0u {
+            continue;
+        }
         if e.channels == 1u {
             acc += e.weight.xyz * sample(e, p);
         } else {

@@ -11,6 +11,7 @@
 //! - [`device`]: `auto | gpu | cpu`, the adapter choice and its reason.
 //! - [`layout`]: where each layer lives on the GPU (chunks within the binding limit),
 //!   f16 pairs / f32 packing.
+//! - [`tiles`]: which 256-pixel tiles of each layer are non-zero (the rest is skipped).
 //! - `kernel` (+ `kernel.wgsl`): device, pipeline, upload, one submission per edit.
 //! - [`relight`]: [`GpuRelighter`], the weights and the incremental bookkeeping.
 //! - [`relighter`]: [`Relighter`], GPU or CPU behind the same methods, with fallback.
@@ -23,6 +24,7 @@ pub mod layout;
 pub mod relight;
 pub mod relighter;
 mod shape;
+pub mod tiles;
 
 pub use device::{choose_device, DeviceChoice, DeviceKind, DevicePreference};
 pub use error::GpuError;

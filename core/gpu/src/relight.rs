@@ -217,7 +217,7 @@ impl GpuRelighter {
         self.stats.layers_summed = adds.len();
         self.stats.bytes_read = adds
             .iter()
-            .map(|&(l, _)| self.kernel.layout.placements[l as usize].words as usize * 4)
+            .map(|&(l, _)| self.kernel.read_bytes[l as usize])
             .sum();
         Ok(())
     }
