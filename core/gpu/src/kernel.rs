@@ -7,7 +7,12 @@
 //! dispatch per group of [`CHUNKS_PER_GROUP`] chunks; one for any stack up to 4 × the
 //! binding limit), copies the RGBA f32 image (16 bytes a pixel, 4 MiB at 512²) into a
 //! mappable buffer and maps it. The image stays on the GPU between edits, so an
-//! incremental edit adds its deltas to it.
+//! incremental edit adds its deltas to it. Each workgroup skips, unread, the layers that
+//! are zero on its 256 pixels (`tiles.rs`).
+//!
+//! **Measured** only on lavapipe (no real GPU was available): assets Cornell box, 182 f16
+//! layers at 512² (123 MB, 65 MB of non-zero tiles), upload 171 ms, full relight 2.33 s,
+//! read-back 0.38–0.42 ms. Correctness figures, not GPU speed.
 //!
 //! Failures are values: the upload runs inside out-of-memory and validation error scopes,
 //! a device-lost callback and an uncaptured-error handler (wgpu's default one panics)

@@ -15,7 +15,7 @@
 //! - `kernel` (+ `kernel.wgsl`): device, pipeline, upload, one submission per edit.
 //! - [`relight`]: [`GpuRelighter`], the weights and the incremental bookkeeping.
 //! - [`relighter`]: [`Relighter`], GPU or CPU behind the same methods, with fallback.
-//! - [`error`]: [`GpuError`].
+//! - [`error`]: the error type, [`GpuError`].
 
 pub mod device;
 pub mod error;

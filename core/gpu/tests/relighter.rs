@@ -118,7 +118,8 @@ fn bad_edits_are_refused_alike_on_gpu_and_cpu() {
     };
     let mut nan = coefs.clone();
     nan[0][0] = Rgb::new(f32::NAN, 0.0, 0.0);
-    let cases: Vec<(&str, Box<dyn Fn(&mut Relighter) -> String>)> = vec![
+    type Case<'a> = Box<dyn Fn(&mut Relighter) -> String + 'a>;
+    let cases: Vec<(&str, Case)> = vec![
         (
             "incremental before full",
             Box::new(|r| message(r.relight_region(0, &coefs[0]))),
