@@ -1,5 +1,7 @@
 //! `relume bench bake SCENE` and `relume bench relight STACK.exr`: figures, as JSON.
 
+mod gpu_relight;
+
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
@@ -11,7 +13,10 @@ use relume_engine::relight::{bandwidth::measure_read_bandwidth, CpuRelighter};
 use relume_engine::scene::file::load_scene;
 use relume_engine::stack::{bases::StackBases, exr_file::read_stack};
 use relume_engine::{RelumeError, Rgb};
+use relume_gpu::{DeviceKind, GpuOptions, Relighter};
 use serde_json::json;
+
+use super::relight::{device_error, Device};
 
 use crate::options::BakeOptions;
 
@@ -31,6 +36,10 @@ pub enum Bench {
         /// Timed repetitions (the median is reported).
         #[arg(long, default_value_t = 20)]
         repeats: usize,
+        /// Relight device. On the GPU: upload, edit-to-image, kernel (timestamp queries)
+        /// and read-back times.
+        #[arg(long, value_enum, default_value = "cpu")]
+        device: Device,
         #[arg(long)]
         json: bool,
     },
@@ -60,8 +69,9 @@ pub fn run(bench: Bench) -> Result<(), RelumeError> {
         Bench::Relight {
             stack,
             repeats,
+            device,
             json,
-        } => bench_relight(&stack, repeats.max(1), json),
+        } => bench_relight(&stack, repeats.max(1), device, json),
     }
 }
 
@@ -70,7 +80,12 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
-fn bench_relight(path: &std::path::Path, repeats: usize, json: bool) -> Result<(), RelumeError> {
+fn bench_relight(
+    path: &std::path::Path,
+    repeats: usize,
+    device: Device,
+    json: bool,
+) -> Result<(), RelumeError> {
     let stack = read_stack(path)?;
     let materials = resolve_materials(&stack.header.regions, &MaterialsFile::default())?;
     let bases = StackBases::from_header(&stack.header)?;
@@ -88,7 +103,24 @@ fn bench_relight(path: &std::path::Path, repeats: usize, json: bool) -> Result<(
         .filter(|r| r.editable)
         .map(|r| r.name.clone())
         .collect();
-    let mut relighter = CpuRelighter::new(Arc::new(stack))?;
+    let stack = Arc::new(stack);
+    let mut reason = "CPU: chosen by the caller".to_string();
+    if !matches!(device, Device::Cpu) {
+        let options = GpuOptions {
+            timestamps: true,
+            ..Default::default()
+        };
+        let mut chosen = Relighter::with_options(stack.clone(), device.preference(), options)
+            .map_err(|e| device_error(device, e))?;
+        reason = chosen.device_reason().to_string();
+        if let Some(gpu) = chosen.gpu() {
+            let figures = gpu_relight::figures(gpu, &coefs, &editable_names, repeats, &reason)?;
+            print_figures(&figures, json);
+            return Ok(());
+        }
+        debug_assert_eq!(chosen.device(), DeviceKind::Cpu);
+    }
+    let mut relighter = CpuRelighter::new(stack)?;
     relighter.relight(&coefs)?;
     let mut full = Vec::with_capacity(repeats);
     let mut full_bytes = 0;
@@ -133,6 +165,7 @@ fn bench_relight(path: &std::path::Path, repeats: usize, json: bool) -> Result<(
     let figures = json!({
         "command": "bench relight",
         "device": "cpu",
+        "device_reason": reason,
         "threads": rayon::current_num_threads(),
         "width": width,
         "height": height,
@@ -147,13 +180,17 @@ fn bench_relight(path: &std::path::Path, repeats: usize, json: bool) -> Result<(
         "full_over_bound": full_ms / bound_ms,
         "fastest_incremental_over_full": incremental_ms / full_ms,
     });
+    print_figures(&figures, json);
+    Ok(())
+}
+
+fn print_figures(figures: &serde_json::Value, json: bool) {
     if json {
-        super::print_json(&figures);
+        super::print_json(figures);
     } else {
         println!(
             "{}",
-            serde_json::to_string_pretty(&figures).unwrap_or_default()
+            serde_json::to_string_pretty(figures).unwrap_or_default()
         );
     }
-    Ok(())
 }

@@ -6,18 +6,46 @@ use std::time::Instant;
 
 use relume_engine::image_io::{write_png_srgb, write_rgba_exr};
 use relume_engine::materials::{load_materials, resolve_materials, MaterialsFile};
-use relume_engine::relight::CpuRelighter;
 use relume_engine::scene::{file::load_scene, hash::scene_hash};
 use relume_engine::stack::{
     bases::StackBases,
     exr_file::{check_scene_hash, read_stack},
 };
 use relume_engine::RelumeError;
+use relume_gpu::{DevicePreference, GpuError, Relighter};
 use serde_json::json;
 
+/// `--device`: where the relight runs.
 #[derive(Clone, Copy, clap::ValueEnum)]
 pub enum Device {
+    /// A real GPU if there is one; the CPU for a software adapter (lavapipe) or none.
+    Auto,
+    /// The best adapter, software ones included; an error if there is none.
+    Gpu,
+    /// The CPU loop.
     Cpu,
+}
+
+impl Device {
+    pub fn preference(self) -> DevicePreference {
+        match self {
+            Device::Auto => DevicePreference::Auto,
+            Device::Gpu => DevicePreference::Gpu,
+            Device::Cpu => DevicePreference::Cpu,
+        }
+    }
+}
+
+/// As the command line's error: `--device gpu` failures say that `auto` would fall back.
+pub fn device_error(device: Device, e: GpuError) -> RelumeError {
+    match (device, e) {
+        (_, GpuError::Engine(e)) => e,
+        (Device::Gpu, e) => RelumeError::invalid(
+            "--device gpu",
+            format!("{e}; --device auto falls back to the CPU"),
+        ),
+        (_, e) => e.into_relume(),
+    }
 }
 
 #[derive(clap::Args)]
@@ -39,8 +67,8 @@ pub struct Args {
     /// Refuse the stack if it was baked from another version of this scene.
     #[arg(long)]
     pub scene: Option<PathBuf>,
-    /// Relight device (the GPU relight is a separate issue).
-    #[arg(long, value_enum, default_value = "cpu")]
+    /// Relight device: auto takes a real GPU and otherwise the CPU (the summary says why).
+    #[arg(long, value_enum, default_value = "auto")]
     pub device: Device,
     #[arg(long)]
     pub json: bool,
@@ -61,9 +89,16 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
     let bases = StackBases::from_header(&stack.header)?;
     let coefs = bases.coefficients(&materials)?;
     let (width, height) = (stack.header.width, stack.header.height);
-    let mut relighter = CpuRelighter::new(Arc::new(stack))?;
+    let mut relighter = Relighter::new(Arc::new(stack), args.device.preference())
+        .map_err(|e| device_error(args.device, e))?;
     let t = Instant::now();
-    let image = relighter.relight(&coefs)?.to_vec();
+    let image = relighter
+        .relight(&coefs)
+        .map_err(|e| device_error(args.device, e))?
+        .to_vec();
+    // After the relight: in auto mode a GPU failure moves it to the CPU.
+    let device = relighter.device();
+    let device_reason = relighter.device_reason().to_string();
     let relight_ms = t.elapsed().as_secs_f64() * 1e3;
     write_rgba_exr(&args.output, width, height, &image)?;
     if let Some(png) = &args.png {
@@ -72,7 +107,8 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
     if args.json {
         super::print_json(&json!({
             "command": "relight",
-            "device": "cpu",
+            "device": device.to_string(),
+            "device_reason": device_reason,
             "output": args.output,
             "width": width,
             "height": height,
@@ -81,7 +117,8 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
         }));
     } else {
         println!(
-            "relit {width}×{height} on the CPU in {relight_ms:.2} ms → {}",
+            "relit {width}×{height} on the {} in {relight_ms:.2} ms → {} ({device_reason})",
+            device.to_string().to_uppercase(),
             args.output.display()
         );
     }

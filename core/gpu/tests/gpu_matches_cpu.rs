@@ -1,0 +1,101 @@
+//! On every assets stack, f16 and f32, the GPU relight (forced: lavapipe in CI) matches
+//! the CPU relight within 1e-3 relative L2 — full, then several single-region edits in a
+//! row, each compared after it — and across the periodic full re-sum of incremental edits.
+
+mod common;
+
+use std::sync::Arc;
+
+use common::*;
+use relume_engine::relight::{CpuRelighter, FULL_RESUM_EVERY};
+use relume_engine::stack::{Precision, TransferStack};
+use relume_gpu::{GpuOptions, GpuRelighter};
+
+/// Full relight, then `edits` single-region edits cycling over the editable regions; the
+/// two relighters are compared after every step. Returns the worst error seen.
+fn compare(name: &str, stack: &Arc<TransferStack>, gpu: &mut GpuRelighter, edits: usize) -> f64 {
+    let mut cpu = CpuRelighter::new(stack.clone()).unwrap();
+    let (bases, coefs) = default_coefs(stack);
+    let mut worst: f64 = 0.0;
+    let mut check = |step: &str, g: &[f32], c: &[f32]| {
+        let e = rel_l2(g, c);
+        assert!(
+            e < TOLERANCE,
+            "{name}, {step}: GPU vs CPU relative L2 {e:.3e}"
+        );
+        worst = worst.max(e);
+    };
+    let c = cpu.relight(&coefs).unwrap().to_vec();
+    let g = gpu.relight(&coefs).unwrap().to_vec();
+    check("full relight", &g, &c);
+    assert!(!gpu.last_stats().incremental);
+    let n = gpu.editable_count();
+    assert_eq!(n, cpu.editable_count(), "{name}");
+    for k in 0..edits {
+        let region = k % n;
+        let new = edit(&bases, region, k);
+        let c = cpu.relight_region(region, &new).unwrap().to_vec();
+        let g = gpu.relight_region(region, &new).unwrap().to_vec();
+        check(&format!("edit {k} of region {region}"), &g, &c);
+    }
+    worst
+}
+
+fn all_assets(precision: Precision) {
+    let Some(adapter) = gpu_or_skip("all_assets") else {
+        return;
+    };
+    for (name, stack) in assets_stacks(precision) {
+        let mut gpu = GpuRelighter::new(stack.clone(), &adapter, GpuOptions::default()).unwrap();
+        let worst = compare(&name, &stack, &mut gpu, 6);
+        eprintln!(
+            "{name}: {} layers, worst GPU/CPU relative L2 {worst:.2e}",
+            stack.layers.len()
+        );
+    }
+}
+
+#[test]
+fn assets_stacks_f16_agree_full_and_incremental() {
+    all_assets(Precision::F16);
+}
+
+#[test]
+fn assets_stacks_f32_agree_full_and_incremental() {
+    all_assets(Precision::F32);
+}
+
+/// Chunks of 2 KiB put each 32×32 layer (2–6 KiB) in a chunk of its own, so the stack
+/// spreads over dozens of storage buffers and several bind groups: one dispatch per group,
+/// the first one clearing the image.
+#[test]
+fn many_chunks_and_bind_groups_agree() {
+    let Some(adapter) = gpu_or_skip("many_chunks_and_bind_groups_agree") else {
+        return;
+    };
+    let (name, stack) = assets_stacks(Precision::F16).swap_remove(0);
+    let options = GpuOptions {
+        max_chunk_bytes: Some(6 * 1024),
+        timestamps: false,
+    };
+    let mut gpu = GpuRelighter::new(stack.clone(), &adapter, options).unwrap();
+    let (_, chunks) = gpu.layer_bytes_and_chunks();
+    assert!(
+        chunks > 2 * relume_gpu::layout::CHUNKS_PER_GROUP,
+        "{name}: only {chunks} chunks, the test needs several bind groups"
+    );
+    compare(&name, &stack, &mut gpu, 4);
+}
+
+/// More edits than FULL_RESUM_EVERY: the periodic full re-sum happens on the GPU too and
+/// the image stays within tolerance through it.
+#[test]
+fn incremental_edits_across_the_full_resum() {
+    let Some(adapter) = gpu_or_skip("incremental_edits_across_the_full_resum") else {
+        return;
+    };
+    let (name, stack) = assets_stacks(Precision::F16).swap_remove(1);
+    let mut gpu = GpuRelighter::new(stack.clone(), &adapter, GpuOptions::default()).unwrap();
+    compare(&name, &stack, &mut gpu, FULL_RESUM_EVERY + 3);
+    assert!(gpu.last_stats().incremental);
+}
