@@ -161,7 +161,8 @@ impl GpuRelighter {
         let mut new_weights = Vec::new();
         for &l in &self.shape.region_layers[region] {
             let layer = &self.stack.layers[l as usize];
-            let new = layer_weight(&layer.key, &self.coefs) * self.shape.tint;
+            let new = layer_weight(&layer.key, &self.coefs)
+                * self.shape.group_factors[layer.key.light_group as usize];
             let delta = (new - self.weights[l as usize]) * layer.scale;
             new_weights.push((l, new));
             if delta != Rgb::ZERO {
@@ -181,6 +182,21 @@ impl GpuRelighter {
         Ok(&self.image)
     }
 
+    /// Light groups' live gains (one per group of the stack), then a full re-sum; see
+    /// `CpuRelighter::set_light_group_gains`.
+    pub fn set_light_group_gains(&mut self, gains: &[Rgb]) -> Result<&[f32], GpuError> {
+        self.shape.group_factors = relume_engine::relight::group_factors(&self.stack, Some(gains))?;
+        if !self.has_image {
+            return Err(RelumeError::invalid(
+                "light group gains",
+                "there is no image yet: call relight with every region's coefficients first",
+            )
+            .into());
+        }
+        self.full_sum()?;
+        Ok(&self.image)
+    }
+
     /// Copies the image on the GPU to the host again and returns the time it took, ms
     /// (the read-back share of an edit; the image does not change).
     pub fn time_read_back(&mut self) -> Result<f64, GpuError> {
@@ -192,7 +208,8 @@ impl GpuRelighter {
     fn full_sum(&mut self) -> Result<(), GpuError> {
         let mut adds = Vec::with_capacity(self.stack.layers.len());
         for (l, layer) in self.stack.layers.iter().enumerate() {
-            let w = layer_weight(&layer.key, &self.coefs) * self.shape.tint;
+            let w = layer_weight(&layer.key, &self.coefs)
+                * self.shape.group_factors[layer.key.light_group as usize];
             self.weights[l] = w;
             let effective = w * layer.scale;
             if effective != Rgb::ZERO {

@@ -35,6 +35,8 @@ pub struct Relighter {
     fallback: Option<String>,
     /// Coefficients of the current image (to redo it on the CPU after a GPU failure).
     coefs: Option<Vec<Vec<Rgb>>>,
+    /// Light group gains of the current image, when set.
+    gains: Option<Vec<Rgb>>,
 }
 
 impl Relighter {
@@ -70,6 +72,7 @@ impl Relighter {
             reason: fallback.clone().unwrap_or(choice.reason),
             fallback,
             coefs: None,
+            gains: None,
         })
     }
 
@@ -172,6 +175,23 @@ impl Relighter {
         Ok(self.image())
     }
 
+    /// Light groups' live gains (one per group of the stack), then a full relight.
+    pub fn set_light_group_gains(&mut self, gains: &[Rgb]) -> Result<&[f32], GpuError> {
+        let done = match &mut self.engine {
+            Engine::Gpu(g) => g.set_light_group_gains(gains).map(|_| ()),
+            Engine::Cpu(c) => c
+                .set_light_group_gains(gains)
+                .map(|_| ())
+                .map_err(GpuError::Engine),
+        };
+        if done.is_ok() {
+            self.gains = Some(gains.to_vec());
+        }
+        let coefs = self.coefs.clone().unwrap_or_default();
+        self.settle(done, coefs)?;
+        Ok(self.image())
+    }
+
     /// Moves the relight to the CPU now, saying `why` in the device reason; the current
     /// image is recomputed there. (The relighter does it by itself in `auto` mode when the
     /// GPU fails; a caller that forced the GPU may do it after an error.)
@@ -183,6 +203,9 @@ impl Relighter {
         let mut cpu = CpuRelighter::new(stack)?;
         if let Some(coefs) = &self.coefs {
             cpu.relight(coefs)?;
+            if let Some(gains) = &self.gains {
+                cpu.set_light_group_gains(gains)?;
+            }
         }
         self.engine = Engine::Cpu(Box::new(cpu));
         self.reason = format!("CPU: fell back from the GPU ({why})");

@@ -17,7 +17,9 @@ pub struct StackShape {
     /// Per editable region: the layers whose key contains it, ascending.
     pub region_layers: Vec<Vec<u32>>,
     /// The emitters' common colour; every layer weight is multiplied by it.
-    pub tint: Rgb,
+    /// Per layer-key light group, the factor of its layers (tint × live gain): see
+    /// `relume_engine::relight::group_factors`.
+    pub group_factors: Vec<Rgb>,
 }
 
 impl StackShape {
@@ -78,20 +80,14 @@ impl StackShape {
                 }
             }
         }
-        let tint = Rgb::from(stack.header.light_tint);
-        if !tint.is_finite() || tint.min_element() < 0.0 {
-            return Err(RelumeError::StackFormat {
-                path: Default::default(),
-                message: format!("light tint {tint} is not a finite non-negative colour"),
-            });
-        }
+        let group_factors = relume_engine::relight::group_factors(stack, None)?;
         Ok(StackShape {
             width,
             height,
             editable_names,
             basis_counts,
             region_layers,
-            tint,
+            group_factors,
         })
     }
 

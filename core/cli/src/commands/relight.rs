@@ -5,7 +5,9 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use relume_engine::image_io::{write_png_srgb, write_rgba_exr};
-use relume_engine::materials::{load_materials, resolve_materials, MaterialsFile};
+use relume_engine::materials::{
+    load_materials, resolve_light_gains, resolve_materials, MaterialsFile,
+};
 use relume_engine::scene::{file::load_scene, hash::scene_hash};
 use relume_engine::stack::{
     bases::StackBases,
@@ -86,16 +88,23 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
         None => MaterialsFile::default(),
     };
     let materials = resolve_materials(&stack.header.regions, &edits)?;
+    let gains = resolve_light_gains(&stack.header, &edits)?;
     let bases = StackBases::from_header(&stack.header)?;
     let coefs = bases.coefficients(&materials)?;
     let (width, height) = (stack.header.width, stack.header.height);
     let mut relighter = Relighter::new(Arc::new(stack), args.device.preference())
         .map_err(|e| device_error(args.device, e))?;
     let t = Instant::now();
-    let image = relighter
+    let mut image = relighter
         .relight(&coefs)
         .map_err(|e| device_error(args.device, e))?
         .to_vec();
+    if let Some(gains) = &gains {
+        image = relighter
+            .set_light_group_gains(gains)
+            .map_err(|e| device_error(args.device, e))?
+            .to_vec();
+    }
     // After the relight: in auto mode a GPU failure moves it to the CPU.
     let device = relighter.device();
     let device_reason = relighter.device_reason().to_string();

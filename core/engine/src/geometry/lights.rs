@@ -134,12 +134,21 @@ fn group_membership(scene: &Scene, grouping: LightGrouping) -> (Vec<String>, Vec
             let mut names: Vec<String> = (0..scene.lights.len())
                 .map(|i| format!("light {i}"))
                 .collect();
-            names.push("world".into());
-            (
-                (names),
-                (0..scene.lights.len()).collect(),
-                scene.lights.len(),
-            )
+            let world_emits = match &scene.world {
+                World::Color { color, strength } => {
+                    *strength > 0.0 && color.iter().any(|c| *c > 0.0)
+                }
+                World::Equirect { strength, .. } => *strength > 0.0,
+            };
+            // The world gets a group of its own only when it emits.
+            // (and when there is no light at all, so that there is always one group).
+            let world = if world_emits || names.is_empty() {
+                names.push("world".into());
+                scene.lights.len()
+            } else {
+                0
+            };
+            (names, (0..scene.lights.len()).collect(), world)
         }
         LightGrouping::Scene => {
             let mut names: Vec<String> =

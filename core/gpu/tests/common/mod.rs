@@ -45,13 +45,7 @@ pub fn assets_stacks(precision: Precision) -> Vec<(String, Arc<TransferStack>)> 
 
 /// The bake-time materials' coefficients, and the bases to make edits with.
 pub fn default_coefs(stack: &TransferStack) -> (StackBases, Vec<Vec<Rgb>>) {
-    let materials = resolve_materials(
-        &stack.header.regions,
-        &MaterialsFile {
-            regions: Default::default(),
-        },
-    )
-    .unwrap();
+    let materials = resolve_materials(&stack.header.regions, &MaterialsFile::default()).unwrap();
     let bases = StackBases::from_header(&stack.header).unwrap();
     let coefs = bases.coefficients(&materials).unwrap();
     (bases, coefs)

@@ -1,0 +1,56 @@
+//! Light-group gains on the GPU equal the CPU's (the CPU relight is the reference).
+
+use std::sync::Arc;
+
+use relume_engine::bake::{bake, progress::Progress, BakeSettings, LightGrouping};
+use relume_engine::image_io::compare_rgb;
+use relume_engine::relight::CpuRelighter;
+use relume_engine::scene::{file::load_scene, Light, Resolution};
+use relume_engine::stack::bases::StackBases;
+use relume_engine::Rgb;
+use relume_gpu::{choose_device, DevicePreference, Relighter};
+
+#[test]
+fn gpu_light_group_gains_match_the_cpu() {
+    if let Err(e) = choose_device(DevicePreference::Gpu) {
+        eprintln!("SKIPPED: no GPU adapter ({e})");
+        return;
+    }
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/cornell.scene.json");
+    let mut scene = load_scene(&path).unwrap();
+    scene.lights.push(Light::Point {
+        position: [0.4, -0.4, 0.2],
+        power: 10.0,
+        color: [0.2, 0.4, 1.0],
+        radius: 0.02,
+    });
+    let settings = BakeSettings {
+        spp: 1,
+        resolution: Some(Resolution {
+            width: 32,
+            height: 32,
+        }),
+        light_grouping: LightGrouping::PerLight,
+        ..Default::default()
+    };
+    let (stack, _) = bake(&scene, &settings, &Progress::new()).unwrap();
+    let bases = StackBases::from_header(&stack.header).unwrap();
+    let materials: Vec<_> = scene
+        .regions
+        .iter()
+        .filter(|r| r.editable)
+        .map(|r| r.material.clone())
+        .collect();
+    let coefs = bases.coefficients(&materials).unwrap();
+    let gains = [Rgb::new(0.5, 1.0, 2.0), Rgb::splat(3.0)];
+    let stack = Arc::new(stack);
+    let mut cpu = CpuRelighter::new(stack.clone()).unwrap();
+    cpu.relight(&coefs).unwrap();
+    let expect = cpu.set_light_group_gains(&gains).unwrap().to_vec();
+    let mut gpu = Relighter::new(stack, DevicePreference::Gpu).unwrap();
+    gpu.relight(&coefs).unwrap();
+    let got = gpu.set_light_group_gains(&gains).unwrap().to_vec();
+    let d = compare_rgb(&got, &expect, 4).unwrap().rel_l2;
+    assert!(d < 1e-3, "GPU vs CPU with light group gains: {d}");
+}
