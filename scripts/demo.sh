@@ -4,6 +4,9 @@
 # toolchain and Python 3 (installs nothing else).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# Mesa's Vulkan drivers (probed by `--device auto`) complain on stderr without it.
+export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-/tmp/relume-runtime-$(id -u)}"
+mkdir -p -m 700 "$XDG_RUNTIME_DIR"
 t0=$(date +%s.%N)
 elapsed() { python3 -c "import sys; print(f'{float(sys.argv[2]) - float(sys.argv[1]):.1f}')" "$1" "$(date +%s.%N)"; }
 

@@ -3,6 +3,9 @@
 # Works on a fresh machine with the Rust toolchain and Python 3.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# Mesa's Vulkan drivers (probed by `--device auto`) complain on stderr without it.
+export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-/tmp/relume-runtime-$(id -u)}"
+mkdir -p -m 700 "$XDG_RUNTIME_DIR"
 command -v cargo >/dev/null || { echo "test: needs the Rust toolchain (cargo) on PATH" >&2; exit 1; }
 echo "== asset scenes"
 python3 assets/build_scenes.py --out assets && git diff --exit-code --stat -- assets/*.scene.json || { echo "assets: committed scene files differ from what build_scenes.py makes" >&2; exit 1; }
