@@ -13,6 +13,7 @@ Scenes (see assets/README.md):
     cornell     -> OUT/cornell.scene.json                 committed
     ring        -> OUT/ring.scene.json                    committed
     textured    -> OUT/textured.scene.json                committed
+    hdri        -> OUT/hdri.scene.json                    committed
     throughput  -> OUT/generated/throughput.scene.json    ~70k triangles, gitignored
 
 Every scene written is validated (the same checks as --check); the script exits non-zero
@@ -545,10 +546,63 @@ def build_throughput():
     return scene_doc(meshes, regions, lights, world, camera, 512, 512)
 
 
+def sky_texture(width=128, height=64, sun_el=math.radians(40), sun_az=math.radians(-35),
+                sun_radius=math.radians(4.0), sun_radiance=2000.0):
+    """An equirect sky (Blender mapping: centre column faces +X, top row is the zenith): a dim
+    blue gradient, a dark ground half and a small, very bright sun disc (~10 texels at
+    128 x 64) that carries most of the irradiance, the case cosine sampling handles worst."""
+    to_sun = (math.cos(sun_el) * math.cos(sun_az), math.cos(sun_el) * math.sin(sun_az),
+              math.sin(sun_el))
+    cos_r = math.cos(sun_radius)
+    rgb = []
+    for y in range(height):
+        v = 1 - (y + 0.5) / height
+        el = (v - 0.5) * math.pi
+        for x in range(width):
+            u = (x + 0.5) / width
+            phi = (0.5 - u) * 2 * math.pi
+            d = (math.cos(el) * math.cos(phi), math.cos(el) * math.sin(phi), math.sin(el))
+            if el >= 0:
+                t = math.sin(el)
+                c = (0.25 + 0.15 * t, 0.35 + 0.2 * t, 0.55 + 0.35 * t)
+            else:
+                c = (0.08, 0.07, 0.06)
+            if vdot(d, to_sun) >= cos_r:
+                c = (sun_radiance, sun_radiance * 0.93, sun_radiance * 0.82)
+            rgb += c
+    return {"width": width, "height": height, "rgb": rgb}
+
+
+def build_hdri():
+    """Spheres and boxes on a plane lit only by an HDR world with a small bright sun."""
+    R_GROUND, R_MATTE, R_GLOSSY, R_BOX = range(4)
+    regions = [
+        region("Ground", blinn_phong(0.6, 0.0, 1.0)),
+        region("Matte", blinn_phong([0.7, 0.35, 0.2], 0.05, 10.0), editable=True,
+               ns_range=(1.0, 50.0)),
+        region("Glossy", blinn_phong([0.1, 0.15, 0.3], 0.5, 80.0), editable=True,
+               ns_range=(20.0, 200.0)),
+        region("Box", blinn_phong([0.5, 0.55, 0.5], 0.02, 5.0)),
+    ]
+    ground = MeshBuilder("Ground", R_GROUND, normals=True, uvs=True)
+    ground.flat_quad((0, 0, 0), (0, 0, 1), (1, 0, 0), 5, 5)
+    matte = MeshBuilder("Matte sphere", R_MATTE, normals=True, uvs=True)
+    add_uv_sphere(matte, (-1.0, 0.2, 0.7), 0.7, 32, 16)
+    glossy = MeshBuilder("Glossy sphere", R_GLOSSY, normals=True, uvs=True)
+    add_uv_sphere(glossy, (0.9, -0.4, 0.55), 0.55, 32, 16)
+    box = MeshBuilder("Box", R_BOX, normals=True, uvs=True)
+    box.box((0.4, 1.4, 0.5), (0.9, 0.9, 1.0), math.radians(25), regions={"+z": R_GLOSSY})
+    world = {"type": "equirect", "image": sky_texture(), "strength": 1.0}
+    camera = look_at_camera((0.3, -5.8, 2.6), (0.0, 0.3, 0.5), lens_mm=35.0, clip_start=0.1,
+                            clip_end=200.0)
+    return scene_doc([ground, matte, glossy, box], regions, [], world, camera, 480, 270)
+
+
 SCENES = {
     "cornell": (build_cornell, "cornell.scene.json"),
     "ring": (build_ring, "ring.scene.json"),
     "textured": (build_textured, "textured.scene.json"),
+    "hdri": (build_hdri, "hdri.scene.json"),
     "throughput": (build_throughput, os.path.join("generated", "throughput.scene.json")),
 }
 

@@ -8,7 +8,12 @@
 //!   uniformly over a cone of half-angle α/2 (radiance S/(π sin²(α/2))).
 //! - Area: one-sided Lambertian, radiance L = P/(π·A) along −(u × v), sampled uniformly on
 //!   its surface (square, rectangle, disk, ellipse; size is the full width).
-//! - World: radiance from every direction, sampled cosine-weighted around the normal.
+//! - World: radiance from every direction. A constant world is sampled cosine-weighted
+//!   around the normal (zero variance on a diffuse surface). An image world is sampled from
+//!   a defensive one-sample mixture, ½ luminance-warped ([`EnvSampler`]) + ½ cosine, with
+//!   pdf ½·p_env + ½·p_cos: escaping indirect rays carry no world light (it arrives only
+//!   through this sampling), so no MIS weights are needed and the mixture is exact and
+//!   unbiased; the cosine half bounds the weight at 2π/cos θ·L where the image pdf is small.
 //!
 //! Every sample returns incident radiance divided by the solid-angle pdf, so an estimator
 //! is f·cos θ·`radiance_over_pdf` whatever the light.
@@ -16,6 +21,7 @@
 use glam::Vec3;
 use std::f32::consts::PI;
 
+use super::env_sampling::EnvSampler;
 use super::environment::Environment;
 use super::sampling::{concentric_disk, cosine_hemisphere, frame, to_world, uniform_cone};
 use crate::bake::settings::LightGrouping;
@@ -66,6 +72,18 @@ struct Spot {
     smooth: f32,
 }
 
+/// How an image world is sampled (a constant world is always sampled by cosine).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum WorldSampling {
+    /// Cosine-weighted around the normal only (the reference for variance measurements).
+    Cosine,
+    /// ½ hierarchical warping of the image's luminance + ½ cosine (the default): 66× lower
+    /// variance (RMSE 1.50 against 12.2) at 8 spp on assets/hdri.scene.json, a 0.015 sr sun
+    /// of radiance 2000 over a dim sky (see tests/env_sampling.rs).
+    #[default]
+    Mixture,
+}
+
 /// The lights of a scene (and the world when it emits), ready for sampling.
 #[derive(Clone, Debug)]
 pub struct LightSet {
@@ -77,6 +95,9 @@ pub struct LightSet {
     pub groups: Vec<LightGroup>,
     /// Group of every emitter.
     emitter_group: Vec<u16>,
+    /// The image world's luminance pyramid (`None` for a constant or black world).
+    world_sampler: Option<EnvSampler>,
+    world_sampling: WorldSampling,
 }
 
 /// The colour shared by a set of emitter colours, if there is one: when all are
@@ -230,12 +251,34 @@ impl LightSet {
             emitters.push(Emitter::World);
             emitter_group.push(world_group as u16);
         }
+        let world_sampler = match &environment {
+            Environment::Equirect { image, strength } if *strength > 0.0 => EnvSampler::new(image),
+            _ => None,
+        };
         LightSet {
             emitters,
             environment,
             groups,
             emitter_group,
+            world_sampler,
+            world_sampling: WorldSampling::default(),
         }
+    }
+
+    /// Chooses how an image world is sampled ([`WorldSampling::Mixture`] by default); both
+    /// draw two uniforms per sample, so the bake's random-number order does not change.
+    pub fn set_world_sampling(&mut self, sampling: WorldSampling) {
+        self.world_sampling = sampling;
+    }
+
+    /// How an image world is sampled.
+    pub fn world_sampling(&self) -> WorldSampling {
+        self.world_sampling
+    }
+
+    /// The image world's importance sampler, when the world is an image that emits.
+    pub fn world_sampler(&self) -> Option<&EnvSampler> {
+        self.world_sampler.as_ref()
     }
 
     /// The group of emitter `index`.
@@ -360,22 +403,66 @@ impl LightSet {
                     radiance_over_pdf: *radiance_times_area * (cos_light / dist2),
                 })
             }
-            Emitter::World => {
-                let local = cosine_hemisphere(u1, u2);
-                if local.z <= 1e-7 {
-                    return None;
+            Emitter::World => match (&self.world_sampler, self.world_sampling) {
+                (Some(env), WorldSampling::Mixture) => {
+                    sample_world_mixture(env, &self.environment, n, u1, u2)
                 }
-                let wi = to_world(n, local);
-                let li = self.environment.radiance(wi);
-                Some(LightSample {
-                    wi,
-                    distance: f32::INFINITY,
-                    radiance_over_pdf: li * (PI / local.z),
-                })
-            }
+                _ => {
+                    let local = cosine_hemisphere(u1, u2);
+                    if local.z <= 1e-7 {
+                        return None;
+                    }
+                    let wi = to_world(n, local);
+                    let li = self.environment.radiance(wi);
+                    Some(LightSample {
+                        wi,
+                        distance: f32::INFINITY,
+                        radiance_over_pdf: li * (PI / local.z),
+                    })
+                }
+            },
         }
     }
 }
+
+/// One sample of the ½ image-warp + ½ cosine mixture from a point with normal `n`. The
+/// branch is picked by `u1 < ½` and `u1` stretched back to [0, 1) (2·u1 or 2·u1 − 1): this
+/// keeps the integrator's two uniforms per light sample and costs one of u1's 24 bits,
+/// which is nothing next to the warp's own loss of a bit per pyramid level.
+fn sample_world_mixture(
+    env: &EnvSampler,
+    environment: &Environment,
+    n: Vec3,
+    u1: f32,
+    u2: f32,
+) -> Option<LightSample> {
+    let wi = if u1 < 0.5 {
+        env.sample((2.0 * u1).min(ONE_MINUS_EPS), u2).0
+    } else {
+        to_world(
+            n,
+            cosine_hemisphere((2.0 * u1 - 1.0).min(ONE_MINUS_EPS), u2),
+        )
+    };
+    let cos = n.dot(wi);
+    if cos <= 1e-7 {
+        return None;
+    }
+    // Both branches can produce any direction the other does, so the pdf is the full
+    // mixture's whichever branch drew it.
+    let pdf = 0.5 * env.pdf(wi) + 0.5 * cos / PI;
+    if !(pdf > 0.0) {
+        return None;
+    }
+    Some(LightSample {
+        wi,
+        distance: f32::INFINITY,
+        radiance_over_pdf: environment.radiance(wi) / pdf,
+    })
+}
+
+/// The largest f32 below 1.
+const ONE_MINUS_EPS: f32 = 1.0 - f32::EPSILON / 2.0;
 
 fn prepare(light: &Light, tint: Rgb) -> Option<Emitter> {
     let colour = |c: &[f32; 3]| untinted(Rgb::from(*c), tint);

@@ -2,6 +2,7 @@
 
 pub mod bvh;
 pub mod camera;
+pub mod env_sampling;
 pub mod environment;
 pub mod lights;
 pub mod sampling;
