@@ -11,7 +11,7 @@ fn assets() -> std::path::PathBuf {
 
 #[test]
 fn committed_scenes_load_validate_and_bake() {
-    for name in ["cornell", "ring", "textured"] {
+    for name in ["cornell", "ring", "textured", "hdri"] {
         let path = assets().join(format!("{name}.scene.json"));
         let scene = load_scene(&path).unwrap_or_else(|e| panic!("{name}: {e}"));
         let report = validate_scene(&scene).unwrap_or_else(|e| panic!("{name}: {e}"));
