@@ -341,56 +341,6 @@ impl CpuRelighter {
         &self.image
     }
 
-    /// The factor of every layer-key light group (index 0: all lights; g + 1: group g): the
-    /// colour factored out of its layers at bake time, times the group's live `gains` (one per
-    /// group of the header, unit when `None`). Checks that every layer names a group the header
-    /// has. Shared by the CPU and GPU relights: a layer's weight is
-    /// `layer_weight(key, coefs) · factors[key.light_group]`.
-    pub fn group_factors(stack: &TransferStack, gains: Option<&[Rgb]>) -> Result<Vec<Rgb>> {
-        let header = &stack.header;
-        if let Some(g) = gains {
-            if g.len() != header.light_groups.len() {
-                return Err(RelumeError::invalid(
-                    "light group gains",
-                    format!(
-                        "{} gains for {} light groups",
-                        g.len(),
-                        header.light_groups.len()
-                    ),
-                ));
-            }
-        }
-        let mut factors = vec![Rgb::from(header.light_tint)];
-        for (k, group) in header.light_groups.iter().enumerate() {
-            factors.push(Rgb::from(group.tint) * gains.map_or(Rgb::ONE, |g| g[k]));
-        }
-        if let Some(bad) = factors
-            .iter()
-            .find(|t| !t.is_finite() || t.min_element() < 0.0)
-        {
-            return Err(RelumeError::StackFormat {
-                path: Default::default(),
-                message: format!("light group factor {bad} is not a finite non-negative colour"),
-            });
-        }
-        if let Some(l) = stack
-            .layers
-            .iter()
-            .find(|l| l.key.light_group as usize >= factors.len())
-        {
-            return Err(RelumeError::StackFormat {
-                path: Default::default(),
-                message: format!(
-                    "layer {} names light group {} of {}",
-                    l.key.layer_name(),
-                    l.key.light_group,
-                    header.light_groups.len()
-                ),
-            });
-        }
-        Ok(factors)
-    }
-
     /// What the last relight did.
     pub fn last_stats(&self) -> RelightStats {
         self.stats
