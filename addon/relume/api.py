@@ -1,0 +1,208 @@
+"""Relume's Python API for scripts (`blender -b file.blend --python script.py`, the bpy module).
+
+    import importlib
+    relume_addon = importlib.import_module("bl_ext.user_default.relume")
+    relume_addon.api.bake()                       # blocking; prints progress
+    mat = bpy.data.materials["Floor"]
+    mat.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value = 0.2
+    relume_addon.api.render("/tmp/floor_r02.exr") # relit with the current materials
+
+The operators `bpy.ops.relume.bake()`, `bpy.ops.relume.render(filepath=...)` and
+`bpy.ops.relume.export_scene(filepath=...)` call these functions.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+
+import bpy
+
+from .exporter.scene_export import ExportOptions, ExportResult, export_scene
+from .live import current_params, relight_now, write_image
+from .logic.bake_session import BakeSession
+from .prefs import get_prefs
+from .runtime import RUNTIME
+from .stack_location import stack_location
+
+
+class BakeError(RuntimeError):
+    """A bake that did not complete (cancelled or failed); the message says which and why."""
+
+
+def _ns_range(roughness_min: float, roughness_max: float) -> list[float]:
+    import relume
+
+    lo = relume.principled_to_blinn_phong((0.8, 0.8, 0.8), roughness=max(roughness_min, roughness_max))["ns"]
+    hi = relume.principled_to_blinn_phong((0.8, 0.8, 0.8), roughness=min(roughness_min, roughness_max))["ns"]
+    lo = max(lo, 1e-3)
+    return [lo, max(hi, lo * 1.001)]
+
+
+def export(context=None, scene_file: str | None = None) -> ExportResult:
+    """Export the scene; with `scene_file`, also write the core's scene file (CLI, farms)."""
+    context = context or bpy.context
+    prefs = get_prefs(context)
+    _, texture_dir, _ = stack_location(context)
+    ns_ranges = {}
+    for mat in bpy.data.materials:
+        p = getattr(mat, "relume", None)
+        if p is not None and p.editable and p.use_roughness_range:
+            ns_ranges[mat.name] = _ns_range(p.roughness_min, p.roughness_max)
+    options = ExportOptions(resolution_scale=float(prefs.resolution_scale), texture_dir=texture_dir,
+                            ns_ranges=ns_ranges)
+    result = export_scene(context, options)
+    RUNTIME.warnings = result.warnings
+    if scene_file:
+        result.scene.save(scene_file)
+    return result
+
+
+def bake_settings(context=None):
+    """`relume.BakeSettings` from the add-on preferences."""
+    import relume
+
+    prefs = get_prefs(context)
+    common = {"bounces": int(prefs.bounces), "passes": int(prefs.passes)}
+    preset = getattr(relume.BakeSettings, "preset", None)
+    if prefs.preset != "custom" and preset is not None:
+        return preset(prefs.preset, **common)
+    return relume.BakeSettings(spp=int(prefs.spp), light_samples=int(prefs.light_samples),
+                               indirect_samples=int(prefs.indirect_samples),
+                               basis_tolerance=float(prefs.basis_tolerance), **common)
+
+
+def start_bake(context=None, settings=None) -> BakeSession:
+    """Export and start a bake in the background; poll the returned session.
+
+    `settings` (a `relume.BakeSettings`) overrides the preferences, for scripts.
+    """
+    context = context or bpy.context
+    if RUNTIME.session is not None and not RUNTIME.session.finished:
+        raise BakeError("a Relume bake is already running (Esc or Cancel stops it)")
+    result = export(context)
+    path, _, _ = stack_location(context)
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    device = get_prefs(context).device
+
+    def on_stack(stack_path: str) -> None:
+        # Main thread (called from poll): reload and show the newest complete stack.
+        if RUNTIME.live.load(stack_path, result.scene, device):
+            relight_now(force=True)
+
+    session = BakeSession(result.scene, settings or bake_settings(context), path, on_stack=on_stack)
+    session.export = result
+    session.start()
+    RUNTIME.session = session
+    return session
+
+
+def bake(context=None, progress=None, settings=None) -> dict:
+    """Bake and wait (background mode, scripts). Returns the bake report.
+
+    `progress(session)` is called about ten times a second; raise or call
+    `cancel_bake()` from it (or from another thread) to stop. Raises `BakeError` when the
+    bake is cancelled or fails; the previous stack, if any, is then left as it was.
+    """
+    session = start_bake(context, settings)
+    last_print = [0.0]
+
+    def tick(s: BakeSession) -> None:
+        if progress is not None:
+            progress(s)
+        now = time.perf_counter()
+        if now - last_print[0] >= 1.0 and not s.finished:
+            last_print[0] = now
+            print(f"Relume: {s.message}", flush=True)
+
+    try:
+        state = session.run_blocking(on_progress=tick)
+    except BaseException:
+        session.cancel()
+        if session.job is not None:
+            session.job.wait(5.0)
+        raise
+    print(f"Relume: {session.message}", flush=True)
+    if state != "done":
+        raise BakeError(f"Relume bake {session.message}")
+    return session.report
+
+
+def cancel_bake() -> bool:
+    """Cancel the running bake (safe from any thread); False when none runs."""
+    session = RUNTIME.session
+    if session is None or session.finished:
+        return False
+    session.cancel()
+    return True
+
+
+def load_stack(context=None) -> bool:
+    """Load the scene's stack (if baked) and check it against the current scene."""
+    context = context or bpy.context
+    path, _, _ = stack_location(context)
+    scene = None
+    if os.path.exists(path):
+        try:
+            scene = export(context).scene
+        except Exception as e:
+            RUNTIME.live.unload()
+            RUNTIME.live.load_error = f"the scene cannot be exported: {e}"
+            return False
+    ok = RUNTIME.live.load(path, scene, get_prefs(context).device)
+    if ok:
+        relight_now(force=True)
+    return ok
+
+
+def relight(context=None):
+    """Relight with the current material values; returns the (h, w, 4) image (bottom row first)."""
+    live = RUNTIME.live
+    if live.stack is None and not load_stack(context):
+        raise BakeError(f"no usable Relume stack: {live.load_error or 'not baked yet'}")
+    if live.stale_reason is not None:
+        raise BakeError(f"the Relume stack is stale ({live.stale_reason}); rebake")
+    outcome = live.relight(current_params(), force=True)
+    write_image(outcome.image)
+    return outcome.image
+
+
+def render(filepath: str, context=None, check_stale: bool = True) -> str:
+    """Write the relit image to `filepath` (.exr: linear float; .png: sRGB 8-bit)."""
+    import relume
+
+    from .live import check_stale as _check
+
+    if check_stale and RUNTIME.live.stack is not None:
+        if _check(context) is not None:
+            raise BakeError(f"the Relume stack is stale ({RUNTIME.live.stale_reason}); rebake")
+    image = relight(context)
+    path = bpy.path.abspath(filepath)
+    folder = os.path.dirname(path)
+    if folder:
+        os.makedirs(folder, exist_ok=True)
+    top_first = image[::-1]
+    if path.lower().endswith(".png"):
+        relume.write_png(path, top_first)
+    elif path.lower().endswith(".exr"):
+        relume.write_exr(path, top_first)
+    else:
+        raise ValueError(f"unsupported output format '{os.path.splitext(path)[1]}': use .exr or .png")
+    return path
+
+
+def status(context=None) -> dict:
+    """What the panel shows, for scripts: stack, staleness, device, bake state, warnings."""
+    live = RUNTIME.live
+    session = RUNTIME.session
+    return {
+        "stack_path": live.stack_path,
+        "loaded": live.stack is not None,
+        "stale": live.stale_reason,
+        "load_error": live.load_error,
+        "device": live.device_text,
+        "bake_state": session.state if session else "idle",
+        "bake_message": session.message if session else "",
+        "last_latency_ms": live.last_latency_ms,
+        "warnings": [str(w) for w in RUNTIME.warnings],
+    }

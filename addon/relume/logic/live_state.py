@@ -1,0 +1,119 @@
+"""The live relight's state: the loaded stack, its relighter, and what was last applied.
+
+Material values arrive as plain tuples (read from bpy by the add-on); only regions whose
+values changed since the last relight are sent to the relighter, which then re-sums only the
+layers whose signature holds those regions (the core's incremental path). A stack that does
+not match the current scene is kept but marked stale and never relit from.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass
+
+#: ("principled", base_color, metallic, roughness, ior, specular_ior_level) or
+#: ("override", kd, ks, ns): the material of one editable region.
+RegionParams = tuple
+
+
+@dataclass
+class RelightOutcome:
+    image: object  # numpy (h, w, 4) float32, bottom row first (Blender's order)
+    changed: list
+    relight_ms: float
+
+
+class LiveState:
+    def __init__(self) -> None:
+        self.stack = None
+        self.relighter = None
+        self.stack_path = ""
+        self.stale_reason: str | None = None
+        self.load_error: str | None = None
+        self.applied: dict[str, RegionParams] = {}
+        self.last_latency_ms: float | None = None
+        self.last_relight_ms: float | None = None
+
+    @property
+    def ready(self) -> bool:
+        return self.relighter is not None and self.stale_reason is None
+
+    @property
+    def device_text(self) -> str:
+        if self.relighter is None:
+            return "no stack loaded"
+        return f"{self.relighter.device.upper()}: {self.relighter.device_reason}"
+
+    def unload(self) -> None:
+        self.stack = None
+        self.relighter = None
+        self.applied = {}
+
+    def load(self, stack_path: str, scene=None, device: str = "auto") -> bool:
+        """Load the stack at `stack_path`; with `scene`, check that it was baked from it.
+
+        Returns whether a usable (loaded and not stale) stack is there. Errors are kept in
+        `load_error` for the panel rather than raised: a missing or broken stack is a state
+        the user fixes by baking, not a crash.
+        """
+        import relume
+
+        self.unload()
+        self.stack_path = stack_path
+        self.stale_reason = None
+        self.load_error = None
+        if not os.path.exists(stack_path):
+            self.load_error = "not baked yet"
+            return False
+        try:
+            self.stack = relume.Stack.load(stack_path)
+            if scene is not None:
+                self.check(scene)
+            self.relighter = relume.Relighter(self.stack, device)
+        except relume.RelumeError as e:
+            self.load_error = f"{type(e).__name__}: {e}"
+            self.unload()
+            return False
+        return self.stale_reason is None
+
+    def check(self, scene) -> bool:
+        """Mark the stack stale when `scene` (a fresh export) is not what it was baked from."""
+        import relume
+
+        if self.stack is None:
+            return False
+        try:
+            self.stack.check_scene(scene)
+            self.stale_reason = None
+        except relume.StaleStackError as e:
+            self.stale_reason = str(e)
+        return self.stale_reason is None
+
+    def apply(self, params: dict[str, RegionParams], force: bool = False) -> list[str]:
+        """Send changed regions' materials to the relighter; returns the regions changed."""
+        changed = []
+        for region, p in params.items():
+            if not force and self.applied.get(region) == p:
+                continue
+            if p[0] == "override":
+                _, kd, ks, ns = p
+                self.relighter.set_material(region, kd, ks, ns)
+            else:
+                _, base, metallic, roughness, ior, level = p
+                self.relighter.set_principled(region, base, metallic, roughness, ior, level)
+            self.applied[region] = p
+            changed.append(region)
+        return changed
+
+    def relight(self, params: dict[str, RegionParams], force: bool = False) -> RelightOutcome | None:
+        """Apply `params` and relight; None when nothing changed (and not forced)."""
+        if not self.ready:
+            return None
+        changed = self.apply(params, force)
+        if not changed and not force:
+            return None
+        t0 = time.perf_counter()
+        image = self.relighter.relight(flip_y=True)
+        self.last_relight_ms = (time.perf_counter() - t0) * 1e3
+        return RelightOutcome(image=image, changed=changed, relight_ms=self.last_relight_ms)

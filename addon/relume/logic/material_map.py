@@ -1,0 +1,134 @@
+"""A material's shader nodes (read by the exporter) → a Relume region material.
+
+Relume's surface model is the Principled BSDF mapped to Blinn–Phong by the core
+(`relume.principled_to_blinn_phong`): Base Color (or an Image Texture linked straight to it,
+which multiplies the diffuse albedo), Metallic, Roughness, IOR, Specular IOR Level. Every other
+input that changes the look, and every other surface shader, is named in a warning with the
+fallback used — never ignored silently. A Diffuse BSDF maps exactly (Principled with no
+specular), so it is not a fallback.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from .export_warnings import WarningList
+
+PRINCIPLED = "ShaderNodeBsdfPrincipled"
+DIFFUSE = "ShaderNodeBsdfDiffuse"
+IMAGE_TEXTURE = "ShaderNodeTexImage"
+
+#: What a material without a usable surface shader becomes: Blender's default grey.
+FALLBACK_PRINCIPLED = {"model": "principled", "base_color": [0.8, 0.8, 0.8], "metallic": 0.0,
+                       "roughness": 0.5, "ior": 1.5, "specular_ior_level": 0.5}
+
+#: The Principled inputs Relume maps, with Blender's defaults.
+MAPPED_INPUTS = {"Base Color": (0.8, 0.8, 0.8, 1.0), "Metallic": 0.0, "Roughness": 0.5,
+                 "IOR": 1.5, "Specular IOR Level": 0.5}
+
+#: Inputs that change the look but that Relume does not model: (input, value that is
+#: neutral, what the warning says is used instead).
+UNMODELLED_INPUTS = [
+    ("Alpha", 1.0, "opaque"),
+    ("Transmission Weight", 0.0, "opaque (no transmission)"),
+    ("Coat Weight", 0.0, "no coat layer"),
+    ("Sheen Weight", 0.0, "no sheen"),
+    ("Anisotropic", 0.0, "isotropic highlight"),
+    ("Diffuse Roughness", 0.0, "Lambertian diffuse"),
+    ("Thin Film Thickness", 0.0, "no thin film"),
+]
+
+
+@dataclass
+class SurfaceNodes:
+    """What the exporter read off a material's node tree (plain values)."""
+
+    material_name: str
+    shader: str  # bl_idname of the node linked to the output's Surface; "" when none
+    values: dict[str, Any] = field(default_factory=dict)  # unlinked inputs' default values
+    links: dict[str, str] = field(default_factory=dict)  # linked inputs → linked node's bl_idname
+    base_color_image: Any = None  # exporter's handle to the image linked to Base Color
+    has_volume: bool = False
+    has_displacement: bool = False
+    uses_nodes: bool = True
+    viewport: dict[str, Any] = field(default_factory=dict)  # diffuse_color/roughness/metallic
+
+
+def _rgb(value: Any) -> list[float]:
+    v = list(value)[:3]
+    return [max(0.0, float(c)) if math.isfinite(float(c)) else 0.0 for c in v]
+
+
+def _scalar(value: Any, default: float) -> float:
+    try:
+        f = float(value)
+    except (TypeError, ValueError):
+        return default
+    return f if math.isfinite(f) else default
+
+
+def map_material(nodes: SurfaceNodes, warnings: WarningList) -> tuple[dict, bool]:
+    """The region's `material` dict, and whether Base Color comes from `base_color_image`."""
+    subject = f"Material '{nodes.material_name}'"
+    if not nodes.uses_nodes:
+        vp = nodes.viewport
+        return ({"model": "principled", "base_color": _rgb(vp.get("diffuse_color", (0.8, 0.8, 0.8))),
+                 "metallic": _clamp01(_scalar(vp.get("metallic", 0.0), 0.0)),
+                 "roughness": _clamp01(_scalar(vp.get("roughness", 0.5), 0.5)),
+                 "ior": 1.5, "specular_ior_level": 0.5}, False)
+    if nodes.has_volume:
+        warnings.add(subject, "volume shader", "the volume is ignored (surface only)")
+    if nodes.has_displacement:
+        warnings.add(subject, "displacement", "the undisplaced surface")
+    if nodes.shader == DIFFUSE:
+        if "Color" in nodes.links:
+            warnings.add(subject, f"Diffuse Color linked to {nodes.links['Color']}",
+                         "the socket's own colour")
+        colour = _rgb(nodes.values.get("Color", (0.8, 0.8, 0.8)))
+        return ({"model": "blinn_phong", "kd": colour, "ks": [0.0, 0.0, 0.0], "ns": 1.0}, False)
+    if nodes.shader != PRINCIPLED:
+        what = f"surface shader {nodes.shader}" if nodes.shader else "no surface shader"
+        warnings.add(subject, what, "Blender's default grey Principled BSDF (0.8, roughness 0.5)")
+        return (dict(FALLBACK_PRINCIPLED), False)
+
+    textured = False
+    base_color = _rgb(nodes.values.get("Base Color", MAPPED_INPUTS["Base Color"]))
+    if "Base Color" in nodes.links:
+        if nodes.links["Base Color"] == IMAGE_TEXTURE and nodes.base_color_image is not None:
+            textured = True
+            base_color = [1.0, 1.0, 1.0]
+        else:
+            warnings.add(subject, f"Base Color linked to {nodes.links['Base Color']}",
+                         "the socket's own colour")
+    for name in ("Metallic", "Roughness", "IOR", "Specular IOR Level"):
+        if name in nodes.links:
+            warnings.add(subject, f"{name} linked to {nodes.links[name]}", "the socket's own value")
+    for name, neutral, fallback in UNMODELLED_INPUTS:
+        value = _scalar(nodes.values.get(name, neutral), neutral)
+        if name in nodes.links or abs(value - neutral) > 1e-6:
+            shown = f"linked to {nodes.links[name]}" if name in nodes.links else f"{value:g}"
+            warnings.add(subject, f"{name} {shown}", fallback)
+    strength = _scalar(nodes.values.get("Emission Strength", 0.0), 0.0)
+    emission = _rgb(nodes.values.get("Emission Color", (0.0, 0.0, 0.0)))
+    if "Emission Strength" in nodes.links or (strength > 0 and max(emission) > 0):
+        warnings.add(subject, "emission", "no emission (add a light instead)")
+    if "Normal" in nodes.links:
+        warnings.add(subject, f"Normal linked to {nodes.links['Normal']}", "the mesh's shading normals")
+    tint = nodes.values.get("Specular Tint", (1.0, 1.0, 1.0, 1.0))
+    if "Specular Tint" in nodes.links or any(abs(float(c) - 1.0) > 1e-6 for c in list(tint)[:3]):
+        warnings.add(subject, "Specular Tint", "untinted dielectric specular")
+    metallic = _clamp01(_scalar(nodes.values.get("Metallic", 0.0), 0.0))
+    if textured and metallic > 0:
+        warnings.add(subject, "metallic with a Base Color texture",
+                     "white metallic specular (the texture tints the diffuse part only)")
+    return ({"model": "principled", "base_color": base_color, "metallic": metallic,
+             "roughness": _clamp01(_scalar(nodes.values.get("Roughness", 0.5), 0.5)),
+             "ior": max(1.0, _scalar(nodes.values.get("IOR", 1.5), 1.5)),
+             "specular_ior_level": _clamp01(_scalar(nodes.values.get("Specular IOR Level", 0.5), 0.5))},
+            textured)
+
+
+def _clamp01(x: float) -> float:
+    return min(1.0, max(0.0, x))

@@ -1,0 +1,132 @@
+"""UI: the Image Editor's "Relume" tab and the material properties' Relume panel."""
+
+from __future__ import annotations
+
+import bpy
+
+from .runtime import RUNTIME
+
+
+def draw_bake_controls(layout, context) -> None:
+    """Bake state, progress and the Bake / Cancel buttons (also in the preferences)."""
+    live = RUNTIME.live
+    session = RUNTIME.session
+    box = layout.box()
+    if session is not None and not session.finished:
+        frac = float(session.progress.get("fraction", 0.0))
+        box.progress(factor=frac, type="BAR", text=session.message)
+        box.operator("relume.cancel_bake", icon="CANCEL")
+        return
+    if session is not None and session.message:
+        box.label(text=f"Last bake: {session.message}",
+                  icon="CHECKMARK" if session.state == "done" else "ERROR")
+    if live.stale_reason:
+        box.label(text="Stack is stale: the scene changed since the bake", icon="ERROR")
+        box.label(text=live.stale_reason[:120])
+        box.operator("relume.bake", text="Rebake", icon="FILE_REFRESH")
+        return
+    if live.stack is None:
+        box.label(text=f"No stack: {live.load_error or 'not baked yet'}", icon="INFO")
+    else:
+        box.label(text=f"Stack: {live.stack.width}×{live.stack.height}, {live.stack.layer_count} layers, "
+                       f"{live.stack.bytes / 1e6:.0f} MB", icon="CHECKMARK")
+    box.operator("relume.bake", icon="RENDER_STILL")
+
+
+class RELUME_PT_image(bpy.types.Panel):
+    bl_label = "Relume"
+    bl_space_type = "IMAGE_EDITOR"
+    bl_region_type = "UI"
+    bl_category = "Relume"
+
+    def draw(self, context):
+        layout = self.layout
+        live = RUNTIME.live
+        draw_bake_controls(layout, context)
+        layout.label(text=f"Device: {live.device_text}")
+        if live.last_latency_ms is not None:
+            layout.label(text=f"Last relight: {live.last_latency_ms:.1f} ms")
+        if RUNTIME.warnings:
+            box = layout.box()
+            box.label(text=f"{len(RUNTIME.warnings)} export warning(s)", icon="ERROR")
+            for w in RUNTIME.warnings[:8]:
+                box.label(text=str(w)[:140])
+        if live.stack is None:
+            return
+        import relume
+
+        for name in live.stack.editable_regions:
+            mat = bpy.data.materials.get(name)
+            box = layout.box()
+            if mat is None:
+                box.label(text=f"{name}: material missing", icon="ERROR")
+                continue
+            box.label(text=name, icon="MATERIAL")
+            _draw_region(box, mat, relume)
+
+
+def _principled(mat):
+    tree = mat.node_tree
+    if tree is None:
+        return None
+    for node in tree.nodes:
+        if node.bl_idname == "ShaderNodeBsdfPrincipled":
+            return node
+    return None
+
+
+def _draw_region(layout, mat, relume) -> None:
+    props = mat.relume
+    layout.prop(props, "override")
+    if props.override:
+        layout.prop(props, "kd")
+        layout.prop(props, "ks")
+        layout.prop(props, "ns")
+        return
+    node = _principled(mat)
+    if node is None:
+        layout.label(text="No Principled BSDF: use the override")
+        return
+    for name in ("Base Color", "Metallic", "Roughness", "IOR", "Specular IOR Level"):
+        sock = node.inputs[name]
+        if not sock.is_linked:
+            layout.prop(sock, "default_value", text=name)
+    from .live import region_params
+
+    p = region_params(mat)
+    if p[0] == "principled":
+        bp = relume.principled_to_blinn_phong(p[1], p[2], p[3], p[4], p[5])
+        kd = ", ".join(f"{c:.2f}" for c in bp["kd"])
+        ks = ", ".join(f"{c:.2f}" for c in bp["ks"])
+        layout.label(text=f"Blinn–Phong: Kd ({kd})  Ks ({ks})  ns {bp['ns']:.3g}")
+
+
+class RELUME_PT_material(bpy.types.Panel):
+    bl_label = "Relume"
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "material"
+
+    @classmethod
+    def poll(cls, context):
+        return context.material is not None
+
+    def draw(self, context):
+        props = context.material.relume
+        layout = self.layout
+        layout.prop(props, "editable")
+        if props.editable:
+            row = layout.row()
+            row.prop(props, "use_roughness_range")
+            sub = row.row()
+            sub.enabled = props.use_roughness_range
+            sub.prop(props, "roughness_min")
+            sub.prop(props, "roughness_max")
+            layout.prop(props, "override")
+            if props.override:
+                layout.prop(props, "kd")
+                layout.prop(props, "ks")
+                layout.prop(props, "ns")
+
+
+CLASSES = (RELUME_PT_image, RELUME_PT_material)

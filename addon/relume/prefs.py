@@ -1,0 +1,81 @@
+"""Add-on preferences: bake settings and the Bake button (DESIGN.md §4)."""
+
+from __future__ import annotations
+
+import bpy
+from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
+
+ADDON_ID = __package__
+
+PRESET_ITEMS = [
+    ("draft", "Draft", "Fastest bake: few samples, coarse basis, half resolution"),
+    ("preview", "Preview", "A usable image in seconds to a minute"),
+    ("final", "Final", "Converged image for final frames"),
+    ("custom", "Custom", "The sample counts and tolerance below"),
+]
+
+
+class RelumePreferences(bpy.types.AddonPreferences):
+    bl_idname = ADDON_ID
+
+    preset: EnumProperty(name="Preset", items=PRESET_ITEMS, default="preview",
+                         description="Quality preset; README lists each one's measured error and time")
+    spp: IntProperty(name="Eye Samples", min=1, max=65536, default=16,
+                     description="Samples per pixel (custom preset)")
+    light_samples: IntProperty(name="Light Samples", min=1, max=1024, default=4)
+    indirect_samples: IntProperty(name="Indirect Samples", min=1, max=1024, default=1)
+    bounces: IntProperty(name="Bounces", min=0, max=1, default=1,
+                         description="0: direct light only; 1: one indirect bounce (the paper)")
+    basis_tolerance: FloatProperty(name="Basis Tolerance", min=1e-4, max=0.5, default=0.03,
+                                   description="Largest relative L2 error of the BRDF basis "
+                                               "(sets the number of basis BRDFs)")
+    passes: IntProperty(name="Passes", min=1, max=16, default=1,
+                        description="Progressive passes: a complete stack after each, so the "
+                                    "image appears early and cleans up")
+    resolution_scale: FloatProperty(name="Resolution Scale", min=0.05, max=1.0, default=1.0,
+                                    subtype="FACTOR",
+                                    description="Fraction of the render resolution the bake uses")
+    device: EnumProperty(name="Relight Device", default="auto", items=[
+        ("auto", "Auto", "A real GPU through wgpu when there is one, else the CPU"),
+        ("gpu", "GPU", "The GPU (an error if none is usable)"),
+        ("cpu", "CPU", "The CPU (multi-threaded)"),
+    ])
+    stack_folder: StringProperty(name="Stack Folder", subtype="DIR_PATH", default="",
+                                 description="Where stacks are stored: empty = a 'relume' folder "
+                                             "beside the .blend; '//' paths are relative to it")
+
+    def draw(self, context):
+        layout = self.layout
+        col = layout.column()
+        col.prop(self, "preset")
+        sub = col.column()
+        sub.enabled = self.preset == "custom"
+        sub.prop(self, "spp")
+        sub.prop(self, "light_samples")
+        sub.prop(self, "indirect_samples")
+        sub.prop(self, "basis_tolerance")
+        col.prop(self, "bounces")
+        col.prop(self, "passes")
+        col.prop(self, "resolution_scale")
+        col.prop(self, "device")
+        col.prop(self, "stack_folder")
+        from .panels import draw_bake_controls
+
+        draw_bake_controls(layout, context)
+
+
+class _Defaults:
+    """The preferences' defaults, for when the add-on runs without being enabled as such."""
+
+    def __getattr__(self, name):
+        prop = RelumePreferences.__annotations__[name]
+        return prop.keywords.get("default")
+
+
+def get_prefs(context=None):
+    context = context or bpy.context
+    addon = context.preferences.addons.get(ADDON_ID)
+    return addon.preferences if addon is not None else _Defaults()
+
+
+CLASSES = (RelumePreferences,)

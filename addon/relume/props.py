@@ -1,0 +1,51 @@
+"""Per-material Relume settings, stored in the .blend with the material."""
+
+from __future__ import annotations
+
+import bpy
+from bpy.props import BoolProperty, FloatProperty, FloatVectorProperty, PointerProperty
+
+
+class RelumeMaterialSettings(bpy.types.PropertyGroup):
+    """Whether a material stays editable after the bake, and its optional direct values.
+
+    Editable materials keep their BRDF free: the bake stores their contribution per basis
+    BRDF (more layers, so more storage and relight time) and the Principled sliders relight
+    the image live. An override replaces the Principled mapping by explicit Blinn–Phong
+    values (the paper's Kd, Ks, ns).
+    """
+
+    editable: BoolProperty(
+        name="Editable", default=False,
+        description="Keep this material editable after the Relume bake (relit live); "
+                    "changing this needs a rebake")
+    override: BoolProperty(
+        name="Override", default=False,
+        description="Use the Blinn–Phong values below instead of the Principled BSDF's")
+    kd: FloatVectorProperty(name="Kd", subtype="COLOR", size=3, min=0.0, max=1.0,
+                            default=(0.5, 0.5, 0.5), description="Diffuse albedo")
+    ks: FloatVectorProperty(name="Ks", subtype="COLOR", size=3, min=0.0, max=1.0,
+                            default=(0.04, 0.04, 0.04), description="Specular albedo (Kd + Ks ≤ 1)")
+    ns: FloatProperty(name="ns", min=1e-3, max=1e6, default=30.0, soft_min=1.0, soft_max=1000.0,
+                      description="Blinn–Phong exponent (Principled roughness 0.5 ≈ 30)")
+    use_roughness_range: BoolProperty(
+        name="Roughness Range", default=False,
+        description="Limit the roughness this material can take after the bake: a narrower "
+                    "range needs fewer basis BRDFs (smaller stack, faster relight)")
+    roughness_min: FloatProperty(name="Min", min=0.0, max=1.0, default=0.3)
+    roughness_max: FloatProperty(name="Max", min=0.0, max=1.0, default=0.9)
+
+
+CLASSES = (RelumeMaterialSettings,)
+
+
+def register() -> None:
+    for c in CLASSES:
+        bpy.utils.register_class(c)
+    bpy.types.Material.relume = PointerProperty(type=RelumeMaterialSettings)
+
+
+def unregister() -> None:
+    del bpy.types.Material.relume
+    for c in reversed(CLASSES):
+        bpy.utils.unregister_class(c)

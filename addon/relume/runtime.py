@@ -1,0 +1,24 @@
+"""Session-wide state of the add-on: the live relight and the running bake.
+
+Held in Python, not in bpy data: a relighter owns GPU buffers and a bake owns a Rust
+thread, neither of which belongs in a .blend. One instance per Blender session.
+"""
+
+from __future__ import annotations
+
+from .logic.live_state import LiveState
+from .logic.throttle import Throttle
+
+
+class Runtime:
+    def __init__(self) -> None:
+        self.live = LiveState()
+        self.session = None  # logic.bake_session.BakeSession while a bake runs (and after)
+        self.throttle = Throttle()
+        self.warnings: list = []  # the last export's warnings (ExportWarning)
+        self.stale_check_pending = False
+        self.relight_timer_registered = False
+        self.last_status = ""
+
+
+RUNTIME = Runtime()
