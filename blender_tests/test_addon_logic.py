@@ -1,0 +1,138 @@
+"""The add-on's bpy-free logic (addon/relume/logic), loaded straight from the source tree."""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import pathlib
+import sys
+
+import pytest
+
+LOGIC = pathlib.Path(__file__).resolve().parent.parent / "addon" / "relume" / "logic"
+
+
+def _load():
+    spec = importlib.util.spec_from_file_location(
+        "relume_logic", LOGIC / "__init__.py", submodule_search_locations=[str(LOGIC)])
+    pkg = importlib.util.module_from_spec(spec)
+    sys.modules["relume_logic"] = pkg
+    spec.loader.exec_module(pkg)
+    return pkg
+
+
+_load()
+from relume_logic import camera_map, lights_map, material_map, stack_paths, throttle  # noqa: E402
+from relume_logic.bake_session import format_eta  # noqa: E402
+from relume_logic.export_warnings import WarningList  # noqa: E402
+
+IDENTITY = [[1.0, 0, 0, 0], [0, 1.0, 0, 0], [0, 0, 1.0, 0], [0, 0, 0, 1.0]]
+
+
+def test_throttle_lets_one_through_per_interval_and_keeps_the_last_pending():
+    now = [0.0]
+    t = throttle.Throttle(0.1, clock=lambda: now[0])
+    assert t.request() and not t.pending
+    now[0] = 0.05
+    assert not t.request() and t.pending
+    assert t.remaining() == pytest.approx(0.05)
+    now[0] = 0.1
+    assert t.request() and not t.pending
+    with pytest.raises(ValueError):
+        throttle.Throttle(float("nan"))
+
+
+def test_stack_paths():
+    f, temp = stack_paths.stack_folder("/p/shots/a.blend", "", "/tmp")
+    assert (f, temp) == ("/p/shots/relume", False)
+    assert stack_paths.stack_folder("/p/shots/a.blend", "//cache", "/tmp")[0] == "/p/shots/cache"
+    assert stack_paths.stack_folder("/p/shots/a.blend", "/farm/stacks", "/tmp") == ("/farm/stacks", False)
+    assert stack_paths.stack_folder("", "", "/tmp") == ("/tmp/relume", True)
+    assert stack_paths.stack_file_name("/p/a b.blend", "Scene/1") == "a_b.Scene_1.relume.exr"
+
+
+def _area(**kw):
+    base = dict(name="A", type="AREA", matrix_world=[r[:] for r in IDENTITY], energy=100.0,
+                color=(1.0, 1.0, 1.0))
+    base.update(kw)
+    return lights_map.BlenderLight(**base)
+
+
+def test_area_light_scale_exposure_normalize_and_spread():
+    w = WarningList()
+    m = [[2.0, 0, 0, 1], [0, 3.0, 0, 2], [0, 0, 1.0, 3], [0, 0, 0, 1]]
+    out = lights_map.map_light(_area(matrix_world=m, shape="RECTANGLE", size=0.5, size_y=0.2,
+                                     exposure=1.0, normalize=False, spread=math.radians(60)), w)
+    assert out["size_x"] == pytest.approx(1.0) and out["size_y"] == pytest.approx(0.6)
+    assert out["power"] == pytest.approx(100.0 * 2.0 * 0.6)  # exposure ×2, normalize off × area
+    assert out["position"] == [1, 2, 3]
+    assert any("Spread" in str(x) for x in w.items())
+
+
+def test_zero_power_light_is_left_out_with_a_warning():
+    w = WarningList()
+    assert lights_map.map_light(_area(energy=0.0), w) is None
+    assert "zero power" in str(w.items()[0])
+
+
+def test_spot_direction_and_elliptic_warning():
+    w = WarningList()
+    m = [[1.0, 0, 0, 0], [0, 2.0, 0, 0], [0, 0, 1.0, 0], [0, 0, 0, 1]]
+    out = lights_map.map_light(lights_map.BlenderLight(
+        name="S", type="SPOT", matrix_world=m, energy=10, color=(1, 1, 1), spot_size=1.0), w)
+    assert out["direction"] == pytest.approx([0, 0, -1])
+    assert any("elliptical" in str(x) for x in w.items())
+
+
+def test_temperature_tints_colour():
+    w = WarningList()
+    out = lights_map.map_light(lights_map.BlenderLight(
+        name="P", type="POINT", matrix_world=IDENTITY, energy=10, color=(1, 0.5, 1),
+        temperature_rgb=(1.0, 0.8, 0.6)), w)
+    assert out["color"] == pytest.approx([1.0, 0.4, 0.6])
+
+
+def test_camera_mapping():
+    w = WarningList()
+    cam = camera_map.BlenderCamera(name="C", type="PERSP",
+                                   matrix_world=[[2, 0, 0, 1], [0, 2, 0, 2], [0, 0, 2, 3], [0, 0, 0, 1]],
+                                   use_dof=True)
+    out = camera_map.map_camera(cam, w)
+    assert out["matrix_world"][0][:3] == pytest.approx([1, 0, 0])
+    assert out["matrix_world"][2][3] == 3
+    assert any("depth of field" in str(x) for x in w.items())
+    with pytest.raises(camera_map.CameraError, match="panoramic"):
+        camera_map.map_camera(camera_map.BlenderCamera(name="C", type="PANO", matrix_world=IDENTITY), w)
+    mirrored = [[-1.0, 0, 0, 0], [0, 1.0, 0, 0], [0, 0, 1.0, 0], [0, 0, 0, 1]]
+    with pytest.raises(camera_map.CameraError, match="mirrored"):
+        camera_map.map_camera(camera_map.BlenderCamera(name="C", type="PERSP", matrix_world=mirrored), w)
+
+
+def test_material_mapping_rules():
+    SN = material_map.SurfaceNodes
+    w = WarningList()
+    diffuse, tex = material_map.map_material(SN("D", material_map.DIFFUSE, values={"Color": (0.2, 0.3, 0.4, 1)}), w)
+    assert diffuse == {"model": "blinn_phong", "kd": [0.2, 0.3, 0.4], "ks": [0, 0, 0], "ns": 1.0}
+    assert not tex and len(w) == 0  # exact, not a fallback
+
+    w = WarningList()
+    mat, tex = material_map.map_material(SN(
+        "P", material_map.PRINCIPLED,
+        values={"Base Color": (0.5, 0.5, 0.5, 1), "Roughness": 0.3, "Metallic": 0.2, "Alpha": 0.5},
+        links={"Base Color": material_map.IMAGE_TEXTURE, "Roughness": "ShaderNodeTexNoise"},
+        base_color_image=object()), w)
+    assert tex and mat["base_color"] == [1.0, 1.0, 1.0]
+    text = " | ".join(str(x) for x in w.items())
+    assert "Roughness linked to ShaderNodeTexNoise" in text
+    assert "Alpha 0.5" in text and "metallic with a Base Color texture" in text
+
+    w = WarningList()
+    fallback, _ = material_map.map_material(SN("E", "ShaderNodeEmission"), w)
+    assert fallback == material_map.FALLBACK_PRINCIPLED
+    assert "ShaderNodeEmission" in str(w.items()[0])
+
+
+def test_eta_format():
+    assert format_eta(None) == "estimating…"
+    assert format_eta(5.4) == "5 s"
+    assert format_eta(125) == "2 min 05 s"
