@@ -2,9 +2,8 @@
 
 use std::path::PathBuf;
 
-use relume_engine::bake::{bake_progressive, doubling_passes};
+use relume_engine::bake::to_file::{bake_to_file, BakedFile};
 use relume_engine::scene::file::load_scene;
-use relume_engine::stack::exr_file::write_stack;
 use relume_engine::RelumeError;
 use serde_json::json;
 
@@ -32,31 +31,31 @@ pub struct Args {
 pub fn run(args: Args) -> Result<(), RelumeError> {
     let scene = load_scene(&args.scene)?;
     let settings = args.options.settings()?;
-    let passes = doubling_passes(settings.spp, args.passes);
     let output = args.output.clone();
     let quiet = args.json;
-    let (stack, report, pass_reports, bytes, write_seconds) = with_progress("baking", move |p| {
-        let mut bytes = 0;
-        let mut write_seconds = 0.0;
-        let (stack, report, passes) =
-            bake_progressive(&scene, &settings, &passes, &p, |stack, _, pass| {
-                let t = std::time::Instant::now();
-                bytes = write_stack(&output, stack)?;
-                write_seconds = t.elapsed().as_secs_f64();
-                if !quiet && pass.estimated_rel_error.is_some() {
-                    eprintln!(
-                        "pass {}: {} spp at {:.1} s, estimated noise {:.3} % → {}",
-                        pass.pass,
-                        pass.spp,
-                        pass.seconds,
-                        pass.estimated_rel_error.unwrap_or(0.0) * 100.0,
-                        output.display()
-                    );
-                }
-                Ok(())
-            })?;
-        Ok::<_, RelumeError>((stack, report, passes, bytes, write_seconds))
+    let passes = args.passes;
+    let baked = with_progress("baking", move |p| {
+        bake_to_file(&scene, &settings, passes, &output, &p, |pass, _| {
+            if !quiet && pass.estimated_rel_error.is_some() {
+                eprintln!(
+                    "pass {}: {} spp at {:.1} s, estimated noise {:.3} % → {}",
+                    pass.pass,
+                    pass.spp,
+                    pass.seconds,
+                    pass.estimated_rel_error.unwrap_or(0.0) * 100.0,
+                    output.display()
+                );
+            }
+        })
     })?;
+    let BakedFile {
+        stack,
+        report,
+        passes: pass_reports,
+        file_bytes: bytes,
+        write_seconds,
+        ..
+    } = baked;
     if args.json {
         super::print_json(&json!({
             "command": "bake",

@@ -15,6 +15,7 @@ pub mod reference;
 pub mod settings;
 pub mod signature;
 pub mod tiles;
+pub mod to_file;
 pub mod vertex_brdf;
 
 use rayon::prelude::*;

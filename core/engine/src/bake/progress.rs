@@ -28,6 +28,14 @@ impl Progress {
         self.done.store(0, Ordering::SeqCst);
         *self.started.lock().unwrap_or_else(|e| e.into_inner()) = Some(Instant::now());
     }
+    /// Whether [`start`](Self::start) was called: the work is past its set-up (validation,
+    /// basis, BVH) and counting.
+    pub fn is_started(&self) -> bool {
+        self.started
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .is_some()
+    }
     /// Marks `n` units done.
     pub fn advance(&self, n: u64) {
         self.done.fetch_add(n, Ordering::Relaxed);

@@ -2,6 +2,7 @@
 
 pub mod bases;
 pub mod exr_file;
+pub mod staleness;
 
 use serde::{Deserialize, Serialize};
 

@@ -1,0 +1,68 @@
+//! A bake written to a stack file: the one place that turns [`bake_progressive`] into files
+//! on disk, shared by `relume bake` and the Python bindings' `BakeJob`.
+//!
+//! With `passes > 1` the sample counts double up to `settings.spp` ([`doubling_passes`]) and
+//! a complete stack replaces the file after every pass; each write is atomic (temp file,
+//! fsync, rename: [`crate::image_io::write_atomic`]), so a cancel, an error or a crash
+//! leaves either the previous complete stack or nothing — never a partial file and never a
+//! temp file.
+
+use std::path::Path;
+use std::time::Instant;
+
+use super::progress::Progress;
+use super::{bake_progressive, doubling_passes, BakeReport, BakeSettings, PassReport};
+use crate::scene::Scene;
+use crate::stack::{exr_file::write_stack, TransferStack};
+use crate::Result;
+
+/// What [`bake_to_file`] did.
+pub struct BakedFile {
+    /// The final stack (the last pass's, as written).
+    pub stack: TransferStack,
+    pub report: BakeReport,
+    /// One per pass, with the estimated noise after each.
+    pub passes: Vec<PassReport>,
+    /// Size of the last file written.
+    pub file_bytes: u64,
+    /// Seconds the last write took.
+    pub write_seconds: f64,
+    /// Stacks written (one per pass).
+    pub stacks_written: usize,
+}
+
+/// Bakes `scene` in `passes` doubling passes (1: one plain bake) and writes the stack to
+/// `path` after each. `on_written(pass, bytes)` runs after every write (for a message or a
+/// counter). `progress` reports over all passes and cancels: a cancel stops within a pixel
+/// row and returns [`crate::RelumeError::Cancelled`] with the file as the last completed
+/// pass (or the previous file) left it.
+pub fn bake_to_file(
+    scene: &Scene,
+    settings: &BakeSettings,
+    passes: u32,
+    path: &Path,
+    progress: &Progress,
+    mut on_written: impl FnMut(&PassReport, u64),
+) -> Result<BakedFile> {
+    let counts = doubling_passes(settings.spp, passes);
+    let mut file_bytes = 0;
+    let mut write_seconds = 0.0;
+    let mut stacks_written = 0;
+    let (stack, report, passes) =
+        bake_progressive(scene, settings, &counts, progress, |stack, _, pass| {
+            let t = Instant::now();
+            file_bytes = write_stack(path, stack)?;
+            write_seconds = t.elapsed().as_secs_f64();
+            stacks_written += 1;
+            on_written(pass, file_bytes);
+            Ok(())
+        })?;
+    Ok(BakedFile {
+        stack,
+        report,
+        passes,
+        file_bytes,
+        write_seconds,
+        stacks_written,
+    })
+}

@@ -1,0 +1,356 @@
+//! `relume.Relighter`: live relight of a stack for material and light-group edits, on the
+//! GPU or the CPU (relume-gpu's `Relighter`, which falls back to the CPU in `auto` mode).
+//!
+//! Edits only record the new material; `relight()` then re-sums the regions changed since
+//! the last call (the core's incremental `relight_region`, which itself re-sums everything
+//! every 64 edits to bound float drift), or everything on the first call. The sum runs
+//! with the GIL released.
+
+use std::collections::BTreeMap;
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+use numpy::ndarray::Array3;
+use numpy::{IntoPyArray, PyArray3};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use relume_engine::brdf::{principled_to_blinn_phong, BlinnPhong, MaterialSpec};
+use relume_engine::materials::{resolve_light_gains, resolve_materials, LightGroupEdit, MaterialsFile};
+use relume_engine::stack::bases::StackBases;
+use relume_engine::stack::TransferStack;
+use relume_engine::{RelumeError, Rgb};
+use relume_gpu::{DevicePreference, Relighter as Engine};
+
+use crate::errors::{engine_err, new_err, IntoPy};
+use crate::guard::{guard, guard_detached};
+use crate::materials::{blinn_phong_dict, principled, rgb};
+use crate::stack::Stack;
+
+/// Tolerance on Kd + Ks ≤ 1 (the Principled mapping's own rounding stays far below it).
+const ENERGY_SLACK: f32 = 1e-6;
+
+struct State {
+    engine: Engine,
+    /// Current material of every editable region, in editable order.
+    materials: Vec<BlinnPhong>,
+    /// Regions changed since the last relight.
+    dirty: Vec<bool>,
+    gains: BTreeMap<String, LightGroupEdit>,
+    gains_dirty: bool,
+    has_image: bool,
+    last_ms: f64,
+}
+
+/// Relights one stack live.
+#[pyclass(module = "relume", frozen)]
+pub struct Relighter {
+    stack: Arc<TransferStack>,
+    bases: StackBases,
+    editable: Vec<String>,
+    state: Mutex<State>,
+}
+
+fn materials_err(py: Python<'_>, e: RelumeError) -> PyErr {
+    match e {
+        RelumeError::InvalidValue { .. } | RelumeError::NonFinite { .. } => {
+            new_err(py, "MaterialsError", e.to_string())
+        }
+        other => engine_err(py, &other),
+    }
+}
+
+impl Relighter {
+    fn lock(&self) -> std::sync::MutexGuard<'_, State> {
+        self.state.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// The editable index of `region`, with the core's errors for unknown and fixed ones.
+    fn region_index(&self, py: Python<'_>, region: &str, m: &BlinnPhong) -> PyResult<usize> {
+        let mut edits = MaterialsFile::default();
+        edits
+            .regions
+            .insert(region.to_string(), MaterialSpec::BlinnPhong(*m));
+        resolve_materials(&self.stack.header.regions, &edits).map_err(|e| materials_err(py, e))?;
+        Ok(self.editable.iter().position(|n| n == region).unwrap_or(0))
+    }
+
+    fn set(&self, py: Python<'_>, region: &str, m: BlinnPhong) -> PyResult<()> {
+        let index = self.region_index(py, region, &m)?;
+        m.validate(&format!("region \"{region}\""))
+            .map_err(|e| materials_err(py, e))?;
+        if let Some(c) = (0..3).find(|&c| m.kd[c] + m.ks[c] > 1.0 + ENERGY_SLACK) {
+            return Err(new_err(
+                py,
+                "MaterialsError",
+                format!(
+                    "region \"{region}\": Kd + Ks = {} > 1 in channel {c}: the surface would reflect more light than it receives",
+                    m.kd[c] + m.ks[c]
+                ),
+            ));
+        }
+        let mut st = self.lock();
+        if st.materials[index] != m {
+            st.materials[index] = m;
+            st.dirty[index] = true;
+        }
+        Ok(())
+    }
+
+    /// Runs the sums the edits since the last call need; returns the image (RGBA, rows in
+    /// the order asked) and the milliseconds it took.
+    fn run(&self, flip_y: bool) -> Result<Vec<f32>, PyErrLike> {
+        let mut guard = self.lock();
+        let st = &mut *guard;
+        let t = Instant::now();
+        let gains = if st.gains.is_empty() {
+            None
+        } else {
+            let edits = MaterialsFile {
+                regions: BTreeMap::new(),
+                light_groups: st.gains.clone(),
+            };
+            resolve_light_gains(&self.stack.header, &edits).map_err(PyErrLike::Engine)?
+        };
+        let coefs_of = |r: usize, m: &BlinnPhong| -> Result<Vec<Rgb>, PyErrLike> {
+            self.bases
+                .region_coefficients(r, &MaterialSpec::BlinnPhong(*m))
+                .map_err(PyErrLike::Engine)
+        };
+        if !st.has_image {
+            let coefs = st
+                .materials
+                .iter()
+                .enumerate()
+                .map(|(r, m)| coefs_of(r, m))
+                .collect::<Result<Vec<_>, _>>()?;
+            st.engine.relight(&coefs).map_err(PyErrLike::Gpu)?;
+            if let Some(g) = &gains {
+                st.engine.set_light_group_gains(g).map_err(PyErrLike::Gpu)?;
+            }
+            st.has_image = true;
+        } else {
+            for r in 0..st.materials.len() {
+                if st.dirty[r] {
+                    let c = coefs_of(r, &st.materials[r])?;
+                    st.engine.relight_region(r, &c).map_err(PyErrLike::Gpu)?;
+                }
+            }
+            if st.gains_dirty {
+                let g = gains.unwrap_or_else(|| vec![Rgb::ONE; self.stack.header.light_groups.len()]);
+                st.engine.set_light_group_gains(&g).map_err(PyErrLike::Gpu)?;
+            }
+        }
+        st.dirty.iter_mut().for_each(|d| *d = false);
+        st.gains_dirty = false;
+        let image = st.engine.image();
+        let (w, _) = st.engine.size();
+        let out = if flip_y {
+            let row = w * 4;
+            image.rchunks_exact(row).flatten().copied().collect()
+        } else {
+            image.to_vec()
+        };
+        st.last_ms = t.elapsed().as_secs_f64() * 1e3;
+        Ok(out)
+    }
+}
+
+/// An error from the detached part, turned into a Python exception once the GIL is back.
+enum PyErrLike {
+    Engine(RelumeError),
+    Gpu(relume_gpu::GpuError),
+}
+
+#[pymethods]
+impl Relighter {
+    /// Builds the relighter of `stack` on `device` ("auto": a real GPU, else the CPU;
+    /// "gpu": insist, DeviceError without one; "cpu").
+    #[new]
+    #[pyo3(signature = (stack, device = "auto"))]
+    fn new(py: Python<'_>, stack: PyRef<'_, Stack>, device: &str) -> PyResult<Self> {
+        let preference: DevicePreference = device
+            .parse()
+            .map_err(pyo3::exceptions::PyValueError::new_err)?;
+        let stack = stack.inner.clone();
+        let s = stack.clone();
+        let (engine, bases) = guard_detached(py, "Relighter()", move || {
+            let bases = StackBases::from_header(&s.header)?;
+            let engine = Engine::new(s, preference).map_err(|e| match e {
+                relume_gpu::GpuError::Engine(e) => e,
+                other => RelumeError::invalid("device", other.to_string()),
+            });
+            Ok::<_, RelumeError>((engine, bases))
+        })?
+        .py_err(py)?;
+        let engine = match engine {
+            Ok(e) => e,
+            Err(RelumeError::InvalidValue { message, .. }) => {
+                return Err(new_err(
+                    py,
+                    "DeviceError",
+                    format!("{message}; device=\"auto\" falls back to the CPU"),
+                ))
+            }
+            Err(e) => return Err(engine_err(py, &e)),
+        };
+        let materials: Vec<BlinnPhong> = resolve_materials(&stack.header.regions, &MaterialsFile::default())
+            .py_err(py)?
+            .iter()
+            .map(|m| m.to_blinn_phong())
+            .collect();
+        let editable = stack
+            .header
+            .regions
+            .iter()
+            .filter(|r| r.editable)
+            .map(|r| r.name.clone())
+            .collect();
+        let n = materials.len();
+        Ok(Relighter {
+            stack,
+            bases,
+            editable,
+            state: Mutex::new(State {
+                engine,
+                materials,
+                dirty: vec![false; n],
+                gains: BTreeMap::new(),
+                gains_dirty: false,
+                has_image: false,
+                last_ms: 0.0,
+            }),
+        })
+    }
+
+    /// "gpu" or "cpu": where the relight runs now.
+    #[getter]
+    fn device(&self) -> String {
+        self.lock().engine.device().to_string()
+    }
+
+    /// Why this device, one sentence starting with "GPU:" or "CPU:".
+    #[getter]
+    fn device_reason(&self) -> String {
+        self.lock().engine.device_reason().to_string()
+    }
+
+    /// The GPU failure that moved the relight to the CPU, if one did.
+    #[getter]
+    fn fallback(&self) -> Option<String> {
+        self.lock().engine.fallback().map(str::to_string)
+    }
+
+    /// Sets an editable region's Blinn–Phong material (kd, ks: a number or RGB; ns > 0).
+    fn set_material(
+        &self,
+        py: Python<'_>,
+        region: &str,
+        kd: &Bound<'_, PyAny>,
+        ks: &Bound<'_, PyAny>,
+        ns: f32,
+    ) -> PyResult<()> {
+        guard(py, "Relighter.set_material", || {
+            let m = BlinnPhong {
+                kd: rgb("kd", kd)?,
+                ks: rgb("ks", ks)?,
+                ns,
+            };
+            self.set(py, region, m)
+        })
+    }
+
+    /// Sets an editable region from Principled inputs; returns the {"kd", "ks", "ns"} they
+    /// map to.
+    #[pyo3(signature = (region, base_color, metallic = 0.0, roughness = 0.5, ior = 1.5, specular_ior_level = 0.5))]
+    #[allow(clippy::too_many_arguments)]
+    fn set_principled<'py>(
+        &self,
+        py: Python<'py>,
+        region: &str,
+        base_color: &Bound<'py, PyAny>,
+        metallic: f32,
+        roughness: f32,
+        ior: f32,
+        specular_ior_level: f32,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        guard(py, "Relighter.set_principled", || {
+            let p = principled(base_color, metallic, roughness, ior, specular_ior_level)?;
+            p.validate(&format!("region \"{region}\""))
+                .map_err(|e| materials_err(py, e))?;
+            let m = principled_to_blinn_phong(&p);
+            self.set(py, region, m)?;
+            blinn_phong_dict(py, &m)
+        })
+    }
+
+    /// Sets a light group's strength and colour (stacks baked with light groups).
+    #[pyo3(signature = (name, strength = 1.0, color = None))]
+    fn set_light_group(
+        &self,
+        py: Python<'_>,
+        name: &str,
+        strength: f32,
+        color: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<()> {
+        guard(py, "Relighter.set_light_group", || {
+            let color = match color {
+                Some(c) => rgb("color", c)?,
+                None => [1.0; 3],
+            };
+            let mut st = self.lock();
+            let mut gains = st.gains.clone();
+            gains.insert(name.to_string(), LightGroupEdit { strength, color });
+            let edits = MaterialsFile {
+                regions: BTreeMap::new(),
+                light_groups: gains.clone(),
+            };
+            resolve_light_gains(&self.stack.header, &edits).map_err(|e| materials_err(py, e))?;
+            st.gains = gains;
+            st.gains_dirty = true;
+            Ok(())
+        })
+    }
+
+    /// The image for the current materials: float32 (height, width, 4) RGBA, alpha 1,
+    /// scene-linear; rows top first, or bottom first with flip_y=True (Blender's order).
+    #[pyo3(signature = (flip_y = false))]
+    fn relight<'py>(&self, py: Python<'py>, flip_y: bool) -> PyResult<Bound<'py, PyArray3<f32>>> {
+        let out = guard_detached(py, "Relighter.relight", || self.run(flip_y))?;
+        let pixels = out.map_err(|e| match e {
+            PyErrLike::Engine(e) => engine_err(py, &e),
+            PyErrLike::Gpu(e) => crate::errors::gpu_err(py, &e),
+        })?;
+        let (w, h) = (self.stack.header.width as usize, self.stack.header.height as usize);
+        let array = Array3::from_shape_vec((h, w, 4), pixels).map_err(|e| {
+            new_err(py, "InternalError", format!("relit image of the wrong size: {e}"))
+        })?;
+        Ok(array.into_pyarray(py))
+    }
+
+    /// Wall time of the last relight() inside Rust, in milliseconds (sums and the copy out).
+    #[getter]
+    fn last_ms(&self) -> f64 {
+        self.lock().last_ms
+    }
+
+    /// Current material of every editable region: {name: {"kd", "ks", "ns"}}.
+    #[getter]
+    fn materials<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let st = self.lock();
+        let d = PyDict::new(py);
+        for (name, m) in self.editable.iter().zip(&st.materials) {
+            d.set_item(name, blinn_phong_dict(py, m)?)?;
+        }
+        Ok(d)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "<relume.Relighter {}×{} on the {} ({} editable regions)>",
+            self.stack.header.width,
+            self.stack.header.height,
+            self.device().to_uppercase(),
+            self.editable.len()
+        )
+    }
+}
