@@ -1,10 +1,12 @@
 """Edit-to-image latency inside Blender: slider change → pixels in the "Relume" image.
 
-    python blender_tests/bench_edit_latency.py [--size 512] [--edits 40] [--device cpu]
+    python blender_tests/bench_edit_latency.py [--scene cornell|box] [--size 512] [--edits 40] [--device cpu]
 
-Builds the test box scene at --size² (two editable materials, N_b = 6 bases, one bounce:
-the paper's configuration), bakes it at a low sample count (latency does not depend on
-samples), then changes the Floor's Roughness (and the Ball's Base Color) --edits times. Each
+Imports the assets Cornell scene (the paper's configuration: two editable regions, "White
+walls" and "Object", N_b = 6 bases, one bounce) at --size², driven by their Principled
+sliders, bakes it at a low sample count (latency does not depend on samples), then changes
+the walls' Roughness and the object's Base Color in turn, --edits times. (`--scene box`: the
+tests' box with an editable Floor and Ball instead.) Each
 edit is timed from the `default_value` assignment through `view_layer.update()` — Blender's
 depsgraph evaluation, Relume's handler, the relight and `image.pixels.foreach_set` — to the
 moment the image holds the new pixels. Prints JSON; nothing is asserted.
@@ -27,7 +29,7 @@ os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="relume-
 import bpy  # noqa: E402
 import numpy as np  # noqa: E402
 
-from conftest import addon_zip  # noqa: E402
+from conftest import ROOT, addon_zip  # noqa: E402
 from support.scenes import box_scene, clear_scene  # noqa: E402
 
 
@@ -37,6 +39,7 @@ def main() -> int:
     ap.add_argument("--edits", type=int, default=40)
     ap.add_argument("--device", default="cpu", choices=["cpu", "gpu", "auto"])
     ap.add_argument("--spp", type=int, default=2)
+    ap.add_argument("--scene", default="cornell", choices=["cornell", "box"])
     args = ap.parse_args()
 
     bpy.ops.extensions.package_install_files(filepath=str(addon_zip()), repo="user_default",
@@ -51,7 +54,16 @@ def main() -> int:
     tmp = tempfile.mkdtemp(prefix="relume-bench-")
     clear_scene()
     bpy.ops.wm.save_as_mainfile(filepath=os.path.join(tmp, "bench.blend"))
-    box_scene(resolution=args.size)
+    if args.scene == "cornell":
+        from support.scene_import import import_scene
+
+        import_scene(ROOT / "assets" / "cornell.scene.json", resolution=(args.size, args.size))
+        rough_mat, colour_mat = "White walls", "Object"
+        for name in (rough_mat, colour_mat):  # driven by the Principled sliders, not overrides
+            bpy.data.materials[name].relume.override = False
+    else:
+        box_scene(resolution=args.size)
+        rough_mat, colour_mat = "Floor", "Ball"
     settings = relume.BakeSettings(spp=args.spp, light_samples=1, indirect_samples=1, bounces=1,
                                    bases=6)
     t0 = time.perf_counter()
@@ -59,8 +71,8 @@ def main() -> int:
     bake_s = time.perf_counter() - t0
 
     img = bpy.data.images["Relume"]
-    floor = bpy.data.materials["Floor"].node_tree.nodes["Principled BSDF"].inputs["Roughness"]
-    ball = bpy.data.materials["Ball"].node_tree.nodes["Principled BSDF"].inputs["Base Color"]
+    floor = bpy.data.materials[rough_mat].node_tree.nodes["Principled BSDF"].inputs["Roughness"]
+    ball = bpy.data.materials[colour_mat].node_tree.nodes["Principled BSDF"].inputs["Base Color"]
     probe = np.empty(args.size * args.size * 4, np.float32)
     latencies, relights = [], []
     for i in range(args.edits):
@@ -70,7 +82,7 @@ def main() -> int:
         if i % 2 == 0:
             floor.default_value = 0.3 + 0.5 * ((i // 2) % 2)
         else:
-            ball.default_value = (0.2 + 0.6 * ((i // 2) % 2), 0.3, 0.8, 1.0)
+            ball.default_value = (0.6 - 0.4 * ((i // 2) % 2), 0.3, 0.8, 1.0)
         bpy.context.view_layer.update()
         latencies.append((time.perf_counter() - t0) * 1e3)
         relights.append(addon.runtime.RUNTIME.live.last_relight_ms)
@@ -81,6 +93,7 @@ def main() -> int:
     live = addon.runtime.RUNTIME.live
     print(json.dumps({
         "benchmark": "edit_to_image_latency",
+        "scene": args.scene,
         "size": [args.size, args.size],
         "device": live.relighter.device, "device_reason": live.relighter.device_reason,
         "layers": live.stack.layer_count, "stack_mb": round(live.stack.bytes / 1e6, 1),

@@ -12,6 +12,8 @@ import pytest
 
 from support.scenes import box_scene
 
+ROOT = __import__("pathlib").Path(__file__).resolve().parent.parent
+
 
 def _image():
     img = bpy.data.images["Relume"]
@@ -82,7 +84,7 @@ def test_cancel_mid_bake_then_rerun_leaves_one_valid_stack(addon, prefs, blend_d
     import relume
 
     box_scene(resolution=64)
-    prefs.spp = 64  # long enough to cancel halfway
+    prefs.spp = 1024  # seconds of work: long enough to cancel at 30 %
     folder = blend_dir / "relume"
 
     t0 = [None]
@@ -106,7 +108,7 @@ def test_cancel_mid_bake_then_rerun_leaves_one_valid_stack(addon, prefs, blend_d
 
     # Cancelling a rebake keeps the complete stack as it was.
     before = (folder / files[0]).read_bytes()
-    prefs.spp = 64
+    prefs.spp = 1024
     t0[0] = None
     with pytest.raises(addon.api.BakeError, match="cancelled"):
         addon.api.bake(progress=cancel_halfway)
@@ -116,14 +118,29 @@ def test_cancel_mid_bake_then_rerun_leaves_one_valid_stack(addon, prefs, blend_d
 
 def test_cancel_from_another_thread(addon, prefs, blend_dir):
     box_scene(resolution=64)
-    prefs.spp = 64
-    timer = threading.Timer(0.5, addon.api.cancel_bake)
-    timer.start()
+    prefs.spp = 4096  # minutes of work: only the cancel can end it within the test
+    cancelled_at = []
+
+    def cancel_once_running():
+        deadline = time.perf_counter() + 60
+        while time.perf_counter() < deadline:
+            session = addon.runtime.RUNTIME.session
+            if session is not None and session.state == "running":
+                time.sleep(0.3)
+                cancelled_at.append(time.perf_counter())
+                assert addon.api.cancel_bake()
+                return
+            time.sleep(0.01)
+
+    t = threading.Thread(target=cancel_once_running)
+    t.start()
     try:
         with pytest.raises(addon.api.BakeError, match="cancelled"):
             addon.api.bake()
+        assert cancelled_at and time.perf_counter() - cancelled_at[0] < 1.5
     finally:
-        timer.cancel()
+        t.join()
+    assert not (blend_dir / "relume").exists() or _stack_files(blend_dir / "relume") == []
 
 
 def test_preferences_bake_operator(addon, prefs, blend_dir):
@@ -146,7 +163,9 @@ def test_stale_stack_detected_and_never_used(addon, prefs, blend_dir):
     assert status["stale"] is not None
     with pytest.raises(addon.api.BakeError, match="stale"):
         addon.api.render(str(blend_dir / "stale.exr"))
-    assert bpy.ops.relume.render(filepath=str(blend_dir / "stale.exr")) == {"CANCELLED"}
+    # An operator that reports an error raises RuntimeError when called from Python.
+    with pytest.raises(RuntimeError, match="stale"):
+        bpy.ops.relume.render(filepath=str(blend_dir / "stale.exr"))
     assert not (blend_dir / "stale.exr").exists()
     # Toggling editability also changes what the stack holds.
     bpy.data.objects["Key"].location.z = 1.95
@@ -167,3 +186,50 @@ def test_stack_reloaded_when_the_file_opens(addon, prefs, blend_dir):
     status = addon.api.status()
     assert status["loaded"] and status["stale"] is None, status
     assert "Relume" in bpy.data.images
+
+
+def test_cornell_from_the_preferences_button_cancelled_halfway_then_rerun(addon, prefs, blend_dir):
+    """The issue's check: the assets Cornell scene baked by the Bake operator (the button in
+    the preferences and the Image Editor panel), cancelled halfway, then rerun to completion,
+    leaves exactly one valid stack."""
+    import relume
+
+    from support.scene_import import import_scene
+
+    import_scene(ROOT / "assets" / "cornell.scene.json", resolution=(128, 128))
+    prefs.preset = "preview"
+    folder = blend_dir / "relume"
+    seen = []
+
+    def cancel_halfway():
+        deadline = time.perf_counter() + 120
+        while time.perf_counter() < deadline:
+            session = addon.runtime.RUNTIME.session
+            if session is not None and session.state == "running":
+                frac = float(session.progress.get("fraction", 0.0))
+                if frac >= 0.5:
+                    seen.append((frac, time.perf_counter()))
+                    addon.api.cancel_bake()
+                    return
+            time.sleep(0.005)
+
+    t = threading.Thread(target=cancel_halfway)
+    t.start()
+    try:
+        assert bpy.ops.relume.bake() == {"CANCELLED"}
+    finally:
+        t.join()
+    assert seen and 0.5 <= seen[0][0] < 1.0, seen
+    assert time.perf_counter() - seen[0][1] < 1.5
+    assert addon.api.status()["bake_state"] == "cancelled"
+    assert not folder.exists() or _stack_files(folder) == [], "the cancelled bake left files"
+
+    assert bpy.ops.relume.bake() == {"FINISHED"}
+    files = _stack_files(folder)
+    assert len(files) == 1 and files[0].endswith(".relume.exr"), files
+    stack = relume.Stack.load(str(folder / files[0]))
+    stack.check_scene(addon.api.export().scene)
+    assert stack.editable_regions == ["Object", "White walls"]
+    assert (stack.width, stack.height) == (128, 128)
+    image = _image()
+    assert np.isfinite(image).all() and image[..., :3].max() > 0

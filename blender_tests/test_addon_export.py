@@ -143,7 +143,9 @@ def test_no_camera_is_a_clear_error(addon, prefs, blend_dir):
     bpy.context.scene.camera = None
     with pytest.raises(addon.exporter.scene_export.ExportError, match="no active camera"):
         addon.api.export()
-    assert bpy.ops.relume.export_scene(filepath=str(blend_dir / "x.scene.json")) == {"CANCELLED"}
+    with pytest.raises(RuntimeError, match="no active camera"):  # the operator's error report
+        bpy.ops.relume.export_scene(filepath=str(blend_dir / "x.scene.json"))
+    assert not (blend_dir / "x.scene.json").exists()
 
 
 def test_scene_file_written_for_the_command_line(addon, prefs, blend_dir):

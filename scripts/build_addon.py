@@ -33,7 +33,10 @@ def main() -> int:
     manifest = (ADDON / "blender_manifest.toml").read_text()
     version = next(l.split("=", 1)[1].strip().strip('"') for l in manifest.splitlines()
                    if l.startswith("version"))
-    manifest += f'\nwheels = ["./wheels/{wheels[0].name}"]\n'
+    # Top-level keys must precede the first [table] (here [permissions]) in TOML.
+    wheels_line = f'wheels = ["./wheels/{wheels[0].name}"]\n'
+    head, sep, tables = manifest.partition("\n[")
+    manifest = head.rstrip("\n") + "\n" + wheels_line + (sep + tables if sep else "")
     out_dir = pathlib.Path(args.out)
     out_dir.mkdir(parents=True, exist_ok=True)
     out = out_dir / f"relume-{version}.zip"

@@ -1,6 +1,9 @@
 #!/usr/bin/env bash
-# Every test: the Rust workspace (unit, integration and CLI tests) and the asset checks.
-# Works on a fresh machine with the Rust toolchain and Python 3.
+# Every test: the asset checks, the Rust workspace (unit, integration and CLI tests), the
+# Python bindings (core/py/tests, on the built wheel) and the Blender add-on (blender_tests,
+# on the real `bpy` module with the add-on installed from its zip by Blender's extension
+# installer). Works on a fresh machine with the Rust toolchain and Python 3 ≥ 3.11 with pip:
+# it installs what else it needs (Debian's lavapipe, and bpy, pytest, maturin from PyPI).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # Mesa's Vulkan drivers (probed by `--device auto`) complain on stderr without it.
@@ -21,5 +24,22 @@ elif command -v apt-get >/dev/null && [ "$(id -u)" = 0 ] \
 else
     echo "mesa-vulkan-drivers: could not be installed (no apt, not root, or no network): GPU tests will skip"
 fi
+echo "== Python packages (bpy 5.0.1, pytest, maturin)"
+PYTHON="${PYTHON:-python3}"
+"$PYTHON" - <<'PY' || "$PYTHON" -m pip install --quiet --disable-pip-version-check "bpy==5.0.1" "pytest>=7" "maturin>=1.16,<2"
+import importlib.util, sys
+missing = [m for m in ("bpy", "pytest", "maturin") if importlib.util.find_spec(m) is None]
+sys.exit(1 if missing else 0)
+PY
+status=0
 echo "== cargo test (workspace)"
-cargo test --workspace --no-fail-fast 2>&1
+cargo test --workspace --no-fail-fast 2>&1 || status=1
+echo "== the relume wheel and the Blender extension zip"
+bash scripts/build_addon.sh
+rm -rf build/py
+"$PYTHON" -m pip install --quiet --disable-pip-version-check --no-deps --target build/py dist/relume-*.whl
+echo "== Python bindings (core/py/tests)"
+PYTHONPATH="$PWD/build/py" "$PYTHON" -m pytest -q -p no:cacheprovider core/py/tests || status=1
+echo "== Blender add-on (blender_tests, bpy $("$PYTHON" -c 'import importlib.metadata as m; print(m.version("bpy"))'))"
+"$PYTHON" -m pytest -q -p no:cacheprovider -W ignore::DeprecationWarning blender_tests || status=1
+exit $status

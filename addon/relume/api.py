@@ -30,6 +30,10 @@ class BakeError(RuntimeError):
     """A bake that did not complete (cancelled or failed); the message says which and why."""
 
 
+class BakeCancelled(BakeError):
+    """The bake was cancelled (Esc, the Cancel button, `cancel_bake()`); nothing was lost."""
+
+
 def _ns_range(roughness_min: float, roughness_max: float) -> list[float]:
     import relume
 
@@ -123,6 +127,8 @@ def bake(context=None, progress=None, settings=None) -> dict:
             session.job.wait(5.0)
         raise
     print(f"Relume: {session.message}", flush=True)
+    if state == "cancelled":
+        raise BakeCancelled(f"Relume bake {session.message}")
     if state != "done":
         raise BakeError(f"Relume bake {session.message}")
     return session.report
@@ -161,7 +167,7 @@ def relight(context=None):
     if live.stack is None and not load_stack(context):
         raise BakeError(f"no usable Relume stack: {live.load_error or 'not baked yet'}")
     if live.stale_reason is not None:
-        raise BakeError(f"the Relume stack is stale ({live.stale_reason}); rebake")
+        raise BakeError(f"the Relume stack is stale: {live.stale_reason}")
     outcome = live.relight(current_params(), force=True)
     write_image(outcome.image)
     return outcome.image
@@ -175,7 +181,7 @@ def render(filepath: str, context=None, check_stale: bool = True) -> str:
 
     if check_stale and RUNTIME.live.stack is not None:
         if _check(context) is not None:
-            raise BakeError(f"the Relume stack is stale ({RUNTIME.live.stale_reason}); rebake")
+            raise BakeError(f"the Relume stack is stale: {RUNTIME.live.stale_reason}")
     image = relight(context)
     path = bpy.path.abspath(filepath)
     folder = os.path.dirname(path)
@@ -204,5 +210,6 @@ def status(context=None) -> dict:
         "bake_state": session.state if session else "idle",
         "bake_message": session.message if session else "",
         "last_latency_ms": live.last_latency_ms,
+        "relight_error": live.relight_error,
         "warnings": [str(w) for w in RUNTIME.warnings],
     }

@@ -68,8 +68,18 @@ def write_image(pixels: np.ndarray) -> bpy.types.Image:
 
 def relight_now(force: bool = False) -> bool:
     """Relight from the current material values; True when the image was updated."""
+    import relume
+
     t0 = time.perf_counter()
-    outcome = RUNTIME.live.relight(current_params(), force=force)
+    try:
+        outcome = RUNTIME.live.relight(current_params(), force=force)
+    except relume.RelumeError as e:
+        # A value the relighter refuses (an override with Kd + Ks > 1, say) or a failure in
+        # the relight: shown in the panel, never raised into Blender's handlers.
+        RUNTIME.live.relight_error = f"{type(e).__name__}: {e}"
+        _redraw_image_editors()
+        return False
+    RUNTIME.live.relight_error = None
     if outcome is None:
         return False
     write_image(outcome.image)

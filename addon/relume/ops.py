@@ -35,6 +35,9 @@ class RELUME_OT_bake(bpy.types.Operator):
         # Blocking path: background mode, scripts, and `bpy.ops.relume.bake()`.
         try:
             report = api.bake(context)
+        except api.BakeCancelled as e:
+            self.report({"WARNING"}, str(e))
+            return {"CANCELLED"}
         except _relume_error_types() as e:
             _report_warnings(self)
             self.report({"ERROR"}, str(e))

@@ -44,6 +44,8 @@ class RELUME_PT_image(bpy.types.Panel):
         live = RUNTIME.live
         draw_bake_controls(layout, context)
         layout.label(text=f"Device: {live.device_text}")
+        if live.relight_error:
+            layout.label(text=live.relight_error[:140], icon="ERROR")
         if live.last_latency_ms is not None:
             layout.label(text=f"Last relight: {live.last_latency_ms:.1f} ms")
         if RUNTIME.warnings:

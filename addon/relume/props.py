@@ -6,6 +6,23 @@ import bpy
 from bpy.props import BoolProperty, FloatProperty, FloatVectorProperty, PointerProperty
 
 
+# Changing a registered property of a material does not tag the material for the depsgraph,
+# so the depsgraph handler never sees these edits: they call the live relight (or the stale
+# check) themselves.
+def _relight_on_change(self, context) -> None:
+    from .live import request_relight
+
+    request_relight()
+
+
+def _stale_check_on_change(self, context) -> None:
+    from .live import request_stale_check
+    from .runtime import RUNTIME
+
+    if RUNTIME.live.stack is not None:
+        request_stale_check()
+
+
 class RelumeMaterialSettings(bpy.types.PropertyGroup):
     """Whether a material stays editable after the bake, and its optional direct values.
 
@@ -16,24 +33,29 @@ class RelumeMaterialSettings(bpy.types.PropertyGroup):
     """
 
     editable: BoolProperty(
-        name="Editable", default=False,
+        name="Editable", default=False, update=_stale_check_on_change,
         description="Keep this material editable after the Relume bake (relit live); "
                     "changing this needs a rebake")
     override: BoolProperty(
-        name="Override", default=False,
+        name="Override", default=False, update=_relight_on_change,
         description="Use the Blinn–Phong values below instead of the Principled BSDF's")
     kd: FloatVectorProperty(name="Kd", subtype="COLOR", size=3, min=0.0, max=1.0,
-                            default=(0.5, 0.5, 0.5), description="Diffuse albedo")
+                            default=(0.5, 0.5, 0.5), description="Diffuse albedo",
+                            update=_relight_on_change)
     ks: FloatVectorProperty(name="Ks", subtype="COLOR", size=3, min=0.0, max=1.0,
-                            default=(0.04, 0.04, 0.04), description="Specular albedo (Kd + Ks ≤ 1)")
+                            default=(0.04, 0.04, 0.04), description="Specular albedo (Kd + Ks ≤ 1)",
+                            update=_relight_on_change)
     ns: FloatProperty(name="ns", min=1e-3, max=1e6, default=30.0, soft_min=1.0, soft_max=1000.0,
-                      description="Blinn–Phong exponent (Principled roughness 0.5 ≈ 30)")
+                      description="Blinn–Phong exponent (Principled roughness 0.5 ≈ 30)",
+                      update=_relight_on_change)
     use_roughness_range: BoolProperty(
-        name="Roughness Range", default=False,
+        name="Roughness Range", default=False, update=_stale_check_on_change,
         description="Limit the roughness this material can take after the bake: a narrower "
                     "range needs fewer basis BRDFs (smaller stack, faster relight)")
-    roughness_min: FloatProperty(name="Min", min=0.0, max=1.0, default=0.3)
-    roughness_max: FloatProperty(name="Max", min=0.0, max=1.0, default=0.9)
+    roughness_min: FloatProperty(name="Min", min=0.0, max=1.0, default=0.3,
+                                 update=_stale_check_on_change)
+    roughness_max: FloatProperty(name="Max", min=0.0, max=1.0, default=0.9,
+                                 update=_stale_check_on_change)
 
 
 CLASSES = (RelumeMaterialSettings,)

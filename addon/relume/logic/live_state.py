@@ -31,6 +31,8 @@ class LiveState:
         self.stack_path = ""
         self.stale_reason: str | None = None
         self.load_error: str | None = None
+        #: Why the last live relight failed (a refused material value), for the panel.
+        self.relight_error: str | None = None
         self.applied: dict[str, RegionParams] = {}
         self.last_latency_ms: float | None = None
         self.last_relight_ms: float | None = None

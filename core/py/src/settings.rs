@@ -3,12 +3,13 @@
 //! resolution) and `passes` (progressive bake). Every field is checked when set: an unknown
 //! field or a bad value is a `ValueError` naming it.
 //!
-//! Presets: a `BakeSettings.preset(name, **overrides)` classmethod is to be added here when
-//! the engine's preset module lands (PRESETS-HOOK).
+//! Presets: `BakeSettings.preset(name, **overrides)` starts from the engine's named preset
+//! (draft, preview, final: [`relume_engine::bake::presets`]) and then applies the overrides.
 
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
+use relume_engine::bake::presets::Preset;
 use relume_engine::bake::settings::MAX_BOUNCES;
 use relume_engine::bake::{BakeSettings as Engine, IndirectSampling, LightGrouping};
 use relume_engine::brdf::BasisCount;
@@ -306,6 +307,35 @@ impl BakeSettings {
                     "give bases or basis_tolerance, not both (a tolerance picks the count)",
                 ));
             }
+            for (k, v) in fields.iter() {
+                let k: String = k.extract()?;
+                s.set(&k, &v)?;
+            }
+        }
+        s.check_range()?;
+        Ok(s)
+    }
+
+    /// `BakeSettings.preset("preview", bounces=0)`: a named preset (`"draft"`, `"preview"`,
+    /// `"final"`: eye, light and indirect samples, sampling, basis tolerance and resolution
+    /// scale; the README's table gives each one's measured time and error), then `overrides`.
+    #[staticmethod]
+    #[pyo3(signature = (name, **overrides))]
+    fn preset(name: &str, overrides: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
+        let preset = Preset::parse(name).ok_or_else(|| {
+            let names: Vec<_> = Preset::ALL.iter().map(|p| p.name()).collect();
+            PyValueError::new_err(format!(
+                "no Relume preset \"{name}\" (presets: {})",
+                names.join(", ")
+            ))
+        })?;
+        let mut s = BakeSettings {
+            engine: Engine::default(),
+            resolution_scale: 1.0,
+            passes: 1,
+        };
+        s.resolution_scale = preset.apply(&mut s.engine);
+        if let Some(fields) = overrides {
             for (k, v) in fields.iter() {
                 let k: String = k.extract()?;
                 s.set(&k, &v)?;

@@ -10,6 +10,7 @@ pub mod bench;
 pub mod context;
 pub mod drop;
 pub mod integrator;
+pub mod presets;
 pub mod progress;
 pub mod reference;
 pub mod settings;
