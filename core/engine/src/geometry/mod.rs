@@ -6,4 +6,5 @@ pub mod env_sampling;
 pub mod environment;
 pub mod lights;
 pub mod sampling;
+pub mod spherical_rect;
 pub mod texture;
