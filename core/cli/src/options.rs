@@ -11,6 +11,8 @@ use relume_engine::RelumeError;
 pub enum SamplingArg {
     Uniform,
     Mixture,
+    /// The mixture plus a per-tile guide map from a short first pass.
+    Guided,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -44,7 +46,7 @@ pub struct BakeOptions {
     /// 0: direct light only; 1: one indirect bounce (the paper).
     #[arg(long, default_value_t = 1)]
     pub bounces: u32,
-    /// Indirect sampling: uniform hemisphere (the paper) or cosine + lobes mixture.
+    /// Indirect sampling: uniform hemisphere (the paper), cosine + lobes mixture, or guided.
     #[arg(long, value_enum, default_value = "uniform")]
     pub sampling: SamplingArg,
     #[arg(long, default_value_t = 0)]
@@ -94,6 +96,7 @@ impl BakeOptions {
             sampling: match self.sampling {
                 SamplingArg::Uniform => IndirectSampling::Uniform,
                 SamplingArg::Mixture => IndirectSampling::Mixture,
+                SamplingArg::Guided => IndirectSampling::Guided,
             },
             seed: self.seed,
             resolution,

@@ -99,7 +99,8 @@ impl BakeSettings {
                 e.sampling = match s.as_str() {
                     "uniform" => IndirectSampling::Uniform,
                     "mixture" => IndirectSampling::Mixture,
-                    _ => return Err(bad(field, format!("\"{s}\" (expected \"uniform\" or \"mixture\")"))),
+                    "guided" => IndirectSampling::Guided,
+                    _ => return Err(bad(field, format!("\"{s}\" (expected \"uniform\", \"mixture\" or \"guided\")"))),
                 };
             }
             "seed" => {

@@ -8,6 +8,7 @@ use std::collections::HashMap;
 use std::sync::Arc;
 
 use crate::bake::settings::{BakeSettings, IndirectSampling, MAX_BOUNCES};
+use crate::bake::guide::GuideField;
 use crate::bake::signature::PathVertex;
 use crate::brdf::{BasisConfig, BlinnPhong, BrdfBasis};
 use crate::geometry::{bvh::SceneGeometry, camera::CameraRays, lights::LightSet, texture::Texture};
@@ -51,6 +52,9 @@ pub struct BakeContext {
     pub resolution: Resolution,
     pub settings: BakeSettings,
     pub clip_end: f32,
+    /// The guide maps of a guided bake (built by [`BakeContext::new`] when the settings ask
+    /// for [`IndirectSampling::Guided`]).
+    pub guide: Option<GuideField>,
 }
 
 impl BakeContext {
@@ -149,6 +153,7 @@ impl BakeContext {
             }
         }
         if settings.sampling == IndirectSampling::Uniform {
+            // Guided keeps the lobes: its non-guide half is the cosine + lobes mixture.
             for r in &mut regions {
                 r.mixture_lobes.clear();
             }
@@ -172,19 +177,27 @@ impl BakeContext {
         } else {
             f32::INFINITY
         };
-        Ok((
-            BakeContext {
-                geometry,
-                camera,
-                lights,
-                regions,
-                slot_vertex,
-                resolution,
-                settings: settings.clone(),
-                clip_end,
-            },
-            report,
-        ))
+        let mut ctx = BakeContext {
+            geometry,
+            camera,
+            lights,
+            regions,
+            slot_vertex,
+            resolution,
+            settings: settings.clone(),
+            clip_end,
+            guide: None,
+        };
+        if settings.sampling == IndirectSampling::Guided && settings.bounces >= 1 {
+            let materials = scene
+                .regions
+                .iter()
+                .filter(|r| r.editable)
+                .map(|r| r.material.to_blinn_phong())
+                .collect();
+            ctx.guide = Some(GuideField::build(&ctx, materials)?);
+        }
+        Ok((ctx, report))
     }
 
     /// Number of slots (editable bases + 1 fixed).

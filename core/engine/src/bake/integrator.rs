@@ -11,6 +11,8 @@ use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
 
 use crate::bake::context::{BakeContext, MAX_BASES};
+use crate::bake::guide::GUIDE_WEIGHT;
+use crate::geometry::env_sampling::EnvSampler;
 use crate::bake::settings::IndirectSampling;
 use crate::geometry::bvh::SurfaceHit;
 use crate::geometry::sampling::{
@@ -139,8 +141,9 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(
     let mut eye_values = [Rgb::ZERO; MAX_BASES];
     let mut bounce_light = [Rgb::ZERO; MAX_GROUPS * MAX_BASES];
     for _ in 0..settings.indirect_samples {
+        let guide = ctx.guide.as_ref().and_then(|g| g.sampler(px, py));
         let Some((wi, pdf)) =
-            sample_indirect(settings.sampling, &region.mixture_lobes, n, wo, &mut stream)
+            sample_indirect(settings.sampling, &region.mixture_lobes, guide, n, wo, &mut stream)
         else {
             continue;
         };
@@ -255,48 +258,99 @@ fn direct_light<B: VertexBrdf, T: Tracer>(
     (first, count)
 }
 
-/// Draws an indirect direction at a vertex with normal `n`: uniform (the paper) or the
-/// cosine + lobes mixture. Returns the direction and its solid-angle pdf; consumes 2
-/// (uniform) or 3 (mixture) random numbers always.
+/// Draws an indirect direction at a vertex with normal `n`: uniform (the paper), the cosine
+/// + lobes mixture, or (guided, where the pixel's tile has a guide map) [`GUIDE_WEIGHT`] of
+/// the map and the rest that mixture. Returns the direction and its solid-angle pdf (of the
+/// whole mixture); consumes 2 (uniform) or 3 (mixture, guided) random numbers always.
 pub fn sample_indirect(
     sampling: IndirectSampling,
     lobes: &[f32],
+    guide: Option<&EnvSampler>,
     n: Vec3,
     wo: Vec3,
     stream: &mut SampleStream,
 ) -> Option<(Vec3, f32)> {
-    match sampling {
-        IndirectSampling::Uniform => {
-            let (u1, u2) = stream.next2();
-            Some((to_world(n, uniform_hemisphere(u1, u2)), 1.0 / (2.0 * PI)))
-        }
-        IndirectSampling::Mixture => {
-            let pick = stream.next();
-            let (u1, u2) = stream.next2();
-            let cos_weight = if lobes.is_empty() { 1.0 } else { 0.5 };
-            let lobe_weight = (1.0 - cos_weight) / lobes.len().max(1) as f32;
-            let wi = if pick < cos_weight || lobes.is_empty() {
-                to_world(n, cosine_hemisphere(u1, u2))
-            } else {
-                let k = (((pick - cos_weight) / (1.0 - cos_weight)) * lobes.len() as f32) as usize;
-                let h = to_world(
-                    n,
-                    blinn_phong_half_vector(u1, u2, lobes[k.min(lobes.len() - 1)]),
-                );
-                2.0 * wo.dot(h) * h - wo
-            };
-            let cos = n.dot(wi);
-            if cos <= 0.0 {
-                return None;
-            }
-            let mut pdf = cos_weight * cos / PI;
-            let h = (wi + wo).normalize_or_zero();
-            if h != Vec3::ZERO {
-                for &ns in lobes {
-                    pdf += lobe_weight * blinn_phong_pdf(n.dot(h), wo.dot(h), ns);
-                }
-            }
-            Some((wi, pdf))
+    if sampling == IndirectSampling::Uniform {
+        let (u1, u2) = stream.next2();
+        return Some((to_world(n, uniform_hemisphere(u1, u2)), 1.0 / (2.0 * PI)));
+    }
+    let pick = stream.next();
+    let (u1, u2) = stream.next2();
+    let guide = guide.filter(|_| sampling == IndirectSampling::Guided);
+    let guide_weight = if guide.is_some() { GUIDE_WEIGHT } else { 0.0 };
+    let rest = 1.0 - guide_weight;
+    let cos_weight = if lobes.is_empty() { rest } else { 0.5 * rest };
+    let lobe_weight = (rest - cos_weight) / lobes.len().max(1) as f32;
+    let wi = if let (Some(g), true) = (guide, pick < guide_weight) {
+        g.sample(u1, u2).0
+    } else if pick < guide_weight + cos_weight || lobes.is_empty() {
+        to_world(n, cosine_hemisphere(u1, u2))
+    } else {
+        let f = (pick - guide_weight - cos_weight) / (rest - cos_weight);
+        let k = ((f * lobes.len() as f32) as usize).min(lobes.len() - 1);
+        let h = to_world(n, blinn_phong_half_vector(u1, u2, lobes[k]));
+        2.0 * wo.dot(h) * h - wo
+    };
+    let cos = n.dot(wi);
+    if cos <= 0.0 {
+        return None;
+    }
+    let mut pdf = cos_weight * cos / PI;
+    if let Some(g) = guide {
+        pdf += guide_weight * g.pdf(wi);
+    }
+    let h = (wi + wo).normalize_or_zero();
+    if h != Vec3::ZERO {
+        for &ns in lobes {
+            pdf += lobe_weight * blinn_phong_pdf(n.dot(h), wo.dot(h), ns);
         }
     }
+    Some((wi, pdf))
+}
+
+/// One sample of the guide pass ([`crate::bake::guide`]) for pixel (`px`, `py`): a
+/// cosine-distributed indirect direction at the eye hit and the luminance of the radiance
+/// that comes back along it (direct light reflected at the secondary hit by `brdf`, each
+/// light group's tint applied) divided by the direction's pdf. `None` when the eye ray or
+/// the indirect ray escapes (escaping indirect rays carry nothing in the bake either).
+pub fn guide_sample<B: VertexBrdf, T: Tracer>(
+    ctx: &BakeContext,
+    brdf: &B,
+    tracer: &mut T,
+    px: u32,
+    py: u32,
+    sample: u32,
+    seed: u64,
+) -> Option<(Vec3, f32)> {
+    let pixel = py as u64 * ctx.resolution.width as u64 + px as u64;
+    let mut stream = SampleStream::new(seed, pixel, sample);
+    let (jx, jy) = stream.next2();
+    let (origin, dir) = ctx.camera.ray(px as f32 + jx, py as f32 + jy);
+    let hit = tracer.intersect(ctx, origin, dir, 0.0, ctx.clip_end)?;
+    let n = hit.shading_normal;
+    let (u1, u2) = stream.next2();
+    let local = cosine_hemisphere(u1, u2);
+    let wi = to_world(n, local);
+    if local.z <= 1e-6 || hit.geometric_normal.dot(wi) <= 0.0 {
+        return None;
+    }
+    let hit2 = tracer.intersect(
+        ctx,
+        ctx.geometry.offset(hit.position, hit.geometric_normal),
+        wi,
+        0.0,
+        f32::INFINITY,
+    )?;
+    let mut values = [Rgb::ZERO; MAX_BASES];
+    let mut light = [Rgb::ZERO; MAX_GROUPS * MAX_BASES];
+    let (_, count) = direct_light(ctx, brdf, tracer, &hit2, -wi, &mut stream, &mut values, &mut light);
+    if count == 0 {
+        return None;
+    }
+    let mut radiance = Rgb::ZERO;
+    for (g, group) in ctx.lights.groups.iter().enumerate() {
+        radiance += light[g * MAX_BASES] * group.tint;
+    }
+    let luminance = 0.2126 * radiance.x + 0.7152 * radiance.y + 0.0722 * radiance.z;
+    Some((wi, luminance * PI / local.z))
 }

@@ -9,6 +9,7 @@
 pub mod bench;
 pub mod context;
 pub mod drop;
+pub mod guide;
 pub mod integrator;
 pub mod presets;
 pub mod progress;

@@ -16,6 +16,10 @@ pub enum IndirectSampling {
     /// A mixture: ½ cosine-weighted + ½ spread over Blinn–Phong lobes covering the region's
     /// ns range (4 exponents, log-spaced), its pdf evaluated exactly.
     Mixture,
+    /// The mixture plus a guide: a first pass records incoming indirect radiance per screen
+    /// tile ([`crate::bake::guide`]); half of the directions are drawn from that map, the
+    /// other half from the cosine + lobes mixture; pdf exact.
+    Guided,
 }
 
 impl IndirectSampling {
@@ -24,6 +28,7 @@ impl IndirectSampling {
         match self {
             IndirectSampling::Uniform => "uniform",
             IndirectSampling::Mixture => "mixture",
+            IndirectSampling::Guided => "guided",
         }
     }
 }

@@ -33,7 +33,7 @@ pub struct StackHeader {
     pub spp: u32,
     pub light_samples: u32,
     pub bounces: u32,
-    /// Indirect sampling: "uniform" (the paper) or "mixture".
+    /// Indirect sampling: "uniform" (the paper), "mixture" or "guided".
     pub sampling: String,
     pub seed: u64,
     pub regions: Vec<RegionInfo>,

@@ -72,7 +72,7 @@ class BakeSettings:
     light_samples: int
     indirect_samples: int
     bounces: int
-    sampling: Literal["uniform", "mixture"]
+    sampling: Literal["uniform", "mixture", "guided"]
     seed: int
     resolution: tuple[int, int] | None
     resolution_scale: float

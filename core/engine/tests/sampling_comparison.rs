@@ -1,0 +1,120 @@
+//! Equal-sample and equal-time comparison of the indirect samplings on the assets scenes:
+//! the paper's uniform hemisphere (with surface-sampled area lights and a cosine-sampled
+//! world, as the paper had), Relume's mixture (cosine + basis lobes, area lights by solid
+//! angle, world by hierarchical warping) and the guided mixture (plus a per-tile map of
+//! incoming light from a short first pass). RMSE against a converged render (true BRDF, one
+//! bounce), averaged over seeds; the variance reduction is the squared RMSE ratio.
+//!
+//! `cargo test --release --test sampling_comparison -- --nocapture` prints the table.
+
+use std::path::Path;
+use std::time::Instant;
+
+use relume_engine::bake::context::BakeContext;
+use relume_engine::bake::progress::Progress;
+use relume_engine::bake::reference::{render_with_context, ReferenceBrdf};
+use relume_engine::bake::{BakeSettings, IndirectSampling};
+use relume_engine::brdf::BlinnPhong;
+use relume_engine::geometry::lights::{AreaSampling, WorldSampling};
+use relume_engine::scene::file::load_scene;
+use relume_engine::scene::{Resolution, Scene};
+
+fn scene(name: &str) -> Scene {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../../assets/{name}.scene.json"));
+    load_scene(&path).unwrap()
+}
+
+#[derive(Clone, Copy, PartialEq, Debug)]
+enum Method {
+    Paper,
+    Mixture,
+    Guided,
+}
+
+/// Renders at 64×48-ish (the scene's aspect) with `spp` eye samples; returns RGB and seconds
+/// (guide pass included).
+fn render(scene: &Scene, method: Method, spp: u32, seed: u64) -> (Vec<f32>, f64) {
+    let (w, h) = (scene.resolution.width, scene.resolution.height);
+    let width = 64u32;
+    let height = ((width as f64 * h as f64 / w as f64).round() as u32).max(1);
+    let settings = BakeSettings {
+        spp,
+        light_samples: 1,
+        indirect_samples: 1,
+        seed,
+        sampling: match method {
+            Method::Paper => IndirectSampling::Uniform,
+            Method::Mixture => IndirectSampling::Mixture,
+            Method::Guided => IndirectSampling::Guided,
+        },
+        resolution: Some(Resolution { width, height }),
+        ..Default::default()
+    };
+    let t = Instant::now();
+    let (mut ctx, _) = BakeContext::new(scene, &settings).unwrap();
+    if method == Method::Paper {
+        ctx.lights.set_area_sampling(AreaSampling::Area);
+        ctx.lights.set_world_sampling(WorldSampling::Cosine);
+    }
+    let materials: Vec<BlinnPhong> = scene
+        .regions
+        .iter()
+        .filter(|r| r.editable)
+        .map(|r| r.material.to_blinn_phong())
+        .collect();
+    let img = render_with_context(&ctx, &materials, ReferenceBrdf::True, &Progress::new()).unwrap();
+    let secs = t.elapsed().as_secs_f64();
+    (img.rgba.chunks(4).flat_map(|p| p[..3].to_vec()).collect(), secs)
+}
+
+fn rmse(a: &[f32], b: &[f32]) -> f64 {
+    let s: f64 = a.iter().zip(b).map(|(x, y)| ((x - y) as f64).powi(2)).sum();
+    (s / a.len() as f64).sqrt()
+}
+
+fn mean(v: &[f32]) -> f64 {
+    v.iter().map(|x| *x as f64).sum::<f64>() / v.len() as f64
+}
+
+#[test]
+fn relume_sampling_against_the_papers_at_equal_samples_and_time() {
+    let spp = 8;
+    let seeds = [1u64, 2, 3, 4];
+    let mut rows = Vec::new();
+    for name in ["cornell", "ring", "hdri", "textured"] {
+        let s = scene(name);
+        let (reference, _) = render(&s, Method::Mixture, 512, 1000);
+        let mut results = Vec::new();
+        for method in [Method::Paper, Method::Mixture, Method::Guided] {
+            let (mut e2, mut secs, mut bias) = (0.0, 0.0, 0.0);
+            for &seed in &seeds {
+                let (img, t) = render(&s, method, spp, seed);
+                assert!(img.iter().all(|v| v.is_finite() && *v >= -1e-6), "{name} {method:?}");
+                e2 += rmse(&img, &reference).powi(2);
+                secs += t;
+                bias += mean(&img);
+            }
+            let n = seeds.len() as f64;
+            results.push((method, (e2 / n).sqrt(), secs / n, bias / n));
+        }
+        let paper = results[0];
+        for &(method, r, t, m) in &results {
+            let var_red = (paper.1 / r).powi(2);
+            let time_red = var_red * paper.2 / t;
+            println!(
+                "{name:>8} {method:>8?}: RMSE {r:.5}  time {t:.3} s  mean {m:.5} (ref {:.5})  \
+                 variance ÷{var_red:.2} at equal samples, ÷{time_red:.2} at equal time",
+                mean(&reference)
+            );
+            // Every method is unbiased: its mean over seeds matches the converged mean
+            // within what 4 × 8 spp of noise allow (2 % of the image mean, checked loosely).
+            assert!((m - mean(&reference)).abs() < 0.03 * mean(&reference) + 1e-4, "{name} {method:?}: {m}");
+        }
+        rows.push((name, results));
+    }
+    // The issue's aim: ≥ 2× lower variance than the paper's sampling at equal samples on the
+    // HDRI scene (world warping) — checked; the other scenes' figures are printed.
+    let hdri = &rows.iter().find(|r| r.0 == "hdri").unwrap().1;
+    let factor = (hdri[0].1 / hdri[1].1).powi(2);
+    assert!(factor >= 2.0, "hdri: mixture reduces the variance only {factor:.2}×");
+}
