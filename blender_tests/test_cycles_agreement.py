@@ -9,8 +9,10 @@ regions through the add-on's Kd/Ks override). Cycles settings and why: support/c
 Pass criterion, per case: the relative L2 difference between the Relume image and the Cycles
 reference is at most the noise floor of the two — sqrt(σ_cycles² + σ_relume²), both measured
 in the same run — plus a stated margin (MARGIN below) for the small known differences of the
-two renderers that are not noise. Each case also checks that the test has teeth: the same
-Relume image scaled by 1 + 3·tolerance must fail it.
+two renderers that are not noise. The same is checked on means over 8×8-pixel tiles, whose
+noise floor is ~8× lower (0.15–0.5 %), with BLOCK_MARGIN: that is the comparison that would
+see a unit, falloff, cone or colour error of a percent. Each check also proves it has teeth:
+the same Relume image scaled by 1 + 3·tolerance must fail it.
 
 Resolution is reduced (128² for the Cornell box, 96² for the light cases) to keep the suite's
 Cycles time to a few minutes on 2 cores. Figures go to stdout (`pytest -s`) and to
@@ -47,6 +49,9 @@ MARGIN = 0.004
 #: Tile size of the second comparison: means over BLOCK² pixels cut the noise by about BLOCK
 #: and keep any low-frequency bias (units, falloff, cone, colour), so that test is the tight one.
 BLOCK = 8
+#: The tiles' margin: the known systematic differences above are ≤ 0.1 % each; the floor
+#: estimate from 144–256 tiles × 3 channels is itself uncertain by ~5–10 % of a 0.15–0.5 % floor.
+BLOCK_MARGIN = 0.002
 
 _RESULTS: dict[str, dict] = {}
 
@@ -71,18 +76,18 @@ def _relume_image(addon, tmp: pathlib.Path, seed: int, name: str, bounces: int =
     return image, bake_s, report
 
 
-def _agreement(r0, r1, c1, c2) -> dict:
+def _agreement(r0, r1, c1, c2, margin: float) -> dict:
     """Relative L2 of Relume (seed 0) against the Cycles mean, and the noise floor."""
     reference = 0.5 * (c1 + c2)
     sigma_c = cy.noise_of_mean(c1, c2)
     sigma_r = cy.noise_of_one(r0, r1)
     floor = math.hypot(sigma_c, sigma_r)
     return {"rel_l2": cy.rel_l2(r0, reference), "sigma_cycles": sigma_c, "sigma_relume": sigma_r,
-            "noise_floor": floor, "tolerance": floor + MARGIN}
+            "noise_floor": floor, "tolerance": floor + margin}
 
 
 def compare(addon, tmp: pathlib.Path, name: str, spp: int, bounces: int = 1,
-            extra: dict | None = None) -> dict:
+            extra: dict | None = None, check: bool = True) -> dict:
     """Render the current scene with Cycles (2 × spp/2) and Relume (final, 2 seeds); assert
     agreement within the noise floor plus MARGIN, per pixel and over BLOCK² tiles; return and
     record the figures."""
@@ -95,8 +100,8 @@ def compare(addon, tmp: pathlib.Path, name: str, spp: int, bounces: int = 1,
     assert reference.shape == r0.shape, (reference.shape, r0.shape)
     assert np.isfinite(reference).all() and np.isfinite(r0).all() and np.isfinite(r1).all()
     assert reference.max() > 0 and r0.max() > 0
-    pixel = _agreement(r0, r1, c1, c2)
-    blocks = _agreement(*(cy.block_mean(x, BLOCK) for x in (r0, r1, c1, c2)))
+    pixel = _agreement(r0, r1, c1, c2, MARGIN)
+    blocks = _agreement(*(cy.block_mean(x, BLOCK) for x in (r0, r1, c1, c2)), BLOCK_MARGIN)
     figures = {
         "resolution": list(reference.shape[:2]),
         "bounces": bounces,
@@ -114,12 +119,14 @@ def compare(addon, tmp: pathlib.Path, name: str, spp: int, bounces: int = 1,
     _RESULTS[name] = figures
     print(f"\n[cycles agreement] {name}: " + ", ".join(
         f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in figures.items()))
+    if not check:
+        return figures
     for what, f, (a, ref) in (("per pixel", pixel, (r0, reference)),
                               (f"over {BLOCK}x{BLOCK} tiles", blocks,
                                (cy.block_mean(r0, BLOCK), cy.block_mean(reference, BLOCK)))):
         assert f["rel_l2"] <= f["tolerance"], (
             f"{name}: Relume differs from Cycles {what} by {f['rel_l2']:.3%} (rel. L2), beyond the "
-            f"noise floor {f['noise_floor']:.3%} + margin {MARGIN:.1%}; mean ratio "
+            f"noise floor {f['noise_floor']:.3%} + margin {f['tolerance'] - f['noise_floor']:.1%}; mean ratio "
             f"{figures['mean_ratio_relume_over_cycles']:.4f}")
         # Teeth: a brightness error of 3 × the tolerance must not pass.
         assert cy.rel_l2(a * (1.0 + 3.0 * f["tolerance"]), ref) > f["tolerance"]
@@ -136,8 +143,11 @@ def test_cornell_diffuse_agrees_with_cycles(addon, prefs, blend_dir, results_fil
 
 
 @pytest.mark.xfail(reason="Relume's own noise at the final preset (128 spp) on the Cornell box is "
-                          "≈ 3.5 % rel. L2 per pixel, above the issue's 2 % goal: its area lights "
-                          "are sampled uniformly on their surface, Cycles' by solid angle",
+                          "≈ 3.5 % rel. L2 per pixel, above the issue's 2 % goal. Its light "
+                          "sampling has ≈ 29× Cycles' variance per sample (direct only, 1024 "
+                          "samples: 1.0 % vs 0.19 %), most likely i.i.d. random numbers and area lights "
+                          "sampled uniformly on their surface, against Cycles' Sobol sequence "
+                          "and solid-angle sampling",
                    strict=False)
 def test_cornell_noise_floor_meets_the_2_percent_goal():
     f = _RESULTS.get("cornell_diffuse_b1")
@@ -157,3 +167,32 @@ def test_hdri_world_agrees_with_cycles(addon, prefs, blend_dir, results_file):
     cy.open_scene(LIGHT_RES)
     set_world({"type": "equirect", "image": cy.sky_image(), "strength": 1.0})
     compare(addon, blend_dir, "world_hdri", LIGHT_SPP)
+
+
+def test_glossy_model_difference_is_recorded(addon, prefs, blend_dir, results_file):
+    """Principled BSDFs in both renderers: Cycles renders GGX (multiscatter) with Fresnel,
+    Relume the closest Blinn–Phong of the core's mapping (α = r², ns = 2/α² − 2; metallic →
+    Ks from the base colour, dielectric → F0 from the IOR; principled.rs). The difference is
+    model mismatch, recorded as a figure, not a failure; the test checks finiteness and a
+    loose sanity bound (rel. L2 ≤ 50 %, mean within ±25 %) that only a broken mapping —
+    a lobe in the wrong place, a unit error — would miss."""
+    from support.scenes import principled_material
+
+    cy.open_scene(LIGHT_RES)
+    cy.add_light("area")
+    ball = principled_material("Gold", (0.9, 0.6, 0.3), roughness=0.35, metallic=1.0, editable=True)
+    floor = principled_material("Satin", (0.5, 0.5, 0.5), roughness=0.3)
+    bpy.data.objects["Sphere"].data.materials[0] = ball
+    bpy.data.objects["Floor"].data.materials[0] = floor
+    bpy.context.view_layer.update()
+    import relume
+
+    mapping = {name: relume.principled_to_blinn_phong(col, metallic=m, roughness=r)
+               for name, col, m, r in (("Gold", (0.9, 0.6, 0.3), 1.0, 0.35),
+                                       ("Satin", (0.5, 0.5, 0.5), 0.0, 0.3))}
+    f = compare(addon, blend_dir, "glossy_principled", LIGHT_SPP, check=False,
+                extra={"mapping": {k: {kk: (list(vv) if isinstance(vv, (list, tuple)) else vv)
+                                       for kk, vv in v.items()} for k, v in mapping.items()}})
+    assert math.isfinite(f["rel_l2"]) and math.isfinite(f["block8_rel_l2"])
+    assert f["rel_l2"] <= 0.5, f
+    assert 0.75 <= f["mean_ratio_relume_over_cycles"] <= 1.25, f
