@@ -3,8 +3,9 @@
 Every case renders one Blender scene twice with Cycles on the CPU (two seeds, half the
 samples each: their mean is the reference and their difference its noise) and bakes it twice
 through the add-on with the "final" preset (two seeds: the first is the image compared, the
-difference is its noise), then relights it with the scene's materials (diffuse; editable
-regions through the add-on's Kd/Ks override). Cycles settings and why: support/cycles.py.
+difference is its noise), then relights it with the scene's materials (diffuse, but for the
+recorded glossy case; editable regions through the add-on's Kd/Ks override). Cycles
+settings and why: support/cycles.py.
 
 Pass criterion, per case: the relative L2 difference between the Relume image and the Cycles
 reference is at most the noise floor of the two — sqrt(σ_cycles² + σ_relume²), both measured
