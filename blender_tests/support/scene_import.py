@@ -37,12 +37,29 @@ def _matrix_pointing(position, direction) -> mathutils.Matrix:
     return rot
 
 
-def _material(region: dict) -> bpy.types.Material:
+def diffuse_version(m: dict) -> dict:
+    """The material made diffuse with the same total albedo: Blinn–Phong Kd + Ks (clamped to
+    1), Principled its base colour; Ks = 0."""
+    if m["model"] == "blinn_phong":
+        kd = [min(1.0, a + b) for a, b in zip(m["kd"], m["ks"])]
+    else:
+        kd = list(m["base_color"])
+    return {"model": "blinn_phong", "kd": kd, "ks": [0.0, 0.0, 0.0], "ns": 1.0}
+
+
+def _material(region: dict, diffuse_only: bool = False) -> bpy.types.Material:
     mat = bpy.data.materials.new(region["name"])
     mat.use_nodes = True
     tree = mat.node_tree
-    m = region["material"]
+    m = diffuse_version(region["material"]) if diffuse_only else region["material"]
     out = tree.nodes["Material Output"]
+    if diffuse_only and region.get("editable", False):
+        # Relume relights an editable region with the override (Kd, Ks = 0); the node tree
+        # below (a Diffuse BSDF of the same Kd) is what Cycles renders and what the bake saw.
+        mat.relume.kd = m["kd"]
+        mat.relume.ks = (0.0, 0.0, 0.0)
+        mat.relume.ns = 1.0
+        mat.relume.override = True
     if m["model"] == "blinn_phong" and max(m["ks"]) == 0.0:
         tree.nodes.remove(tree.nodes["Principled BSDF"])
         diffuse = tree.nodes.new("ShaderNodeBsdfDiffuse")
@@ -102,11 +119,62 @@ def _light(i: int, light: dict) -> None:
     bpy.context.scene.collection.objects.link(obj)
 
 
-def import_scene(path: str | pathlib.Path, resolution: tuple[int, int] | None = None):
-    """Add the scene file's meshes, materials, lights, world and camera to the current scene."""
+def _equirect_image(image: dict, base: pathlib.Path) -> bpy.types.Image:
+    """A float Blender image (scene linear) from a scene file's Image (inline or path)."""
+    import numpy as np
+
+    if "rgb" in image:
+        w, h = int(image["width"]), int(image["height"])
+        rgb = np.asarray(image["rgb"], dtype=np.float32).reshape(h, w, 3)
+    else:
+        import relume
+
+        path = pathlib.Path(image["path"])
+        rgba = np.asarray(relume.read_exr(str(path if path.is_absolute() else base / path)))
+        h, w = rgba.shape[:2]
+        rgb = rgba[..., :3].astype(np.float32)
+    img = bpy.data.images.new("Relume test sky", w, h, alpha=False, float_buffer=True)
+    img.colorspace_settings.name = "Linear Rec.709"
+    rgba = np.ones((h, w, 4), np.float32)
+    rgba[..., :3] = rgb[::-1]  # the file is top row first, Blender bottom row first
+    img.pixels.foreach_set(rgba.ravel())
+    img.pack()
+    return img
+
+
+def set_world(data_world: dict, base: pathlib.Path = pathlib.Path(".")) -> bpy.types.World:
+    """The scene's world: a Background colour, or an Environment Texture (equirectangular,
+    Blender's default mapping, linear interpolation) for an `equirect` world."""
+    world = bpy.data.worlds.new("World")
+    world.use_nodes = True
+    bg = world.node_tree.nodes["Background"]
+    w = data_world
+    kind = w.get("type", "color")
+    if kind == "color":
+        bg.inputs["Color"].default_value = (*w["color"], 1.0)
+    elif kind == "equirect":
+        env = world.node_tree.nodes.new("ShaderNodeTexEnvironment")
+        env.image = _equirect_image(w["image"], base)
+        env.interpolation = "Linear"
+        env.projection = "EQUIRECTANGULAR"
+        world.node_tree.links.new(env.outputs["Color"], bg.inputs["Color"])
+    else:
+        raise ValueError(f"world type {kind!r} is not imported by the tests")
+    bg.inputs["Strength"].default_value = w.get("strength", 1.0)
+    bpy.context.scene.world = world
+    return world
+
+
+def import_scene(path: str | pathlib.Path, resolution: tuple[int, int] | None = None,
+                 diffuse_only: bool = False):
+    """Add the scene file's meshes, materials, lights, world and camera to the current scene.
+
+    `diffuse_only`: every region becomes diffuse with its total albedo (`diffuse_version`):
+    a Diffuse BSDF in Blender, and editable regions also get the add-on's override with that
+    Kd and Ks = 0 (so Relume relights them diffuse too)."""
     data = json.loads(pathlib.Path(path).read_text())
     scene = bpy.context.scene
-    materials = [_material(r) for r in data["regions"]]
+    materials = [_material(r, diffuse_only) for r in data["regions"]]
     for mesh_data in data["meshes"]:
         mesh = bpy.data.meshes.new(mesh_data["name"])
         mesh.from_pydata([tuple(p) for p in mesh_data["positions"]], [],
@@ -125,15 +193,7 @@ def import_scene(path: str | pathlib.Path, resolution: tuple[int, int] | None = 
         scene.collection.objects.link(obj)
     for i, light in enumerate(data.get("lights", [])):
         _light(i, light)
-    world = bpy.data.worlds.new("World")
-    world.use_nodes = True
-    bg = world.node_tree.nodes["Background"]
-    w = data.get("world", {"type": "color", "color": [0, 0, 0]})
-    if w.get("type", "color") != "color":
-        raise ValueError("only a world colour is imported by the tests")
-    bg.inputs["Color"].default_value = (*w["color"], 1.0)
-    bg.inputs["Strength"].default_value = w.get("strength", 1.0)
-    scene.world = world
+    set_world(data.get("world", {"type": "color", "color": [0, 0, 0]}), pathlib.Path(path).parent)
     c = data["camera"]
     cam_data = bpy.data.cameras.new("Camera")
     cam_data.type = "PERSP" if c["projection"] == "perspective" else "ORTHO"
