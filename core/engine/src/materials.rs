@@ -185,7 +185,15 @@ pub fn parse_materials(json: &str) -> Result<MaterialsFile> {
         };
         let known = serde_json::to_value(spec)
             .map_err(|e| RelumeError::Materials(format!("region {name:?}: {e}")))?;
-        let known = known.as_object().cloned().unwrap_or_default();
+        let mut known = known.as_object().cloned().unwrap_or_default();
+        if let MaterialSpec::Principled(_) = spec {
+            // Subsurface fields at their defaults are not serialised; they are still known.
+            for k in crate::brdf::Subsurface::KEYS {
+                known
+                    .entry(k.to_string())
+                    .or_insert(serde_json::Value::Null);
+            }
+        }
         if let Some(bad) = fields.keys().find(|k| !known.contains_key(*k)) {
             let names: Vec<&str> = known
                 .keys()
@@ -263,6 +271,7 @@ mod tests {
             }),
             basis: None,
             textured: false,
+            subsurface: None,
         }
     }
 
@@ -290,7 +299,7 @@ mod tests {
         );
         assert_eq!(
             m.regions["Walls"],
-            MaterialSpec::Principled(Principled {
+            MaterialSpec::principled(Principled {
                 base_color: [0.8; 3],
                 metallic: 0.0,
                 roughness: 0.4,

@@ -18,7 +18,96 @@
 //! - **Weight.** The surface's diffuse is scaled by `1 − w·(1 − metallic)` at the eye and the
 //!   subsurface term by `w·(1 − metallic)` (metals do not scatter below the surface).
 
+use serde::{Deserialize, Serialize};
+
 use super::dipole::{total_reflectance, DipoleParams};
+use crate::{RelumeError, Result};
+
+/// Blender's Principled subsurface inputs (materials and scene files: `subsurface_weight`,
+/// `subsurface_radius`, `subsurface_scale`, beside the Principled fields). Defaults are
+/// Blender's: weight 0, radius (1, 0.2, 0.1), scale 0.05. Default values are not written
+/// out, so scenes and stacks without translucency serialise (and hash) as before.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq)]
+pub struct Subsurface {
+    /// "Subsurface Weight" ∈ [0, 1]: the share of the diffuse that scatters below the surface.
+    #[serde(default, rename = "subsurface_weight", skip_serializing_if = "is_zero")]
+    pub weight: f32,
+    /// "Subsurface Radius" (RGB, ≥ 0): mean free path per channel in units of `scale`.
+    #[serde(
+        default = "default_radius",
+        rename = "subsurface_radius",
+        skip_serializing_if = "is_default_radius"
+    )]
+    pub radius: [f32; 3],
+    /// "Subsurface Scale" (≥ 0, scene units): multiplies the radius.
+    #[serde(
+        default = "default_scale",
+        rename = "subsurface_scale",
+        skip_serializing_if = "is_default_scale"
+    )]
+    pub scale: f32,
+}
+
+fn is_zero(x: &f32) -> bool {
+    *x == 0.0
+}
+fn default_radius() -> [f32; 3] {
+    [1.0, 0.2, 0.1]
+}
+fn is_default_radius(r: &[f32; 3]) -> bool {
+    *r == default_radius()
+}
+fn default_scale() -> f32 {
+    0.05
+}
+fn is_default_scale(s: &f32) -> bool {
+    *s == default_scale()
+}
+
+impl Default for Subsurface {
+    fn default() -> Self {
+        Subsurface {
+            weight: 0.0,
+            radius: default_radius(),
+            scale: default_scale(),
+        }
+    }
+}
+
+impl Subsurface {
+    /// The JSON keys of these fields (the materials file accepts them on "principled").
+    pub const KEYS: [&'static str; 3] =
+        ["subsurface_weight", "subsurface_radius", "subsurface_scale"];
+
+    /// Errors (naming `"{what}.field"`): weight outside [0, 1], a negative or non-finite
+    /// radius or scale.
+    pub fn validate(&self, what: &str) -> Result<()> {
+        if !(0.0..=1.0).contains(&self.weight) {
+            return Err(RelumeError::invalid(
+                format!("{what}.subsurface_weight"),
+                format!("must be in [0, 1], got {}", self.weight),
+            ));
+        }
+        if self.radius.iter().any(|r| !r.is_finite() || *r < 0.0) {
+            return Err(RelumeError::invalid(
+                format!("{what}.subsurface_radius"),
+                format!("must be finite and ≥ 0, got {:?}", self.radius),
+            ));
+        }
+        if !self.scale.is_finite() || self.scale < 0.0 {
+            return Err(RelumeError::invalid(
+                format!("{what}.subsurface_scale"),
+                format!("must be finite and ≥ 0, got {}", self.scale),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Mean free path `radius_c · scale` per channel (scene units).
+    pub fn mean_free_paths(&self) -> [f64; 3] {
+        self.radius.map(|r| r as f64 * self.scale as f64)
+    }
+}
 
 /// Largest reduced albedo used: `1 − 10⁻⁶`, so σa > 0 and the profile decays (σ_tr finite).
 pub const ALPHA_MAX: f64 = 1.0 - 1e-6;

@@ -11,14 +11,17 @@
 //! - [`dipole`]: Rd(r, σ), its closed-form disc integral, the area-averaged kernel, Fresnel.
 //! - [`mapping`]: Blender's Subsurface Weight / Radius / Scale / IOR / Base Color → σ.
 //! - [`basis`]: the PCA basis b_k(r), the projection s_k(σ), the error table.
+//! - [`coefficients`]: a translucent region's slot layout and relight weights.
 //! - [`samples`]: surface samples of a translucent region and their irradiance.
 //! - [`tree`]: the hierarchical (octree) evaluation of B_k at a pixel (Jensen & Buhler 2002).
 
 pub mod basis;
+pub mod coefficients;
 pub mod dipole;
 pub mod mapping;
 pub mod samples;
 pub mod tree;
 
 pub use basis::{SssBasis, SssBasisConfig, SssErrorRow, MAX_SSS_BASES};
+pub use coefficients::{region_slot_coefficients, SubsurfaceInfo};
 pub use dipole::DipoleParams;
