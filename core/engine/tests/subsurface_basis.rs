@@ -130,3 +130,59 @@ fn coefficients_reconstruct_profiles_and_extremes_stay_finite() {
         t.elapsed().as_secs_f64() * 1e6 / n as f64
     );
 }
+
+#[test]
+fn blurred_profile_keeps_the_total_reflectance() {
+    // ∫ (B·Rd)(r) 2πr dr = total reflectance (the blur moves light, never loses it), and
+    // the K-term reconstruction integrates to it as well.
+    let cfg = SssBasisConfig {
+        rho: 0.0088,
+        r_max: 5.66,
+        mfp_min: 0.01,
+        mfp_max: 0.1,
+        eta_min: 1.0,
+        eta_max: 2.0,
+        bases: None,
+        tolerance: 1e-4,
+    };
+    let b = SssBasis::build(&cfg).unwrap();
+    let mut c = vec![0.0; b.count()];
+    for (mfp, ap, eta) in [
+        (0.01, 0.9, 1.5),
+        (0.01, 0.99, 1.5),
+        (0.01, 0.999, 1.5),
+        (0.05, 0.5, 1.0),
+        (0.1, 0.999, 1.9),
+    ] {
+        let p = DipoleParams::from_mfp(mfp, ap, eta);
+        let prof = b.blurred_profile_fn(&p);
+        b.coefficients(&p, &mut c);
+        let (mut m_blur, mut m_pca) = (0.0, 0.0);
+        let n = 200_000;
+        let rmax = 1.5f64;
+        for i in 0..n {
+            let r0 = rmax * (i as f64 / n as f64).powi(2);
+            let r1 = rmax * ((i + 1) as f64 / n as f64).powi(2);
+            let r = 0.5 * (r0 + r1);
+            let da = std::f64::consts::PI * (r1 * r1 - r0 * r0);
+            m_blur += prof(r) * da;
+            m_pca += b.reconstruct(&c, r as f32) * da;
+        }
+        println!(
+            "mfp {mfp} α′ {ap} η {eta}: total {:.5}, blurred {:.5}, PCA {:.5}",
+            p.total(),
+            m_blur,
+            m_pca
+        );
+        assert!(
+            (m_blur / p.total() - 1.0).abs() < 2e-3,
+            "{m_blur} vs {}",
+            p.total()
+        );
+        assert!(
+            (m_pca / p.total() - 1.0).abs() < 2e-3,
+            "{m_pca} vs {}",
+            p.total()
+        );
+    }
+}

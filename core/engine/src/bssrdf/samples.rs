@@ -2,8 +2,8 @@
 //! entering the surface at each (`E′`, irradiance times the Fresnel transmittance).
 //!
 //! Sampling is stratified over the region's area (sample i takes the stratum
-//! `[i, i+1)/N` of the cumulative area, then a random point of the triangle there), so the
-//! points cover the surface evenly and every point stands for the same area `A/N` — the
+//! `[i + ξ, i + 1 + ξ)/N` of the cumulative area, one random shift ξ for all, and a rank-1
+//! lattice point of the triangle there), so the points cover the surface evenly and every point stands for the same area `A/N` — the
 //! disc of radius `ρ = √(A/(πN))` the dipole kernel is averaged over.
 
 use glam::Vec3;
@@ -102,12 +102,19 @@ pub fn sample_region(scene: &Scene, region: u32, count: usize, seed: u64) -> Sur
         total_area,
         diameter,
     };
+    let mut s = SampleStream::new(seed ^ 0x5355_4253_5552_4641, region as u64, 0);
+    let (jitter, jitter2) = (s.next() as f64, s.next() as f64);
     for i in 0..count {
-        let mut s = SampleStream::new(seed ^ 0x5355_4253_5552_4641, region as u64, i as u32);
-        let target = (i as f64 + s.next() as f64) / count as f64 * acc;
+        let target = (i as f64 + jitter) / count as f64 * acc;
         let k = cdf.partition_point(|c| *c < target).min(tris.len() - 1);
         let t = &tris[k];
-        let (u1, u2) = s.next2();
+        // A rank-1 lattice inside the triangle: u1 from the stratum (uniform in the triangle's
+        // share of the CDF), u2 from the golden ratio sequence. Independent random (u1, u2)
+        // clump like a Poisson process (±10 % in the light gathered over a 35-sample blur);
+        // the lattice keeps that within ≈ 1 %.
+        let before = if k == 0 { 0.0 } else { cdf[k - 1] };
+        let u1 = (((target - before) / t.area) as f32).clamp(0.0, 1.0 - f32::EPSILON);
+        let u2 = ((i as f64 * 0.618_033_988_749_894_9 + jitter2) % 1.0) as f32;
         let su = u1.sqrt();
         let (b0, b1) = (1.0 - su, u2 * su);
         let b2 = 1.0 - b0 - b1;
