@@ -8,8 +8,8 @@ use relume_engine::bssrdf::dipole::DipoleParams;
 use relume_engine::bssrdf::mapping::ALPHA_MAX;
 use relume_engine::bssrdf::{SssBasis, SssBasisConfig};
 
-/// A region of the `translucent` assets scene's scale: ρ for 64k samples on ≈ 1.3 m² of
-/// surface (ρ ≈ 2.5 mm), 1.2 m across, mean free path range `[lo, hi]`.
+/// A region 1.2 m across sampled at ρ = 2.5 mm (64k samples on ≈ 1.3 m²; the profile is
+/// blurred at 3ρ = 7.5 mm), mean free path range `[lo, hi]`.
 fn config(lo: f64, hi: f64, bases: Option<u32>) -> SssBasisConfig {
     SssBasisConfig {
         rho: 0.0025,
