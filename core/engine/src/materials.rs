@@ -335,7 +335,10 @@ mod tests {
         let e = err(
             r#"{"format":"relume-materials","version":1,"regions":{"W":{"model":"principled","base_color":[1,1,1],"subsurface_radus":[1,1,1]}}}"#,
         );
-        assert!(e.contains("subsurface_radus") && e.contains("subsurface_radius"), "{e}");
+        assert!(
+            e.contains("subsurface_radus") && e.contains("subsurface_radius"),
+            "{e}"
+        );
     }
 
     #[test]
