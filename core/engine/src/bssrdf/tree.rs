@@ -5,9 +5,10 @@
 //! light group) and its centroid (weighted by power); a node whose points all lie within
 //! `radius ≤ θ·d` of its centroid, d the distance from the centroid to x_o, is used as one
 //! point at its centroid. The centroid makes the first-order error vanish, so the relative
-//! error of a node is O(θ²·d²·|b″|/|b|) — about θ²/2 for the slowly varying tails it is used
-//! on; with θ = 0.25 the measured error of the clustered sum against the brute-force one is
-//! below 0.2 % (tests/subsurface.rs). Samples with no light are not stored at all.
+//! error of a node is O(θ²·d²·|b″|/|b|): on an e^{−r} kernel over a grid the worst point
+//! measured 1.2 % at θ = 0.25 and 0.24 % at θ = 0.1 (unit test below). The bake's default
+//! θ = 0.15 keeps the whole relit subsurface image (octree + PCA + f16) within 0.3 % relative
+//! L2 of the brute-force sum (tests/subsurface.rs). Samples with no light are not stored.
 
 use glam::Vec3;
 
