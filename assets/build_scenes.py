@@ -282,10 +282,10 @@ def look_at_camera(eye, target, lens_mm=50.0, sensor_width_mm=36.0, sensor_heigh
     }
 
 
-def scene_doc(meshes, regions, lights, world, camera, width, height):
+def scene_doc(meshes, regions, lights, world, camera, width, height, version=1):
     return {
         "format": "relume-scene",
-        "version": 1,
+        "version": version,
         "meshes": [m.to_json() for m in meshes],
         "regions": regions,
         "lights": lights,
@@ -598,8 +598,45 @@ def build_hdri():
     return scene_doc([ground, matte, glossy, box], regions, [], world, camera, 480, 270)
 
 
+def build_translucent():
+    """A wax sphere on a floor, lit from behind: light that enters its lit back scatters
+    through 0.3 m of wax (mean free path 20, 10, 5 cm) and leaves on the side the camera sees (scene format 2)."""
+    R_FLOOR, R_WAX = range(2)
+    wax = {
+        "model": "principled",
+        "base_color": [0.9, 0.75, 0.55],
+        "roughness": 0.4,
+        "ior": 1.4,
+        "subsurface_weight": 1.0,
+        "subsurface_radius": [1.0, 0.5, 0.25],
+        "subsurface_scale": 0.2,
+    }
+    regions = [
+        region("Floor", blinn_phong(0.5, 0.0, 1.0)),
+        region("Wax", wax, editable=True),
+    ]
+    regions[R_WAX]["subsurface"] = {"samples": 65536}
+    floor = MeshBuilder("Floor", R_FLOOR)
+    floor.flat_quad((0, 0, 0), (0, 0, 1), (1, 0, 0), 2, 2)
+    sphere = MeshBuilder("Wax", R_WAX, normals=True)
+    add_icosphere(sphere, (0.0, 0.0, 0.15), 0.15, 4)
+    lights = [
+        # Behind the sphere, hidden by it from the camera.
+        {"type": "point", "position": [0.0, 0.45, 0.2], "power": 80.0, "color": [1.0, 0.9, 0.8],
+         "radius": 0.02},
+        # A dim fill from the camera's side.
+        {"type": "point", "position": [-0.8, -0.9, 0.9], "power": 6.0, "color": [0.8, 0.9, 1.0],
+         "radius": 0.05},
+    ]
+    world = {"type": "color", "color": [0.02, 0.02, 0.025], "strength": 1.0}
+    camera = look_at_camera((0.0, -0.95, 0.28), (0.0, 0.0, 0.15), lens_mm=50.0, clip_start=0.05,
+                            clip_end=100.0)
+    return scene_doc([floor, sphere], regions, lights, world, camera, 256, 256, version=2)
+
+
 SCENES = {
     "cornell": (build_cornell, "cornell.scene.json"),
+    "translucent": (build_translucent, "translucent.scene.json"),
     "ring": (build_ring, "ring.scene.json"),
     "textured": (build_textured, "textured.scene.json"),
     "hdri": (build_hdri, "hdri.scene.json"),
@@ -756,8 +793,15 @@ def check_material(c, m, what):
         c.num(m["ns"], f"{what}.ns", 0, lo_open=True)
     else:
         if not c.keys(m, {"model", "base_color"},
-                      {"metallic", "roughness", "ior", "specular_ior_level"}, what):
+                      {"metallic", "roughness", "ior", "specular_ior_level", "subsurface_weight",
+                       "subsurface_radius", "subsurface_scale"}, what):
             return
+        if "subsurface_weight" in m:
+            c.num(m["subsurface_weight"], f"{what}.subsurface_weight", 0, 1)
+        if "subsurface_radius" in m:
+            c.vec(m["subsurface_radius"], 3, f"{what}.subsurface_radius", 0)
+        if "subsurface_scale" in m:
+            c.num(m["subsurface_scale"], f"{what}.subsurface_scale", 0)
         c.vec(m["base_color"], 3, f"{what}.base_color", 0)
         for k, lo, hi in (("metallic", 0, 1), ("roughness", 0, 1), ("ior", 1, None),
                           ("specular_ior_level", 0, 1)):
@@ -785,8 +829,8 @@ def check_scene(path):
         return c.errors, c.warnings, stats
     if doc["format"] != "relume-scene":
         c.err(f"format: expected \"relume-scene\", got {doc['format']!r}")
-    if doc["version"] != 1:
-        c.err(f"version: expected 1, got {doc['version']!r}")
+    if doc["version"] not in (1, 2):
+        c.err(f"version: expected 1 or 2, got {doc['version']!r}")
 
     regions = doc["regions"]
     if not isinstance(regions, list) or not regions:
@@ -795,8 +839,16 @@ def check_scene(path):
     names = set()
     for i, r in enumerate(regions):
         w = f"regions[{i}]"
-        if not c.keys(r, {"name", "material"}, {"editable", "albedo_texture", "ns_range"}, w):
+        if not c.keys(r, {"name", "material"},
+                      {"editable", "albedo_texture", "ns_range", "subsurface"}, w):
             continue
+        if "subsurface" in r:
+            if doc["version"] < 2:
+                c.err(f"{w}.subsurface: needs scene format version 2")
+            ss = r["subsurface"]
+            if c.keys(ss, set(), {"samples", "mfp_range", "ior_range", "bases", "tolerance"},
+                      f"{w}.subsurface") and "samples" in ss:
+                c.num(ss["samples"], f"{w}.subsurface.samples", 16, 4194304)
         if not isinstance(r["name"], str) or not r["name"]:
             c.err(f"{w}.name: expected a non-empty string")
         elif r["name"] in names:

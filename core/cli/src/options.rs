@@ -79,6 +79,10 @@ pub struct BakeOptions {
     /// (storage and relight cost grow with the number of groups).
     #[arg(long, value_enum, default_value = "none")]
     pub light_groups: LightGroupsArg,
+    /// Surface samples per translucent region (uniform by area), unless the scene's region
+    /// sets `subsurface.samples`.
+    #[arg(long, default_value_t = 65536)]
+    pub subsurface_samples: u32,
 }
 
 impl BakeOptions {
@@ -120,6 +124,8 @@ impl BakeOptions {
                 LightGroupsArg::PerLight => LightGrouping::PerLight,
                 LightGroupsArg::Scene => LightGrouping::Scene,
             },
+            subsurface_samples: self.subsurface_samples,
+            ..BakeSettings::default()
         })
     }
 }

@@ -10,6 +10,7 @@
 //! Module map (one concept per file):
 //! - [`scene`]: the scene model, its versioned JSON file, validation.
 //! - [`brdf`]: Blinn–Phong, the PCA basis, the Principled mapping.
+//! - [`bssrdf`]: translucency: the dipole profile, its PCA basis, Blender's subsurface inputs.
 //! - [`geometry`]: BVH (obvhs), sampling helpers, camera rays, light sampling.
 //! - [`bake`]: path signatures, the bake integrator, the reference renderer, progress/cancel.
 //! - [`stack`]: the transfer stack in memory and as one OpenEXR file.
@@ -22,6 +23,7 @@
 
 pub mod bake;
 pub mod brdf;
+pub mod bssrdf;
 pub mod error;
 pub mod geometry;
 pub mod image_io;

@@ -17,7 +17,11 @@
 //!   `"model": "blinn_phong"` with `kd`, `ks` (RGB albedos) and `ns` (exponent), or
 //!   `"model": "principled"` with `base_color` and optionally `metallic` (0), `roughness`
 //!   (0.5), `ior` (1.5), `specular_ior_level` (0.5), mapped by
-//!   [`crate::brdf::principled_to_blinn_phong`].
+//!   [`crate::brdf::principled_to_blinn_phong`]; for translucent regions also
+//!   `subsurface_weight` (0), `subsurface_radius` ([1, 0.2, 0.1]) and `subsurface_scale`
+//!   (0.05, scene units), mapped to dipole parameters by [`crate::bssrdf::mapping`] — e.g.
+//!   `"Wax": {"model": "principled", "base_color": [0.9, 0.75, 0.55], "subsurface_weight": 1,
+//!   "subsurface_radius": [1, 0.5, 0.25], "subsurface_scale": 0.1}`.
 //! - Unknown fields are errors, at the top and in every material: a misspelt
 //!   `"roughnes"` would otherwise silently leave the default in place.
 //! - Only editable regions can be edited; naming a fixed region is an error, because its
@@ -185,7 +189,15 @@ pub fn parse_materials(json: &str) -> Result<MaterialsFile> {
         };
         let known = serde_json::to_value(spec)
             .map_err(|e| RelumeError::Materials(format!("region {name:?}: {e}")))?;
-        let known = known.as_object().cloned().unwrap_or_default();
+        let mut known = known.as_object().cloned().unwrap_or_default();
+        if let MaterialSpec::Principled(_) = spec {
+            // Subsurface fields at their defaults are not serialised; they are still known.
+            for k in crate::brdf::Subsurface::KEYS {
+                known
+                    .entry(k.to_string())
+                    .or_insert(serde_json::Value::Null);
+            }
+        }
         if let Some(bad) = fields.keys().find(|k| !known.contains_key(*k)) {
             let names: Vec<&str> = known
                 .keys()
@@ -263,6 +275,7 @@ mod tests {
             }),
             basis: None,
             textured: false,
+            subsurface: None,
         }
     }
 
@@ -290,13 +303,41 @@ mod tests {
         );
         assert_eq!(
             m.regions["Walls"],
-            MaterialSpec::Principled(Principled {
+            MaterialSpec::principled(Principled {
                 base_color: [0.8; 3],
                 metallic: 0.0,
                 roughness: 0.4,
                 ior: 1.5,
                 specular_ior_level: 0.5,
             })
+        );
+    }
+
+    #[test]
+    fn subsurface_fields_parse_and_misspellings_are_refused() {
+        let m = parse_materials(
+            r#"{"format":"relume-materials","version":1,"regions":{"Wax":{"model":"principled","base_color":[0.9,0.8,0.6],"subsurface_weight":0.7,"subsurface_radius":[1,0.5,0.25],"subsurface_scale":0.1}}}"#,
+        )
+        .unwrap();
+        match &m.regions["Wax"] {
+            MaterialSpec::Principled(p) => {
+                assert_eq!(p.subsurface.weight, 0.7);
+                assert_eq!(p.subsurface.radius, [1.0, 0.5, 0.25]);
+                assert_eq!(p.subsurface.scale, 0.1);
+            }
+            other => panic!("{other:?}"),
+        }
+        // Defaults are known fields too (they are not serialised).
+        assert!(parse_materials(
+            r#"{"format":"relume-materials","version":1,"regions":{"W":{"model":"principled","base_color":[1,1,1],"subsurface_scale":0.05}}}"#
+        )
+        .is_ok());
+        let e = err(
+            r#"{"format":"relume-materials","version":1,"regions":{"W":{"model":"principled","base_color":[1,1,1],"subsurface_radus":[1,1,1]}}}"#,
+        );
+        assert!(
+            e.contains("subsurface_radus") && e.contains("subsurface_radius"),
+            "{e}"
         );
     }
 

@@ -212,7 +212,7 @@ fn scene_file_errors() {
         parse_scene(r#"{"format": "relume-scene", "version": 7}"#, p, d),
         Err(RelumeError::SceneVersion {
             found: 7,
-            supported: 1,
+            supported: 2,
             ..
         })
     ));

@@ -53,6 +53,7 @@ fn header(width: u32, height: u32, precision: Precision) -> StackHeader {
                 }),
                 basis: None,
                 textured: false,
+                subsurface: None,
             },
             RegionInfo {
                 name: "Floor".into(),
@@ -64,6 +65,7 @@ fn header(width: u32, height: u32, precision: Precision) -> StackHeader {
                 }),
                 basis: None,
                 textured: false,
+                subsurface: None,
             },
         ],
         lights: vec![Light::Point {

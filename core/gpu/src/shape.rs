@@ -4,7 +4,6 @@
 //! or an edit the CPU refuses is refused on the GPU too. (Sample finiteness is checked
 //! while packing, in `layout::pack_layer`.)
 
-use relume_engine::bake::signature::PathVertex;
 use relume_engine::stack::TransferStack;
 use relume_engine::{RelumeError, Result, Rgb};
 
@@ -64,7 +63,7 @@ impl StackShape {
                 });
             }
             for v in &layer.key.path {
-                if let PathVertex::Editable { region, basis } = *v {
+                if let Some((region, basis)) = v.slot() {
                     let r = region as usize;
                     if r >= n_edit {
                         return Err(RelumeError::IndexOutOfRange {

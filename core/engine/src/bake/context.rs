@@ -10,7 +10,9 @@ use std::sync::Arc;
 use crate::bake::settings::{BakeSettings, IndirectSampling, MAX_BOUNCES};
 use crate::bake::guide::GuideField;
 use crate::bake::signature::PathVertex;
+use crate::bake::subsurface::{self, TranslucentRegion};
 use crate::brdf::{BasisConfig, BlinnPhong, BrdfBasis};
+use crate::bssrdf::{SssBasis, SubsurfaceInfo};
 use crate::geometry::{bvh::SceneGeometry, camera::CameraRays, lights::LightSet, texture::Texture};
 use crate::scene::{validate::validate_scene, validate::ValidationReport, Resolution, Scene};
 use crate::{RelumeError, Result};
@@ -55,6 +57,12 @@ pub struct BakeContext {
     /// The guide maps of a guided bake (built by [`BakeContext::new`] when the settings ask
     /// for [`IndirectSampling::Guided`]).
     pub guide: Option<GuideField>,
+    /// Per scene region, its subsurface data when it is translucent (editable with a
+    /// subsurface block or Subsurface Weight > 0).
+    pub translucent: Vec<Option<TranslucentRegion>>,
+    /// Per scene region, the global slot its diffuse basis uses *at the eye*: the region's
+    /// eye-diffuse slot when translucent, its first slot otherwise.
+    pub eye_diffuse_slot: Vec<u32>,
 }
 
 impl BakeContext {
@@ -81,10 +89,13 @@ impl BakeContext {
             return Err(RelumeError::invalid("resolution", "zero size"));
         }
         let mut bases: HashMap<String, Arc<BrdfBasis>> = HashMap::new();
+        let mut sss_bases: HashMap<String, Arc<SssBasis>> = HashMap::new();
+        let mut translucent: Vec<Option<TranslucentRegion>> = Vec::new();
         let mut regions = Vec::with_capacity(scene.regions.len());
         let mut slot_vertex = Vec::new();
         let mut editable_index = 0u16;
-        for region in &scene.regions {
+        for (region_index, region) in scene.regions.iter().enumerate() {
+            translucent.push(None);
             let texture = region.albedo_texture.as_ref().and_then(Texture::from_ref);
             let material = region.material.to_blinn_phong();
             if region.editable {
@@ -112,6 +123,51 @@ impl BakeContext {
                     slot_vertex.push(PathVertex::Editable {
                         region: editable_index,
                         basis: b as u16,
+                    });
+                }
+                if region.is_translucent() {
+                    let (cfg, samples) =
+                        subsurface::basis_config(scene, region_index, region, settings)?;
+                    let key = serde_json::to_string(&cfg).unwrap_or_default();
+                    let sss = match sss_bases.get(&key) {
+                        Some(b) => b.clone(),
+                        None => {
+                            let b = Arc::new(SssBasis::build(&cfg)?);
+                            sss_bases.insert(key, b.clone());
+                            b
+                        }
+                    };
+                    let eye_local = count as u32;
+                    let first_local = eye_local + 1;
+                    let eye_slot = slot_vertex.len() as u32;
+                    slot_vertex.push(PathVertex::Editable {
+                        region: editable_index,
+                        basis: eye_local as u16,
+                    });
+                    let first_slot = slot_vertex.len() as u32;
+                    for k in 0..sss.count() {
+                        slot_vertex.push(PathVertex::Subsurface {
+                            region: editable_index,
+                            basis: (first_local as usize + k) as u16,
+                        });
+                    }
+                    let (eta, bake_ior) = subsurface::bake_eta(&region.material);
+                    translucent[region_index] = Some(TranslucentRegion {
+                        editable_index,
+                        info: SubsurfaceInfo {
+                            basis: cfg,
+                            bake_ior,
+                            eye_diffuse_slot: eye_local,
+                            first_slot: first_local,
+                            samples,
+                        },
+                        basis: sss,
+                        eye_diffuse_slot: eye_slot,
+                        first_slot,
+                        eta,
+                        points: Default::default(),
+                        irradiance: Vec::new(),
+                        tree: Default::default(),
                     });
                 }
                 let (lo, hi) = (cfg.ns_min, cfg.ns_max);
@@ -177,6 +233,11 @@ impl BakeContext {
         } else {
             f32::INFINITY
         };
+        let eye_diffuse_slot = regions
+            .iter()
+            .zip(&translucent)
+            .map(|(r, t)| t.as_ref().map_or(r.first_slot, |t| t.eye_diffuse_slot))
+            .collect();
         let mut ctx = BakeContext {
             geometry,
             camera,
@@ -187,7 +248,21 @@ impl BakeContext {
             settings: settings.clone(),
             clip_end,
             guide: None,
+            translucent: Vec::new(),
+            eye_diffuse_slot,
         };
+        if translucent.iter().any(|t| t.is_some()) {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(settings.threads)
+                .build()
+                .map_err(|e| RelumeError::invalid("threads", e.to_string()))?;
+            for (i, t) in translucent.iter_mut().enumerate() {
+                if let Some(t) = t {
+                    pool.install(|| subsurface::prepare_light(&ctx, scene, i, t));
+                }
+            }
+        }
+        ctx.translucent = translucent;
         if settings.sampling == IndirectSampling::Guided && settings.bounces >= 1 {
             let materials = scene
                 .regions
@@ -215,6 +290,16 @@ impl BakeContext {
     /// Layers the bake can fill: [`Self::layers_per_group`] per light group.
     pub fn layer_count(&self) -> usize {
         self.layers_per_group() * self.lights.groups.len()
+    }
+
+    /// The subsurface info of every editable region (editable order; `None` if opaque).
+    pub fn editable_subsurface(&self) -> Vec<Option<(Arc<SssBasis>, SubsurfaceInfo)>> {
+        self.regions
+            .iter()
+            .zip(&self.translucent)
+            .filter(|(r, _)| matches!(r.model, RegionModel::Editable { .. }))
+            .map(|(_, t)| t.as_ref().map(|t| (t.basis.clone(), t.info.clone())))
+            .collect()
     }
 
     /// Editable regions' bases, in editable order.

@@ -16,8 +16,8 @@ use serde::Serialize;
 
 use crate::bake::context::{BakeContext, RegionModel};
 use crate::bake::signature::{LayerKey, PathVertex};
+use crate::bssrdf::region_slot_coefficients;
 use crate::scene::Scene;
-use crate::stack::bases::slot_coefficients;
 use crate::Rgb;
 
 /// A baked layer before storage: f32 radiance, 1 or 3 interleaved channels.
@@ -56,7 +56,7 @@ pub struct DropReport {
 /// Largest |coefficient| each slot of each editable region can take (editable order).
 fn max_coefficients(ctx: &BakeContext) -> Vec<Vec<f32>> {
     let mut out = Vec::new();
-    for region in &ctx.regions {
+    for (ri, region) in ctx.regions.iter().enumerate() {
         let RegionModel::Editable { basis, .. } = &region.model else {
             continue;
         };
@@ -79,6 +79,12 @@ fn max_coefficients(ctx: &BakeContext) -> Vec<Vec<f32>> {
         if textured {
             slots.push(spec[0]);
         }
+        if let Some(t) = &ctx.translucent[ri] {
+            // The eye-diffuse slot is bounded like the diffuse one; subsurface layers are
+            // never left out (their coefficients are not bounded by a simple product).
+            slots.push(slots[0]);
+            slots.extend(std::iter::repeat_n(1e30f32, t.basis.count()));
+        }
         out.push(slots);
     }
     out
@@ -90,9 +96,9 @@ fn path_product<T: Copy>(
     one: T,
     mul: impl Fn(T, T) -> T,
 ) -> T {
-    key.path.iter().fold(one, |w, v| match *v {
-        PathVertex::Fixed => w,
-        PathVertex::Editable { region, basis } => mul(w, per_slot[region as usize][basis as usize]),
+    key.path.iter().fold(one, |w, v| match v.slot() {
+        None => w,
+        Some((region, basis)) => mul(w, per_slot[region as usize][basis as usize]),
     })
 }
 
@@ -130,11 +136,13 @@ fn bake_time_coefficients(ctx: &BakeContext, scene: &Scene) -> Vec<Vec<Rgb>> {
         .regions
         .iter()
         .zip(&scene.regions)
-        .filter_map(|(r, s)| match &r.model {
-            RegionModel::Editable { basis, .. } => Some(slot_coefficients(
+        .zip(&ctx.translucent)
+        .filter_map(|((r, s), t)| match &r.model {
+            RegionModel::Editable { basis, .. } => Some(region_slot_coefficients(
                 basis,
                 r.slot_count as usize > basis.count(),
-                &s.material.to_blinn_phong(),
+                t.as_ref().map(|t| (&*t.basis, &t.info)),
+                &s.material,
             )),
             RegionModel::Fixed { .. } => None,
         })

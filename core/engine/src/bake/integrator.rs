@@ -34,6 +34,24 @@ pub trait VertexBrdf: Sync {
         wo: Vec3,
         out: &mut [Rgb; MAX_BASES],
     ) -> (u32, usize);
+
+    /// Whether translucent regions add their subsurface layers at the eye (the bake's basis
+    /// BRDF does; the reference renderer's true BRDF has no subsurface term).
+    fn subsurface(&self) -> bool {
+        false
+    }
+}
+
+/// The slot of value `k` of the eye vertex whose values start at slot `first` on scene region
+/// `region`: a translucent region's diffuse basis has its own slot at the eye (weighted by
+/// `Kd·(1 − w)`, see [`crate::bssrdf::coefficients`]).
+#[inline]
+fn eye_slot(ctx: &BakeContext, region: u32, first: u32, k: usize) -> u32 {
+    if k == 0 {
+        ctx.eye_diffuse_slot[region as usize]
+    } else {
+        first + k as u32
+    }
 }
 
 /// Where the integrator puts radiance, by light group.
@@ -128,7 +146,22 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(
     for g in 0..groups {
         for (k, v) in eye_light[g * MAX_BASES..].iter().enumerate().take(count) {
             if *v != Rgb::ZERO {
-                sink.direct(g, first + k as u32, *v);
+                sink.direct(g, eye_slot(ctx, hit.region, first, k), *v);
+            }
+        }
+    }
+    if brdf.subsurface() {
+        if let Some(t) = &ctx.translucent[hit.region as usize] {
+            let k_count = t.basis.count();
+            let mut acc = [Rgb::ZERO; MAX_GROUPS * crate::bssrdf::MAX_SSS_BASES];
+            let acc = &mut acc[..groups * k_count];
+            crate::bake::subsurface::gather_at(t, hit.position, hit.shading_normal, wo, acc);
+            for g in 0..groups {
+                for (k, v) in acc[g * k_count..(g + 1) * k_count].iter().enumerate() {
+                    if *v != Rgb::ZERO {
+                        sink.direct(g, t.first_slot + k as u32, *v);
+                    }
+                }
             }
         }
     }
@@ -186,7 +219,7 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(
                     if *light != Rgb::ZERO {
                         sink.bounce(
                             g,
-                            eye_first + e as u32,
+                            eye_slot(ctx, hit.region, eye_first, e),
                             bounce_first + b as u32,
                             fe * *light,
                         );

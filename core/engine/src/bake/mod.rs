@@ -16,6 +16,7 @@ pub mod progress;
 pub mod reference;
 pub mod settings;
 pub mod signature;
+pub mod subsurface;
 pub mod tiles;
 pub mod to_file;
 pub mod vertex_brdf;
@@ -427,8 +428,10 @@ fn assemble(
         regions: scene
             .regions
             .iter()
-            .map(|r| {
-                RegionInfo::from_region(
+            .zip(&ctx.translucent)
+            .map(|(r, t)| RegionInfo {
+                subsurface: t.as_ref().map(|t| t.info.clone()),
+                ..RegionInfo::from_region(
                     r,
                     r.editable
                         .then(|| context::basis_config_for(&settings.basis, r.ns_range)),

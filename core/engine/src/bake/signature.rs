@@ -16,6 +16,25 @@ pub enum PathVertex {
     /// Editable region number `region` (its position among the editable regions),
     /// basis function number `basis` (0 = diffuse).
     Editable { region: u16, basis: u16 },
+    /// Subsurface light of translucent editable region `region` leaving at the eye through
+    /// subsurface basis function `B_k`; `basis` is the region's coefficient slot (after its
+    /// BRDF and eye-diffuse slots, see [`crate::bssrdf::coefficients`]), so relight weights
+    /// index the region's coefficients alike for both kinds of vertex. Named `E<r>s<slot>`.
+    Subsurface { region: u16, basis: u16 },
+}
+
+impl PathVertex {
+    /// `(editable region, coefficient slot)` of an editable or subsurface vertex; `None` for
+    /// the fixed region.
+    #[inline]
+    pub fn slot(&self) -> Option<(u16, u16)> {
+        match *self {
+            PathVertex::Fixed => None,
+            PathVertex::Editable { region, basis } | PathVertex::Subsurface { region, basis } => {
+                Some((region, basis))
+            }
+        }
+    }
 }
 
 /// The key of a layer: its path signature and its light group (0 = all lights).
@@ -40,11 +59,11 @@ impl LayerKey {
     pub fn contains_region(&self, region: u16) -> bool {
         self.path
             .iter()
-            .any(|v| matches!(v, PathVertex::Editable { region: r, .. } if *r == region))
+            .any(|v| matches!(v.slot(), Some((r, _)) if r == region))
     }
 
     /// The EXR layer name: `World` for the empty path, else vertices joined by `_`, each `F`
-    /// (fixed) or `E<region>b<basis>`, prefixed by `G<group>_` for a light group other than 0.
+    /// (fixed), `E<region>b<basis>` or `E<region>s<slot>` (subsurface), prefixed by `G<group>_` for a light group other than 0.
     /// Example: `E0b2_E1b0` is eye at editable region 0 basis 2, bounce at region 1 diffuse.
     pub fn layer_name(&self) -> String {
         let mut s = String::new();
@@ -62,6 +81,9 @@ impl LayerKey {
                 PathVertex::Fixed => s.push('F'),
                 PathVertex::Editable { region, basis } => {
                     let _ = write!(s, "E{region}b{basis}");
+                }
+                PathVertex::Subsurface { region, basis } => {
+                    let _ = write!(s, "E{region}s{basis}");
                 }
             }
         }
@@ -92,11 +114,18 @@ impl LayerKey {
                 path.push(PathVertex::Fixed);
             } else {
                 let body = part.strip_prefix('E')?;
-                let (r, b) = body.split_once('b')?;
-                path.push(PathVertex::Editable {
-                    region: r.parse().ok()?,
-                    basis: b.parse().ok()?,
-                });
+                if let Some((r, b)) = body.split_once('b') {
+                    path.push(PathVertex::Editable {
+                        region: r.parse().ok()?,
+                        basis: b.parse().ok()?,
+                    });
+                } else {
+                    let (r, b) = body.split_once('s')?;
+                    path.push(PathVertex::Subsurface {
+                        region: r.parse().ok()?,
+                        basis: b.parse().ok()?,
+                    });
+                }
             }
         }
         if path.is_empty() {
@@ -129,6 +158,17 @@ mod tests {
                 }],
                 light_group: 3,
             },
+            LayerKey::new(vec![PathVertex::Subsurface {
+                region: 1,
+                basis: 9,
+            }]),
+            LayerKey {
+                path: vec![PathVertex::Subsurface {
+                    region: 0,
+                    basis: 14,
+                }],
+                light_group: 2,
+            },
         ];
         for k in keys {
             assert_eq!(
@@ -138,7 +178,9 @@ mod tests {
                 k.layer_name()
             );
         }
-        for bad in ["", "E0", "X1b2", "G0_F", "E1b2_", "Ea b"] {
+        for bad in [
+            "", "E0", "X1b2", "G0_F", "E1b2_", "Ea b", "E1s", "Es2", "E1x2",
+        ] {
             assert_eq!(LayerKey::parse(bad), None, "{bad}");
         }
     }

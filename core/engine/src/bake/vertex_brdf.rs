@@ -37,6 +37,10 @@ pub struct BasisBrdf<'a> {
 }
 
 impl VertexBrdf for BasisBrdf<'_> {
+    fn subsurface(&self) -> bool {
+        true
+    }
+
     #[inline]
     fn eval(
         &self,

@@ -1148,7 +1148,7 @@ fn capped_scale(lobes: &Lobes, nspec: usize, cap: f64) -> Vec<f64> {
 
 /// Pivoted Cholesky `G ≈ R Rᵀ` of a symmetric PSD `l×l` matrix down to 1e-15 of its trace:
 /// the columns of R (each of length l). Its numerical rank is ~20–60 for 200 lobes.
-fn pivoted_cholesky(g: &[f64], l: usize) -> Vec<Vec<f64>> {
+pub(crate) fn pivoted_cholesky(g: &[f64], l: usize) -> Vec<Vec<f64>> {
     let trace: f64 = (0..l).map(|j| g[j * l + j]).sum();
     let mut diag: Vec<f64> = (0..l).map(|j| g[j * l + j]).collect();
     let mut cols: Vec<Vec<f64>> = vec![];

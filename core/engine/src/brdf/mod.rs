@@ -7,25 +7,92 @@ pub mod principled;
 
 use serde::{Deserialize, Serialize};
 
+use crate::bssrdf::mapping::channel_params;
+pub use crate::bssrdf::mapping::Subsurface;
 pub use basis::{BasisConfig, BasisCount, BrdfBasis};
 pub use blinn_phong::BlinnPhong;
 pub use principled::{principled_to_blinn_phong, Principled};
 
 /// A material as written in a scene file or a materials file: Blinn–Phong values directly,
-/// or Principled BSDF inputs that go through [`principled_to_blinn_phong`].
+/// or Principled BSDF inputs that go through [`principled_to_blinn_phong`] (with, optionally,
+/// Blender's subsurface inputs for translucent regions).
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 #[serde(tag = "model", rename_all = "snake_case")]
 pub enum MaterialSpec {
     BlinnPhong(BlinnPhong),
-    Principled(Principled),
+    Principled(PrincipledMaterial),
+}
+
+/// The Principled inputs of a material: the surface BSDF and the subsurface scattering, in
+/// one flat JSON object (`{"model": "principled", "base_color": …, "subsurface_weight": …}`).
+#[derive(Clone, Copy, Debug, Serialize, Deserialize, PartialEq)]
+pub struct PrincipledMaterial {
+    #[serde(flatten)]
+    pub bsdf: Principled,
+    #[serde(flatten)]
+    pub subsurface: Subsurface,
+}
+
+impl From<Principled> for PrincipledMaterial {
+    fn from(bsdf: Principled) -> Self {
+        PrincipledMaterial {
+            bsdf,
+            subsurface: Subsurface::default(),
+        }
+    }
 }
 
 impl MaterialSpec {
-    /// The Blinn–Phong parameters this material stands for.
+    /// A Principled material without subsurface scattering.
+    pub fn principled(p: Principled) -> MaterialSpec {
+        MaterialSpec::Principled(p.into())
+    }
+
+    /// The Blinn–Phong parameters this material stands for (its surface BRDF, as every path
+    /// vertex but a translucent region's eye vertex sees it; see [`Self::eye_blinn_phong`]).
     pub fn to_blinn_phong(&self) -> BlinnPhong {
         match self {
             MaterialSpec::BlinnPhong(b) => *b,
-            MaterialSpec::Principled(p) => principled_to_blinn_phong(p),
+            MaterialSpec::Principled(p) => principled_to_blinn_phong(&p.bsdf),
+        }
+    }
+
+    /// The share of the diffuse that scatters below the surface: Subsurface Weight ×
+    /// (1 − Metallic), in [0, 1]; 0 for Blinn–Phong materials.
+    pub fn subsurface_weight(&self) -> f32 {
+        match self {
+            MaterialSpec::BlinnPhong(_) => 0.0,
+            MaterialSpec::Principled(p) => {
+                let w = p.subsurface.weight * (1.0 - p.bsdf.metallic.clamp(0.0, 1.0));
+                if w.is_nan() {
+                    0.0
+                } else {
+                    w.clamp(0.0, 1.0)
+                }
+            }
+        }
+    }
+
+    /// The surface BRDF at a translucent region's eye vertex: Kd scaled by
+    /// `1 −` [`Self::subsurface_weight`] (that share leaves through the BSSRDF instead).
+    pub fn eye_blinn_phong(&self) -> BlinnPhong {
+        let mut b = self.to_blinn_phong();
+        let keep = 1.0 - self.subsurface_weight();
+        b.kd = b.kd.map(|k| k * keep);
+        b
+    }
+
+    /// Dipole parameters per RGB channel (base colour as the diffuse albedo, radius × scale
+    /// as mean free path, IOR; see [`crate::bssrdf::mapping`]); `None` for Blinn–Phong.
+    pub fn dipole_params(&self) -> Option<[crate::bssrdf::DipoleParams; 3]> {
+        match self {
+            MaterialSpec::BlinnPhong(_) => None,
+            MaterialSpec::Principled(p) => {
+                let mfp = p.subsurface.mean_free_paths();
+                Some(std::array::from_fn(|c| {
+                    channel_params(p.bsdf.base_color[c].min(1.0), mfp[c], p.bsdf.ior)
+                }))
+            }
         }
     }
 }

@@ -50,7 +50,7 @@ use std::sync::Arc;
 
 use rayon::prelude::*;
 
-use crate::bake::signature::{LayerKey, PathVertex};
+use crate::bake::signature::LayerKey;
 use crate::stack::{LayerSamples, TransferStack};
 use crate::{RelumeError, Result, Rgb};
 use kernels::Kernels;
@@ -66,17 +66,18 @@ pub const BAND_ROWS: usize = 16;
 pub const FULL_RESUM_EVERY: usize = 64;
 
 /// The weight of a layer: the product of the coefficients along its path, per RGB channel.
-/// A [`PathVertex::Fixed`] vertex contributes 1 (its BRDF was baked in), and the empty path
-/// (the world seen directly, layer `World`) has weight 1. The light group is not part of
+/// A [`crate::bake::signature::PathVertex::Fixed`] vertex contributes 1 (its BRDF was baked in), and the empty path
+/// (the world seen directly, layer `World`) has weight 1. A [`crate::bake::signature::PathVertex::Subsurface`] vertex
+/// weighs like an editable one: its `basis` is the region's coefficient slot. The light group is not part of
 /// the weight (light scaling is applied elsewhere).
 ///
 /// # Panics
 /// If a vertex names a region or basis outside `coefs`; [`CpuRelighter`] checks shapes
 /// before calling it.
 pub fn layer_weight(key: &LayerKey, coefs: &[Vec<Rgb>]) -> Rgb {
-    key.path.iter().fold(Rgb::ONE, |w, v| match *v {
-        PathVertex::Fixed => w,
-        PathVertex::Editable { region, basis } => w * coefs[region as usize][basis as usize],
+    key.path.iter().fold(Rgb::ONE, |w, v| match v.slot() {
+        None => w,
+        Some((region, basis)) => w * coefs[region as usize][basis as usize],
     })
 }
 
@@ -230,7 +231,7 @@ impl CpuRelighter {
                 });
             }
             for v in &layer.key.path {
-                if let PathVertex::Editable { region, basis } = *v {
+                if let Some((region, basis)) = v.slot() {
                     let r = region as usize;
                     if r >= n_edit {
                         return Err(RelumeError::IndexOutOfRange {

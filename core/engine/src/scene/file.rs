@@ -1,6 +1,7 @@
 //! The scene file: JSON, versioned, documented in `docs/scene-format.md`.
 //!
-//! `{"format": "relume-scene", "version": 1, <the fields of [`Scene`]>}`. The Blender
+//! `{"format": "relume-scene", "version": 2, <the fields of [`Scene`]>}` (version 1 files,
+//! which have no translucency, still load). The Blender
 //! exporter writes it, the `relume` command line reads it. Images given by path (albedo
 //! textures, environment maps) are OpenEXR files relative to the scene file; loading makes
 //! them inline so that a loaded [`Scene`] is self-contained.
@@ -14,8 +15,11 @@ use crate::{RelumeError, Result};
 
 /// The `format` value of every scene file.
 pub const SCENE_FORMAT: &str = "relume-scene";
-/// The scene file version this build reads and writes.
-pub const SCENE_VERSION: u32 = 1;
+/// The scene file version this build writes. Version 2 adds translucency (a region's
+/// `subsurface` block, the Principled `subsurface_*` fields); version 1 files load unchanged.
+pub const SCENE_VERSION: u32 = 2;
+/// The oldest scene file version this build reads.
+pub const SCENE_VERSION_MIN: u32 = 1;
 
 #[derive(Serialize, Deserialize)]
 struct SceneFile {
@@ -61,7 +65,7 @@ pub fn parse_scene(text: &str, path: &Path, dir: &Path) -> Result<Scene> {
         }
     }
     match probe.version {
-        Some(SCENE_VERSION) => {}
+        Some(v) if (SCENE_VERSION_MIN..=SCENE_VERSION).contains(&v) => {}
         Some(found) => {
             return Err(RelumeError::SceneVersion {
                 path: path.to_path_buf(),
@@ -93,7 +97,7 @@ fn resolve_image(img: &mut ImageRef, dir: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Writes `scene` as a version-1 scene file (atomically: temp file + rename).
+/// Writes `scene` as a version-2 scene file (atomically: temp file + rename).
 pub fn save_scene(path: &Path, scene: &Scene) -> Result<()> {
     let file = SceneFile {
         format: SCENE_FORMAT.into(),

@@ -93,6 +93,45 @@ pub struct Region {
     /// the bake's default range when absent. A narrower range needs fewer bases.
     #[serde(default)]
     pub ns_range: Option<[f32; 2]>,
+    /// Subsurface scattering settings of a translucent region (scene format 2). An editable
+    /// region is translucent when this is present or when its material's Subsurface Weight is
+    /// above 0; it then keeps subsurface layers so its Subsurface Weight, Radius, Scale, IOR
+    /// and Base Color stay editable. Not written when absent (older files and hashes unchanged).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub subsurface: Option<SubsurfaceSettings>,
+}
+
+impl Region {
+    /// Whether the bake keeps subsurface layers for this region: editable, and either a
+    /// `subsurface` block or a material with Subsurface Weight > 0.
+    pub fn is_translucent(&self) -> bool {
+        self.editable
+            && (self.subsurface.is_some()
+                || matches!(&self.material, MaterialSpec::Principled(p) if p.subsurface.weight > 0.0))
+    }
+}
+
+/// How a translucent region's subsurface layers are baked; every field optional.
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+pub struct SubsurfaceSettings {
+    /// Surface samples spread uniformly by area (the bake's `subsurface_samples` when absent,
+    /// 65 536 by default). More samples resolve shorter mean free paths (ρ = √(A/(πN))).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub samples: Option<u32>,
+    /// Range of the mean free path (radius × scale, scene units) the subsurface basis covers;
+    /// edits outside it are clamped. Default: the bake-time material's channels, ×½ to ×2,
+    /// widened to at least the sample radius ρ and at most the region's diameter.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mfp_range: Option<[f32; 2]>,
+    /// Range of the IOR the basis covers (default [1, 2]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ior_range: Option<[f32; 2]>,
+    /// Fixed number of subsurface bases (1–24), instead of the tolerance.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bases: Option<u32>,
+    /// Worst relative L2 error of the profile the basis count is chosen for (default 10⁻⁴).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tolerance: Option<f32>,
 }
 
 /// A float RGB image, inline or as a path to an OpenEXR file (relative to the scene file).

@@ -63,6 +63,7 @@ pub fn validate_scene(scene: &Scene) -> Result<ValidationReport> {
         if let Some(img) = &region.albedo_texture {
             validate_image(&format!("region \"{}\" albedo texture", region.name), img)?;
         }
+        validate_subsurface(region, &mut report)?;
         if let Some([lo, hi]) = region.ns_range {
             if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo) {
                 return Err(RelumeError::invalid(
@@ -203,7 +204,9 @@ fn validate_material(what: &str, m: &MaterialSpec) -> Result<()> {
                 ));
             }
         }
-        MaterialSpec::Principled(p) => {
+        MaterialSpec::Principled(pm) => {
+            pm.subsurface.validate(what)?;
+            let p = &pm.bsdf;
             let c = p.base_color;
             finite(
                 || what.to_string(),
@@ -217,6 +220,65 @@ fn validate_material(what: &str, m: &MaterialSpec) -> Result<()> {
                     p.specular_ior_level,
                 ],
             )?;
+        }
+    }
+    Ok(())
+}
+
+/// Checks a region's `subsurface` block; warns when a fixed region asks for translucency
+/// (its subsurface light is not baked: make it editable).
+fn validate_subsurface(region: &super::Region, report: &mut ValidationReport) -> Result<()> {
+    let what = |f: &str| format!("region \"{}\" subsurface.{f}", region.name);
+    let weight = match &region.material {
+        MaterialSpec::Principled(p) => p.subsurface.weight,
+        MaterialSpec::BlinnPhong(_) => 0.0,
+    };
+    if !region.editable && (region.subsurface.is_some() || weight > 0.0) {
+        report.warnings.push(format!(
+            "region \"{}\" has subsurface scattering but is not editable: only its surface BRDF is baked (mark it editable to bake its translucency)",
+            region.name
+        ));
+    }
+    let Some(s) = &region.subsurface else {
+        return Ok(());
+    };
+    if let Some(n) = s.samples {
+        if !(16..=4_194_304).contains(&n) {
+            return Err(RelumeError::invalid(
+                what("samples"),
+                format!("{n} (16 to 4 194 304)"),
+            ));
+        }
+    }
+    for (name, range, min) in [
+        ("mfp_range", s.mfp_range, 0.0f32),
+        ("ior_range", s.ior_range, 1.0),
+    ] {
+        if let Some([lo, hi]) = range {
+            if !(lo.is_finite() && hi.is_finite() && lo > min && hi >= lo)
+                && !(name == "ior_range" && lo == 1.0 && hi >= lo && hi.is_finite())
+            {
+                return Err(RelumeError::invalid(
+                    what(name),
+                    format!("[{lo}, {hi}] (need {min} < min ≤ max, finite)"),
+                ));
+            }
+        }
+    }
+    if let Some(b) = s.bases {
+        if b == 0 || b as usize > crate::bssrdf::MAX_SSS_BASES {
+            return Err(RelumeError::invalid(
+                what("bases"),
+                format!("{b} (1 to {})", crate::bssrdf::MAX_SSS_BASES),
+            ));
+        }
+    }
+    if let Some(t) = s.tolerance {
+        if !(t > 0.0 && t < 1.0) {
+            return Err(RelumeError::invalid(
+                what("tolerance"),
+                format!("{t} (in (0, 1))"),
+            ));
         }
     }
     Ok(())

@@ -5,6 +5,7 @@ use std::collections::HashMap;
 use std::sync::Arc;
 
 use crate::brdf::{BlinnPhong, BrdfBasis, MaterialSpec};
+use crate::bssrdf::{region_slot_coefficients, SssBasis, SubsurfaceInfo};
 use crate::stack::StackHeader;
 use crate::{RelumeError, Result, Rgb};
 
@@ -13,6 +14,8 @@ pub struct StackBases {
     pub bases: Vec<Arc<BrdfBasis>>,
     /// Whether each editable region is textured (its last slot is the untextured constant).
     pub textured: Vec<bool>,
+    /// Each editable region's subsurface basis and slot layout (translucent regions).
+    pub subsurface: Vec<Option<(Arc<SssBasis>, SubsurfaceInfo)>>,
 }
 
 impl StackBases {
@@ -21,6 +24,8 @@ impl StackBases {
         let mut cache: HashMap<String, Arc<BrdfBasis>> = HashMap::new();
         let mut bases = Vec::new();
         let mut textured = Vec::new();
+        let mut subsurface = Vec::new();
+        let mut sss_cache: HashMap<String, Arc<SssBasis>> = HashMap::new();
         for region in header.regions.iter().filter(|r| r.editable) {
             let cfg = region.basis.as_ref().ok_or_else(|| {
                 RelumeError::Basis(format!(
@@ -39,8 +44,27 @@ impl StackBases {
             };
             bases.push(basis);
             textured.push(region.textured);
+            subsurface.push(match &region.subsurface {
+                None => None,
+                Some(info) => {
+                    let key = serde_json::to_string(&info.basis).unwrap_or_default();
+                    let b = match sss_cache.get(&key) {
+                        Some(b) => b.clone(),
+                        None => {
+                            let b = Arc::new(SssBasis::build(&info.basis)?);
+                            sss_cache.insert(key, b.clone());
+                            b
+                        }
+                    };
+                    Some((b, info.clone()))
+                }
+            });
         }
-        Ok(StackBases { bases, textured })
+        Ok(StackBases {
+            bases,
+            textured,
+            subsurface,
+        })
     }
 
     /// Coefficients per editable region and basis for `materials` (editable order).
@@ -57,7 +81,8 @@ impl StackBases {
             .collect()
     }
 
-    /// Coefficients of one editable region.
+    /// Coefficients of one editable region: its BRDF slots and, when translucent, its
+    /// eye-diffuse and subsurface slots ([`region_slot_coefficients`]).
     pub fn region_coefficients(&self, region: usize, material: &MaterialSpec) -> Result<Vec<Rgb>> {
         let basis = self.bases.get(region).ok_or_else(|| {
             RelumeError::Materials(format!(
@@ -65,10 +90,13 @@ impl StackBases {
                 self.bases.len()
             ))
         })?;
-        Ok(slot_coefficients(
+        Ok(region_slot_coefficients(
             basis,
             self.textured[region],
-            &material.to_blinn_phong(),
+            self.subsurface[region]
+                .as_ref()
+                .map(|(b, info)| (&**b, info)),
+            material,
         ))
     }
 }

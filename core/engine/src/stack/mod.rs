@@ -91,6 +91,10 @@ pub struct RegionInfo {
     /// the untextured constant, so the texture never tints the specular part.
     #[serde(default)]
     pub textured: bool,
+    /// A translucent region's subsurface basis and slot layout (absent for opaque regions
+    /// and in stacks from before translucency).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub subsurface: Option<crate::bssrdf::SubsurfaceInfo>,
 }
 
 impl RegionInfo {
@@ -103,6 +107,7 @@ impl RegionInfo {
             material: region.material.clone(),
             basis,
             textured: region.editable && region.albedo_texture.is_some(),
+            subsurface: None,
         }
     }
 }

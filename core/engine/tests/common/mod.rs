@@ -24,6 +24,7 @@ pub fn region(name: &str, editable: bool, material: MaterialSpec) -> Region {
         material,
         albedo_texture: None,
         ns_range: None,
+        subsurface: None,
     }
 }
 

@@ -50,6 +50,7 @@ pub fn header(width: u32, height: u32) -> StackHeader {
         }),
         basis: None,
         textured: false,
+        subsurface: None,
     };
     StackHeader {
         format_version: STACK_FORMAT_VERSION,
@@ -135,7 +136,9 @@ pub fn reference(stack: &TransferStack, coefs: &[Vec<Rgb>]) -> Vec<[f64; 3]> {
     for layer in &stack.layers {
         let mut wt = [1.0f64; 3];
         for v in &layer.key.path {
-            if let PathVertex::Editable { region, basis } = v {
+            if let PathVertex::Editable { region, basis }
+            | PathVertex::Subsurface { region, basis } = v
+            {
                 let c = coefs[*region as usize][*basis as usize];
                 wt[0] *= c.x as f64;
                 wt[1] *= c.y as f64;

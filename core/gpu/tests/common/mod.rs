@@ -21,7 +21,7 @@ pub const TOLERANCE: f64 = 1e-3;
 /// textured constant, world) while lavapipe sums them in milliseconds.
 pub fn assets_stacks(precision: Precision) -> Vec<(String, Arc<TransferStack>)> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets");
-    ["cornell", "ring", "textured"]
+    ["cornell", "ring", "textured", "translucent"]
         .iter()
         .map(|name| {
             let scene = load_scene(&root.join(format!("{name}.scene.json")))
