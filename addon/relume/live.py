@@ -32,7 +32,9 @@ def region_params(material) -> tuple:
     if mapped["model"] == "blinn_phong":
         return ("override", tuple(mapped["kd"]), tuple(mapped["ks"]), float(mapped["ns"]))
     return ("principled", tuple(mapped["base_color"]), mapped["metallic"], mapped["roughness"],
-            mapped["ior"], mapped["specular_ior_level"])
+            mapped["ior"], mapped["specular_ior_level"], mapped.get("subsurface_weight", 0.0),
+            tuple(mapped.get("subsurface_radius", (1.0, 0.2, 0.1))),
+            mapped.get("subsurface_scale", 0.05))
 
 
 def current_params() -> dict:

@@ -89,7 +89,8 @@ def _draw_region(layout, mat, relume) -> None:
     if node is None:
         layout.label(text="No Principled BSDF: use the override")
         return
-    for name in ("Base Color", "Metallic", "Roughness", "IOR", "Specular IOR Level"):
+    for name in ("Base Color", "Metallic", "Roughness", "IOR", "Specular IOR Level",
+                 "Subsurface Weight", "Subsurface Radius", "Subsurface Scale"):
         sock = node.inputs[name]
         if not sock.is_linked:
             layout.prop(sock, "default_value", text=name)
@@ -98,6 +99,9 @@ def _draw_region(layout, mat, relume) -> None:
     p = region_params(mat)
     if p[0] == "principled":
         bp = relume.principled_to_blinn_phong(p[1], p[2], p[3], p[4], p[5])
+        if p[6] > 0:
+            layout.label(text=f"Subsurface: weight {p[6]:.2f}, mean free path "
+                              f"({', '.join(f'{r * p[8]:.3g}' for r in p[7])}) m")
         kd = ", ".join(f"{c:.2f}" for c in bp["kd"])
         ks = ", ".join(f"{c:.2f}" for c in bp["ks"])
         layout.label(text=f"Blinn–Phong: Kd ({kd})  Ks ({ks})  ns {bp['ns']:.3g}")

@@ -180,6 +180,11 @@ def export_scene(context, options: ExportOptions) -> ExportResult:
                 path = _write_image(rgb, options.texture_dir, f"material_{n}")
                 region["albedo_texture"] = {"path": path}
                 textured_regions.add(index[n])
+        if not editable and material.get("subsurface_weight", 0.0) > 0.0:
+            warnings.add(f"Material '{n}'", "subsurface scattering on a material that is not Editable",
+                         "an opaque surface (tick Editable to bake its translucency)")
+            for k in ("subsurface_weight", "subsurface_radius", "subsurface_scale"):
+                region["material"].pop(k, None)
         if editable and n in options.ns_ranges:
             region["ns_range"] = list(options.ns_ranges[n])
         regions.append(region)
@@ -200,9 +205,13 @@ def export_scene(context, options: ExportOptions) -> ExportResult:
         warnings.add(f"Scene '{scene.name}'", "non-square pixel aspect", "square pixels")
     width, height = bake_resolution(scene, options.resolution_scale)
     scene_dict = {
-        "format": "relume-scene", "version": 1, "meshes": [], "regions": regions,
+        "format": "relume-scene", "meshes": [], "regions": regions,
         "lights": lights, "camera": camera, "resolution": {"width": width, "height": height},
     }
+    # Version 2 adds translucency; a scene without it stays a version-1 file (older cores
+    # read it).
+    translucent = any("subsurface_weight" in r["material"] for r in regions)
+    scene_dict["version"] = 2 if translucent else 1
     world = _world(scene, warnings, options.texture_dir)
     if world is not None:
         scene_dict["world"] = world

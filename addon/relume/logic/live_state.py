@@ -12,7 +12,8 @@ import os
 import time
 from dataclasses import dataclass
 
-#: ("principled", base_color, metallic, roughness, ior, specular_ior_level) or
+#: ("principled", base_color, metallic, roughness, ior, specular_ior_level, subsurface_weight,
+#: subsurface_radius, subsurface_scale) or
 #: ("override", kd, ks, ns): the material of one editable region.
 RegionParams = tuple
 
@@ -102,8 +103,11 @@ class LiveState:
                 _, kd, ks, ns = p
                 self.relighter.set_material(region, kd, ks, ns)
             else:
-                _, base, metallic, roughness, ior, level = p
-                self.relighter.set_principled(region, base, metallic, roughness, ior, level)
+                _, base, metallic, roughness, ior, level, sss_weight, sss_radius, sss_scale = p
+                self.relighter.set_principled(region, base, metallic, roughness, ior, level,
+                                              subsurface_weight=sss_weight,
+                                              subsurface_radius=sss_radius,
+                                              subsurface_scale=sss_scale)
             self.applied[region] = p
             changed.append(region)
         return changed

@@ -26,7 +26,8 @@ FALLBACK_PRINCIPLED = {"model": "principled", "base_color": [0.8, 0.8, 0.8], "me
 
 #: The Principled inputs Relume maps, with Blender's defaults.
 MAPPED_INPUTS = {"Base Color": (0.8, 0.8, 0.8, 1.0), "Metallic": 0.0, "Roughness": 0.5,
-                 "IOR": 1.5, "Specular IOR Level": 0.5}
+                 "IOR": 1.5, "Specular IOR Level": 0.5, "Subsurface Weight": 0.0,
+                 "Subsurface Radius": (1.0, 0.2, 0.1), "Subsurface Scale": 0.05}
 
 #: Inputs that change the look but that Relume does not model: (input, value that is
 #: neutral, what the warning says is used instead).
@@ -123,11 +124,31 @@ def map_material(nodes: SurfaceNodes, warnings: WarningList) -> tuple[dict, bool
     if textured and metallic > 0:
         warnings.add(subject, "metallic with a Base Color texture",
                      "white metallic specular (the texture tints the diffuse part only)")
-    return ({"model": "principled", "base_color": base_color, "metallic": metallic,
-             "roughness": _clamp01(_scalar(nodes.values.get("Roughness", 0.5), 0.5)),
-             "ior": max(1.0, _scalar(nodes.values.get("IOR", 1.5), 1.5)),
-             "specular_ior_level": _clamp01(_scalar(nodes.values.get("Specular IOR Level", 0.5), 0.5))},
-            textured)
+    material = {"model": "principled", "base_color": base_color, "metallic": metallic,
+                "roughness": _clamp01(_scalar(nodes.values.get("Roughness", 0.5), 0.5)),
+                "ior": max(1.0, _scalar(nodes.values.get("IOR", 1.5), 1.5)),
+                "specular_ior_level": _clamp01(_scalar(nodes.values.get("Specular IOR Level", 0.5), 0.5))}
+    material.update(subsurface_fields(nodes, warnings, subject))
+    return material, textured
+
+
+def subsurface_fields(nodes: SurfaceNodes, warnings: WarningList, subject: str) -> dict:
+    """The Principled subsurface inputs as the core's `subsurface_*` fields (scene format 2):
+    Weight, Radius (RGB, in units of Scale) and Scale (scene units); empty when the weight is
+    0. The core's dipole takes the IOR input as its η; Subsurface IOR and Anisotropy (used by
+    Cycles' random walk) have no counterpart in the dipole model and are named when set."""
+    for name in ("Subsurface Weight", "Subsurface Radius", "Subsurface Scale"):
+        if name in nodes.links:
+            warnings.add(subject, f"{name} linked to {nodes.links[name]}", "the socket's own value")
+    weight = _clamp01(_scalar(nodes.values.get("Subsurface Weight", 0.0), 0.0))
+    if weight <= 0.0:
+        return {}
+    radius = _rgb(nodes.values.get("Subsurface Radius", MAPPED_INPUTS["Subsurface Radius"]))
+    scale = max(0.0, _scalar(nodes.values.get("Subsurface Scale", 0.05), 0.05))
+    aniso = _scalar(nodes.values.get("Subsurface Anisotropy", 0.0), 0.0)
+    if abs(aniso) > 1e-6:
+        warnings.add(subject, f"Subsurface Anisotropy {aniso:g}", "isotropic scattering (the dipole's g = 0)")
+    return {"subsurface_weight": weight, "subsurface_radius": radius, "subsurface_scale": scale}
 
 
 def _clamp01(x: float) -> float:

@@ -14,7 +14,7 @@ use numpy::ndarray::Array3;
 use numpy::{IntoPyArray, PyArray3};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use relume_engine::brdf::{principled_to_blinn_phong, BlinnPhong, MaterialSpec};
+use relume_engine::brdf::{principled_to_blinn_phong, BlinnPhong, MaterialSpec, PrincipledMaterial, Subsurface};
 use relume_engine::materials::{resolve_light_gains, resolve_materials, LightGroupEdit, MaterialsFile};
 use relume_engine::stack::bases::StackBases;
 use relume_engine::stack::TransferStack;
@@ -31,8 +31,9 @@ const ENERGY_SLACK: f32 = 1e-6;
 
 struct State {
     engine: Engine,
-    /// Current material of every editable region, in editable order.
-    materials: Vec<BlinnPhong>,
+    /// Current material of every editable region, in editable order: Blinn–Phong values,
+    /// or Principled inputs (whose subsurface part drives a translucent region's layers).
+    materials: Vec<MaterialSpec>,
     /// Regions changed since the last relight.
     dirty: Vec<bool>,
     gains: BTreeMap<String, LightGroupEdit>,
@@ -59,6 +60,14 @@ fn materials_err(py: Python<'_>, e: RelumeError) -> PyErr {
     }
 }
 
+/// The Blinn–Phong surface a material spec maps to (for the energy check and reports).
+fn blinn_phong_of(spec: &MaterialSpec) -> BlinnPhong {
+    match spec {
+        MaterialSpec::BlinnPhong(m) => *m,
+        MaterialSpec::Principled(p) => principled_to_blinn_phong(&p.bsdf),
+    }
+}
+
 impl Relighter {
     fn lock(&self) -> std::sync::MutexGuard<'_, State> {
         self.state.lock().unwrap_or_else(|e| e.into_inner())
@@ -74,7 +83,8 @@ impl Relighter {
         Ok(self.editable.iter().position(|n| n == region).unwrap_or(0))
     }
 
-    fn set(&self, py: Python<'_>, region: &str, m: BlinnPhong) -> PyResult<()> {
+    fn set(&self, py: Python<'_>, region: &str, spec: MaterialSpec) -> PyResult<()> {
+        let m = blinn_phong_of(&spec);
         let index = self.region_index(py, region, &m)?;
         m.validate(&format!("region \"{region}\""))
             .map_err(|e| materials_err(py, e))?;
@@ -89,8 +99,8 @@ impl Relighter {
             ));
         }
         let mut st = self.lock();
-        if st.materials[index] != m {
-            st.materials[index] = m;
+        if st.materials[index] != spec {
+            st.materials[index] = spec;
             st.dirty[index] = true;
         }
         Ok(())
@@ -111,10 +121,8 @@ impl Relighter {
             };
             resolve_light_gains(&self.stack.header, &edits).map_err(PyErrLike::Engine)?
         };
-        let coefs_of = |r: usize, m: &BlinnPhong| -> Result<Vec<Rgb>, PyErrLike> {
-            self.bases
-                .region_coefficients(r, &MaterialSpec::BlinnPhong(*m))
-                .map_err(PyErrLike::Engine)
+        let coefs_of = |r: usize, m: &MaterialSpec| -> Result<Vec<Rgb>, PyErrLike> {
+            self.bases.region_coefficients(r, m).map_err(PyErrLike::Engine)
         };
         if !st.has_image {
             let coefs = st
@@ -193,11 +201,8 @@ impl Relighter {
             }
             Err(e) => return Err(engine_err(py, &e)),
         };
-        let materials: Vec<BlinnPhong> = resolve_materials(&stack.header.regions, &MaterialsFile::default())
-            .py_err(py)?
-            .iter()
-            .map(|m| m.to_blinn_phong())
-            .collect();
+        let materials: Vec<MaterialSpec> =
+            resolve_materials(&stack.header.regions, &MaterialsFile::default()).py_err(py)?;
         let editable = stack
             .header
             .regions
@@ -255,13 +260,15 @@ impl Relighter {
                 ks: rgb("ks", ks)?,
                 ns,
             };
-            self.set(py, region, m)
+            self.set(py, region, MaterialSpec::BlinnPhong(m))
         })
     }
 
     /// Sets an editable region from Principled inputs; returns the {"kd", "ks", "ns"} they
-    /// map to.
-    #[pyo3(signature = (region, base_color, metallic = 0.0, roughness = 0.5, ior = 1.5, specular_ior_level = 0.5))]
+    /// map to. The subsurface inputs (Blender's Subsurface Weight, Radius, Scale; `ior` is
+    /// the η of the dipole) relight a translucent region's subsurface layers; on a region
+    /// baked opaque they change nothing.
+    #[pyo3(signature = (region, base_color, metallic = 0.0, roughness = 0.5, ior = 1.5, specular_ior_level = 0.5, subsurface_weight = 0.0, subsurface_radius = None, subsurface_scale = None))]
     #[allow(clippy::too_many_arguments)]
     fn set_principled<'py>(
         &self,
@@ -272,13 +279,44 @@ impl Relighter {
         roughness: f32,
         ior: f32,
         specular_ior_level: f32,
+        subsurface_weight: f32,
+        subsurface_radius: Option<&Bound<'py, PyAny>>,
+        subsurface_scale: Option<f32>,
     ) -> PyResult<Bound<'py, PyDict>> {
         guard(py, "Relighter.set_principled", || {
             let p = principled(base_color, metallic, roughness, ior, specular_ior_level)?;
             p.validate(&format!("region \"{region}\""))
                 .map_err(|e| materials_err(py, e))?;
+            let mut subsurface = Subsurface {
+                weight: subsurface_weight,
+                ..Subsurface::default()
+            };
+            if let Some(r) = subsurface_radius {
+                subsurface.radius = rgb("subsurface_radius", r)?;
+            }
+            if let Some(scale) = subsurface_scale {
+                subsurface.scale = scale;
+            }
+            let ok = |x: f32| x.is_finite() && x >= 0.0;
+            if !(ok(subsurface.weight) && subsurface.weight <= 1.0)
+                || !subsurface.radius.iter().all(|c| ok(*c))
+                || !ok(subsurface.scale)
+            {
+                return Err(new_err(
+                    py,
+                    "MaterialsError",
+                    format!(
+                        "region \"{region}\": subsurface weight {} (0…1), radius {:?} and scale {} (≥ 0, finite)",
+                        subsurface.weight, subsurface.radius, subsurface.scale
+                    ),
+                ));
+            }
             let m = principled_to_blinn_phong(&p);
-            self.set(py, region, m)?;
+            self.set(
+                py,
+                region,
+                MaterialSpec::Principled(PrincipledMaterial { bsdf: p, subsurface }),
+            )?;
             blinn_phong_dict(py, &m)
         })
     }
@@ -339,7 +377,7 @@ impl Relighter {
         let st = self.lock();
         let d = PyDict::new(py);
         for (name, m) in self.editable.iter().zip(&st.materials) {
-            d.set_item(name, blinn_phong_dict(py, m)?)?;
+            d.set_item(name, blinn_phong_dict(py, &blinn_phong_of(m))?)?;
         }
         Ok(d)
     }

@@ -157,6 +157,9 @@ class Relighter:
         roughness: float = 0.5,
         ior: float = 1.5,
         specular_ior_level: float = 0.5,
+        subsurface_weight: float = 0.0,
+        subsurface_radius: _Rgb | None = None,
+        subsurface_scale: float | None = None,
     ) -> dict[str, Any]: ...
     def set_light_group(self, name: str, strength: float = 1.0, color: _Rgb | None = None) -> None: ...
     def relight(self, flip_y: bool = False) -> npt.NDArray[np.float32]: ...
