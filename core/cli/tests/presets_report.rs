@@ -174,23 +174,24 @@ fn report_runs_end_to_end_at_16_squared_and_caches_its_reference() {
     let dir = scratch("report");
     let out = dir.join("report");
     let chart = dir.join("chart.png");
-    let args = [
+    let cornell = root().join("assets/cornell.scene.json");
+    let ring = root().join("assets/ring.scene.json");
+    let argv = [
         "report",
-        s(&root().join("assets/cornell.scene.json")).to_string(),
-        s(&root().join("assets/ring.scene.json")).to_string(),
-        "--resolution".into(),
-        "16x16".into(),
-        "--reference-spp".into(),
-        "16".into(),
-        "--relight-repeats".into(),
-        "2".into(),
-        "--out".into(),
-        s(&out).to_string(),
-        "--chart".into(),
-        s(&chart).to_string(),
-        "--json".into(),
+        s(&cornell),
+        s(&ring),
+        "--resolution",
+        "16x16",
+        "--reference-spp",
+        "16",
+        "--relight-repeats",
+        "2",
+        "--out",
+        s(&out),
+        "--chart",
+        s(&chart),
+        "--json",
     ];
-    let argv: Vec<&str> = args.iter().map(|a| a.as_str()).collect();
     let report = json_of(&relume(&argv));
     let rows = report["rows"].as_array().unwrap();
     assert_eq!(rows.len(), 6, "2 scenes × 3 presets");
@@ -236,7 +237,7 @@ fn report_runs_end_to_end_at_16_squared_and_caches_its_reference() {
         "stacks are deleted after measuring"
     );
     // A second run renders no reference: it comes from the cache, identical.
-    let again = json_of(&relume(&argv[..argv.len()]));
+    let again = json_of(&relume(&argv));
     for (a, b) in report["references"]
         .as_array()
         .unwrap()
