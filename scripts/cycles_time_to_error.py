@@ -156,7 +156,7 @@ def build_blender_scene(path: pathlib.Path, threads: int):
     cy.use_adaptive_sampling = False
     cy.sample_clamp_direct = 0.0
     cy.sample_clamp_indirect = 0.0
-    cy.filter_type = "BOX"
+    cy.pixel_filter_type = "BOX"
     cy.filter_width = 1.0
     cy.seed = 7
     cy.use_animated_seed = False
@@ -192,7 +192,7 @@ def main() -> None:
     ap.add_argument("--out", default=str(ROOT / "out/cycles"))
     ap.add_argument("--spp", default="1,2,4,8,16,32,64,128,256",
                     help="Cycles samples per pixel, comma-separated, increasing")
-    ap.add_argument("--reference-spp", type=int, default=1024)
+    ap.add_argument("--reference-spp", type=int, default=128)
     ap.add_argument("--threads", type=int, default=os.cpu_count() or 2)
     args = ap.parse_args()
     out = pathlib.Path(args.out)

@@ -65,7 +65,7 @@ impl Preset {
     /// eye samples) and the one indirect bounce (indirect samples × eye samples), which a
     /// single indirect direction per eye sample leaves dominant. Indirect samples are cheaper
     /// than eye samples (no camera ray, no direct light at the eye vertex), so the presets
-    /// spend on them: 16 × 4 × 4 halves the squared error per second of 16 × 4 × 1.
+    /// spend on them: 16 × 4 × 4 lowers squared error × time 1.5–2.3× from 16 × 4 × 1.
     pub fn values(self) -> PresetValues {
         match self {
             Preset::Draft => PresetValues {
@@ -120,7 +120,9 @@ mod tests {
         assert_eq!(Preset::parse("ultra"), None);
         let cost = |p: Preset| {
             let v = p.values();
-            v.spp as f64 * (v.light_samples + v.indirect_samples) as f64 * v.resolution_scale.powi(2)
+            v.spp as f64
+                * (v.light_samples + v.indirect_samples) as f64
+                * v.resolution_scale.powi(2)
         };
         assert!(cost(Preset::Draft) < cost(Preset::Preview));
         assert!(cost(Preset::Preview) < cost(Preset::Final));

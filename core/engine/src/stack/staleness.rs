@@ -24,8 +24,7 @@ pub fn scene_differences(header: &StackHeader, scene: &Scene) -> Vec<String> {
             header.lights.len(),
             scene.lights.len()
         ));
-    } else if let Some(i) = (0..scene.lights.len()).find(|&i| header.lights[i] != scene.lights[i])
-    {
+    } else if let Some(i) = (0..scene.lights.len()).find(|&i| header.lights[i] != scene.lights[i]) {
         out.push(format!("light {i}"));
     }
     let names = |it: &mut dyn Iterator<Item = (&str, bool)>| -> Vec<String> {

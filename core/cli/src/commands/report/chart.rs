@@ -362,11 +362,11 @@ mod tests {
             target: Some((1.0, "1 %".into())),
         };
         let canvas = chart.draw(640, 400);
-        // (1, 1) is the bottom-left-most decade corner on x and the top of y's range... the
-        // first point sits at the left edge of the plot, the second at the right.
+        // x spans [1, 10] and y [0.1, 1]: the first point is the plot's top-left corner, the
+        // second its bottom-right one, the line between them crosses the centre.
         let (left, right, top, bottom) = (110u32, 640 - 230, 70u32, 400 - 80);
-        assert_eq!(canvas.get(left, top), BLACK);
-        assert_eq!(canvas.get(right, bottom), BLACK);
+        assert_eq!(canvas.get(left, bottom - 20), BLACK, "frame");
+        assert_eq!(canvas.get(right, top + 20), BLACK, "frame");
         assert_eq!(
             canvas.get(left + 2, top + 2),
             COLOURS[0],
