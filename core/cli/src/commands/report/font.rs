@@ -315,7 +315,7 @@ const GLYPHS: &[(char, [&str; 7])] = &[
         ],
     ),
     (
-        'x',
+        '×',
         [
             ".....", ".....", "#...#", ".#.#.", "..#..", ".#.#.", "#...#",
         ],
@@ -352,9 +352,8 @@ const BOX: [&str; 7] = [
 
 /// The rows of `c` as bit masks (bit 4 = leftmost pixel).
 pub fn glyph(c: char) -> [u8; GLYPH_H as usize] {
-    // 'x' keeps its own small glyph (a multiplication sign in "512x512"); other lower-case
-    // letters are drawn as capitals.
-    let c = if c != 'x' { c.to_ascii_uppercase() } else { c };
+    // Lower-case letters are drawn as capitals.
+    let c = c.to_ascii_uppercase();
     let rows = GLYPHS
         .iter()
         .find(|(g, _)| *g == c)

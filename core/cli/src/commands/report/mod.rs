@@ -84,6 +84,9 @@ pub struct Args {
     /// Keep the baked stacks in OUT/stacks/ (they are deleted after measuring otherwise).
     #[arg(long)]
     pub keep_stacks: bool,
+    /// Bake nothing: redraw OUT/presets.md and the chart from an existing OUT/presets.json.
+    #[arg(long)]
+    pub redraw: bool,
     /// Print the JSON report on stdout.
     #[arg(long)]
     pub json: bool,
@@ -93,6 +96,13 @@ pub struct Args {
 const BAKE_SEED: u64 = 0;
 
 pub fn run(args: Args) -> Result<(), RelumeError> {
+    if args.redraw {
+        let path = args.out.join("presets.json");
+        let text = std::fs::read_to_string(&path).map_err(|e| RelumeError::io(&path, e))?;
+        let report: Value = serde_json::from_str(&text)
+            .map_err(|e| RelumeError::invalid("--redraw", format!("{}: {e}", path.display())))?;
+        return write_outputs(&args, &report, false);
+    }
     let started = Instant::now();
     let load_before = load_average();
     let scenes = if args.scenes.is_empty() {
@@ -181,16 +191,23 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
         "references": references,
         "rows": rows,
     });
+    write_outputs(&args, &report, true)
+}
+
+/// Writes presets.json (when `write_json`), presets.md and the chart, and prints the summary.
+fn write_outputs(args: &Args, report: &Value, write_json: bool) -> Result<(), RelumeError> {
     let json_path = args.out.join("presets.json");
-    let text = serde_json::to_string_pretty(&report)
-        .map_err(|e| RelumeError::invalid("report", format!("JSON encoding: {e}")))?;
-    write_atomic(&json_path, |w| {
-        use std::io::Write;
-        w.write_all(text.as_bytes())
-            .map_err(|e| RelumeError::io(&json_path, e))
-    })?;
+    if write_json {
+        let text = serde_json::to_string_pretty(report)
+            .map_err(|e| RelumeError::invalid("report", format!("JSON encoding: {e}")))?;
+        write_atomic(&json_path, |w| {
+            use std::io::Write;
+            w.write_all(text.as_bytes())
+                .map_err(|e| RelumeError::io(&json_path, e))
+        })?;
+    }
     let md_path = args.out.join("presets.md");
-    let md = markdown(&report);
+    let md = markdown(report);
     write_atomic(&md_path, |w| {
         use std::io::Write;
         w.write_all(md.as_bytes())
@@ -203,15 +220,15 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
     if let Some(dir) = chart_path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| RelumeError::io(dir, e))?;
     }
-    chart_of(&report).draw(900, 560).write_png(&chart_path)?;
+    chart_of(report).draw(900, 560).write_png(&chart_path)?;
     if args.json {
-        super::print_json(&report);
+        super::print_json(report);
     } else {
         print!("{md}");
         println!(
             "report: {} rows in {:.0} s → {}, {}, {}",
             report["rows"].as_array().map_or(0, |r| r.len()),
-            started.elapsed().as_secs_f64(),
+            report["seconds"].as_f64().unwrap_or(0.0),
             md_path.display(),
             json_path.display(),
             chart_path.display()
