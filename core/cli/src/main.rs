@@ -34,6 +34,8 @@ enum Command {
     Compare(commands::compare::Args),
     /// Build the BRDF basis and report its reconstruction error.
     Basis(commands::basis::Args),
+    /// Bake every preset on the scenes and measure error against time: table and chart.
+    Report(commands::report::Args),
     /// Benchmarks that print figures.
     #[command(subcommand)]
     Bench(commands::bench::Bench),
@@ -47,6 +49,7 @@ fn main() {
         Command::Reference(a) => commands::reference::run(a),
         Command::Compare(a) => commands::compare::run(a),
         Command::Basis(a) => commands::basis::run(a),
+        Command::Report(a) => commands::report::run(a),
         Command::Bench(b) => commands::bench::run(b),
     };
     if let Err(e) = result {

@@ -1,13 +1,14 @@
 //! Options shared by the commands that trace paths (bake, reference, bench bake).
 
 use clap::{Args, ValueEnum};
+use relume_engine::bake::presets::Preset;
 use relume_engine::bake::{BakeSettings, IndirectSampling, LightGrouping};
 use relume_engine::brdf::{BasisConfig, BasisCount};
 use relume_engine::scene::Resolution;
 use relume_engine::stack::Precision;
 use relume_engine::RelumeError;
 
-#[derive(Clone, Copy, ValueEnum)]
+#[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum SamplingArg {
     Uniform,
     Mixture,
@@ -31,35 +32,78 @@ pub enum PrecisionArg {
     F32,
 }
 
+/// The quality presets of [`Preset`], as the command line spells them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum PresetArg {
+    /// Seconds at half resolution: for checking the set-up.
+    Draft,
+    /// A usable image at full resolution in seconds to a minute.
+    Preview,
+    /// Many samples and a tight basis, for final frames.
+    Final,
+}
+
+impl PresetArg {
+    pub fn preset(self) -> Preset {
+        match self {
+            PresetArg::Draft => Preset::Draft,
+            PresetArg::Preview => Preset::Preview,
+            PresetArg::Final => Preset::Final,
+        }
+    }
+}
+
+/// The values the options fall back to when neither a flag nor a preset sets them (the
+/// paper's configuration, as before presets existed).
+pub const DEFAULT_SPP: u32 = 16;
+pub const DEFAULT_LIGHT_SAMPLES: u32 = 4;
+pub const DEFAULT_INDIRECT_SAMPLES: u32 = 1;
+pub const DEFAULT_BASES: u32 = 6;
+
 /// Bake options; `reference` takes the same so it traces the same paths.
+///
+/// Precedence: an explicit flag, then the preset's value (`--preset`), then the default.
 #[derive(Args, Clone)]
 pub struct BakeOptions {
-    /// Eye samples per pixel.
-    #[arg(long, default_value_t = 16)]
-    pub spp: u32,
-    /// Samples per light (and for the world) at every shading point.
-    #[arg(long, default_value_t = 4)]
-    pub light_samples: u32,
-    /// Indirect directions per eye hit.
-    #[arg(long, default_value_t = 1)]
-    pub indirect_samples: u32,
+    /// Quality preset: sets --spp, --light-samples, --indirect-samples, --sampling,
+    /// --tolerance and a resolution scale (draft: ½ of the scene's resolution); explicit
+    /// flags override the preset's values. The README's preset table says what each costs.
+    #[arg(long, value_enum)]
+    pub preset: Option<PresetArg>,
+    /// Eye samples per pixel [default: 16, or the preset's].
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Samples per light (and for the world) at every shading point [default: 4, or the
+    /// preset's].
+    #[arg(long)]
+    pub light_samples: Option<u32>,
+    /// Indirect directions per eye hit [default: 1, or the preset's].
+    #[arg(long)]
+    pub indirect_samples: Option<u32>,
     /// 0: direct light only; 1: one indirect bounce (the paper).
     #[arg(long, default_value_t = 1)]
     pub bounces: u32,
-    /// Indirect sampling: uniform hemisphere (the paper), cosine + lobes mixture, or guided.
-    #[arg(long, value_enum, default_value = "uniform")]
-    pub sampling: SamplingArg,
+    /// Indirect sampling: uniform hemisphere (the paper), cosine + lobes mixture, or guided
+    /// [default: uniform, or the preset's (mixture)].
+    #[arg(long, value_enum)]
+    pub sampling: Option<SamplingArg>,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Override the scene's resolution, e.g. 256x256.
+    /// Override the scene's resolution, e.g. 256x256 (a preset's resolution scale then
+    /// does not apply; --resolution-scale does).
     #[arg(long)]
     pub resolution: Option<String>,
+    /// Scale each side of the resolution (the scene's, or --resolution's) by this factor,
+    /// e.g. 0.5 [default: the preset's when --resolution is not given, else 1].
+    #[arg(long)]
+    pub resolution_scale: Option<f64>,
     /// Layer storage precision.
     #[arg(long, value_enum, default_value = "f16")]
     pub precision: PrecisionArg,
-    /// Basis count N_b (including the diffuse basis).
-    #[arg(long, default_value_t = 6)]
-    pub bases: u32,
+    /// Basis count N_b (including the diffuse basis) [default: 6, or the preset's
+    /// tolerance].
+    #[arg(long)]
+    pub bases: Option<u32>,
     /// Instead of --bases: the smallest basis whose worst lobe error is at most this (e.g. 0.03).
     #[arg(long)]
     pub tolerance: Option<f32>,
@@ -86,24 +130,19 @@ pub struct BakeOptions {
 }
 
 impl BakeOptions {
-    /// The engine's settings.
-    pub fn settings(&self) -> Result<BakeSettings, RelumeError> {
-        let resolution = match &self.resolution {
-            None => None,
-            Some(s) => Some(parse_resolution(s)?),
-        };
-        Ok(BakeSettings {
-            spp: self.spp,
-            light_samples: self.light_samples,
-            indirect_samples: self.indirect_samples,
+    /// The engine's settings for a scene whose own resolution is `scene_resolution`: the
+    /// preset's values first, then every flag given explicitly, then the resolution (an
+    /// explicit `--resolution`, else the scene's) scaled by `--resolution-scale` or, without
+    /// an explicit resolution, by the preset's scale.
+    pub fn settings(&self, scene_resolution: Resolution) -> Result<BakeSettings, RelumeError> {
+        let mut s = BakeSettings {
+            spp: DEFAULT_SPP,
+            light_samples: DEFAULT_LIGHT_SAMPLES,
+            indirect_samples: DEFAULT_INDIRECT_SAMPLES,
             bounces: self.bounces,
-            sampling: match self.sampling {
-                SamplingArg::Uniform => IndirectSampling::Uniform,
-                SamplingArg::Mixture => IndirectSampling::Mixture,
-                SamplingArg::Guided => IndirectSampling::Guided,
-            },
+            sampling: IndirectSampling::Uniform,
             seed: self.seed,
-            resolution,
+            resolution: None,
             precision: match self.precision {
                 PrecisionArg::F16 => Precision::F16,
                 PrecisionArg::F32 => Precision::F32,
@@ -111,10 +150,7 @@ impl BakeOptions {
             basis: BasisConfig {
                 ns_min: self.ns_min,
                 ns_max: self.ns_max,
-                count: match self.tolerance {
-                    Some(t) => BasisCount::Tolerance(t),
-                    None => BasisCount::Fixed(self.bases),
-                },
+                count: BasisCount::Fixed(DEFAULT_BASES),
                 ..BasisConfig::default()
             },
             threads: self.threads,
@@ -126,7 +162,65 @@ impl BakeOptions {
             },
             subsurface_samples: self.subsurface_samples,
             ..BakeSettings::default()
-        })
+        };
+        let preset_scale = match self.preset {
+            Some(p) => p.preset().apply(&mut s),
+            None => 1.0,
+        };
+        if let Some(v) = self.spp {
+            s.spp = v;
+        }
+        if let Some(v) = self.light_samples {
+            s.light_samples = v;
+        }
+        if let Some(v) = self.indirect_samples {
+            s.indirect_samples = v;
+        }
+        if let Some(v) = self.sampling {
+            s.sampling = match v {
+                SamplingArg::Uniform => IndirectSampling::Uniform,
+                SamplingArg::Mixture => IndirectSampling::Mixture,
+                SamplingArg::Guided => IndirectSampling::Guided,
+            };
+        }
+        match (self.tolerance, self.bases) {
+            (Some(t), _) => s.basis.count = BasisCount::Tolerance(t),
+            (None, Some(n)) => s.basis.count = BasisCount::Fixed(n),
+            (None, None) => {}
+        }
+        let explicit = match &self.resolution {
+            None => None,
+            Some(text) => Some(parse_resolution(text)?),
+        };
+        let scale = match (self.resolution_scale, explicit) {
+            (Some(f), _) => {
+                if !(f.is_finite() && f > 0.0) {
+                    return Err(RelumeError::invalid(
+                        "--resolution-scale",
+                        format!("{f} (must be a positive number)"),
+                    ));
+                }
+                f
+            }
+            (None, Some(_)) => 1.0,
+            (None, None) => preset_scale,
+        };
+        s.resolution = match (explicit, scale == 1.0) {
+            (None, true) => None,
+            (Some(r), true) => Some(r),
+            (base, false) => Some(scale_resolution(base.unwrap_or(scene_resolution), scale)),
+        };
+        Ok(s)
+    }
+}
+
+/// `r` with each side multiplied by `scale`, rounded, at least 1 (as the Python bindings'
+/// `resolution_scale`).
+pub fn scale_resolution(r: Resolution, scale: f64) -> Resolution {
+    let side = |v: u32| ((v as f64 * scale).round() as u32).max(1);
+    Resolution {
+        width: side(r.width),
+        height: side(r.height),
     }
 }
 
@@ -145,4 +239,131 @@ pub fn parse_resolution(s: &str) -> Result<Resolution, RelumeError> {
         return Err(bad());
     }
     Ok(Resolution { width, height })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        options: BakeOptions,
+    }
+
+    const SCENE: Resolution = Resolution {
+        width: 512,
+        height: 384,
+    };
+
+    fn settings(args: &[&str]) -> Result<BakeSettings, RelumeError> {
+        let cli = Cli::try_parse_from(std::iter::once("relume").chain(args.iter().copied()))
+            .map_err(|e| RelumeError::invalid("arguments", e.to_string()))?;
+        cli.options.settings(SCENE)
+    }
+
+    #[test]
+    fn without_a_preset_the_defaults_are_the_papers() {
+        let s = settings(&[]).unwrap();
+        assert_eq!((s.spp, s.light_samples, s.indirect_samples), (16, 4, 1));
+        assert_eq!(s.sampling, IndirectSampling::Uniform);
+        assert!(matches!(s.basis.count, BasisCount::Fixed(6)));
+        assert_eq!(s.resolution, None);
+    }
+
+    #[test]
+    fn a_preset_sets_its_values_and_scales_the_scene_resolution() {
+        for preset in Preset::ALL {
+            let s = settings(&["--preset", preset.name()]).unwrap();
+            let v = preset.values();
+            assert_eq!(
+                (s.spp, s.light_samples, s.indirect_samples, s.sampling),
+                (v.spp, v.light_samples, v.indirect_samples, v.sampling),
+                "{}",
+                preset.name()
+            );
+            assert!(
+                matches!(s.basis.count, BasisCount::Tolerance(t) if t == v.basis_tolerance),
+                "{}",
+                preset.name()
+            );
+            let expected =
+                (v.resolution_scale != 1.0).then(|| scale_resolution(SCENE, v.resolution_scale));
+            assert_eq!(s.resolution, expected, "{}", preset.name());
+        }
+        assert_eq!(
+            settings(&["--preset", "draft"]).unwrap().resolution,
+            Some(Resolution {
+                width: 256,
+                height: 192
+            })
+        );
+    }
+
+    #[test]
+    fn explicit_flags_override_the_preset() {
+        let s = settings(&[
+            "--preset",
+            "final",
+            "--spp",
+            "3",
+            "--light-samples",
+            "2",
+            "--sampling",
+            "uniform",
+            "--bases",
+            "7",
+            "--seed",
+            "9",
+        ])
+        .unwrap();
+        let f = Preset::Final.values();
+        assert_eq!((s.spp, s.light_samples, s.seed), (3, 2, 9));
+        assert_eq!(
+            s.indirect_samples, f.indirect_samples,
+            "not given: the preset's"
+        );
+        assert_eq!(s.sampling, IndirectSampling::Uniform);
+        assert!(matches!(s.basis.count, BasisCount::Fixed(7)));
+        let s = settings(&["--preset", "final", "--tolerance", "0.2", "--bases", "7"]).unwrap();
+        assert!(matches!(s.basis.count, BasisCount::Tolerance(t) if t == 0.2));
+    }
+
+    #[test]
+    fn an_explicit_resolution_wins_over_the_preset_scale() {
+        let s = settings(&["--preset", "draft", "--resolution", "100x50"]).unwrap();
+        assert_eq!(
+            s.resolution,
+            Some(Resolution {
+                width: 100,
+                height: 50
+            })
+        );
+        let s = settings(&["--preset", "draft", "--resolution-scale", "0.25"]).unwrap();
+        assert_eq!(
+            s.resolution,
+            Some(Resolution {
+                width: 128,
+                height: 96
+            })
+        );
+        let s = settings(&["--resolution", "100x50", "--resolution-scale", "0.5"]).unwrap();
+        assert_eq!(
+            s.resolution,
+            Some(Resolution {
+                width: 50,
+                height: 25
+            })
+        );
+        let s = settings(&["--preset", "draft", "--resolution-scale", "1"]).unwrap();
+        assert_eq!(s.resolution, None);
+        assert!(settings(&["--resolution-scale", "0"]).is_err());
+        assert!(settings(&["--resolution-scale", "nan"]).is_err());
+        let e = settings(&["--preset", "ultra"]).unwrap_err().to_string();
+        assert!(
+            e.contains("draft") && e.contains("preview") && e.contains("final"),
+            "{e}"
+        );
+    }
 }

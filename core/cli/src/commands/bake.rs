@@ -30,7 +30,7 @@ pub struct Args {
 
 pub fn run(args: Args) -> Result<(), RelumeError> {
     let scene = load_scene(&args.scene)?;
-    let settings = args.options.settings()?;
+    let settings = args.options.settings(scene.resolution)?;
     let output = args.output.clone();
     let quiet = args.json;
     let passes = args.passes;

@@ -11,7 +11,7 @@ use relume_engine::bake::bench::bench_bake;
 use relume_engine::materials::{resolve_materials, MaterialsFile};
 use relume_engine::relight::{bandwidth::measure_read_bandwidth, CpuRelighter};
 use relume_engine::scene::file::load_scene;
-use relume_engine::stack::{bases::StackBases, exr_file::read_stack};
+use relume_engine::stack::{bases::StackBases, exr_file::read_stack, TransferStack};
 use relume_engine::{RelumeError, Rgb};
 use relume_gpu::{DeviceKind, GpuOptions, Relighter};
 use serde_json::json;
@@ -53,7 +53,7 @@ pub fn run(bench: Bench) -> Result<(), RelumeError> {
             json,
         } => {
             let scene = load_scene(&scene)?;
-            let figures = bench_bake(&scene, &options.settings()?)?;
+            let figures = bench_bake(&scene, &options.settings(scene.resolution)?)?;
             if json {
                 super::print_json(&figures);
             } else {
@@ -88,14 +88,7 @@ fn bench_relight(
 ) -> Result<(), RelumeError> {
     let stack = read_stack(path)?;
     let materials = resolve_materials(&stack.header.regions, &MaterialsFile::default())?;
-    let bases = StackBases::from_header(&stack.header)?;
-    let coefs = bases.coefficients(&materials)?;
-    let (width, height, layers, stack_bytes) = (
-        stack.header.width,
-        stack.header.height,
-        stack.layers.len(),
-        stack.sample_bytes(),
-    );
+    let coefs = StackBases::from_header(&stack.header)?.coefficients(&materials)?;
     let editable_names: Vec<String> = stack
         .header
         .regions
@@ -120,6 +113,32 @@ fn bench_relight(
         }
         debug_assert_eq!(chosen.device(), DeviceKind::Cpu);
     }
+    let figures = cpu_relight_figures(stack, repeats, &reason)?;
+    print_figures(&figures, json);
+    Ok(())
+}
+
+/// The CPU relight figures of `relume bench relight` for `stack` at its bake-time materials:
+/// median full relight over `repeats`, one incremental edit per editable region, and the
+/// memory-bandwidth bound. `reason` says why the CPU was chosen.
+pub fn cpu_relight_figures(
+    stack: Arc<TransferStack>,
+    repeats: usize,
+    reason: &str,
+) -> Result<serde_json::Value, RelumeError> {
+    let repeats = repeats.max(1);
+    let stack_bytes = stack.sample_bytes();
+    let (width, height, layers) = (stack.header.width, stack.header.height, stack.layers.len());
+    let editable_names: Vec<String> = stack
+        .header
+        .regions
+        .iter()
+        .filter(|r| r.editable)
+        .map(|r| r.name.clone())
+        .collect();
+    let materials = resolve_materials(&stack.header.regions, &MaterialsFile::default())?;
+    let bases = StackBases::from_header(&stack.header)?;
+    let coefs = bases.coefficients(&materials)?;
     let mut relighter = CpuRelighter::new(stack)?;
     relighter.relight(&coefs)?;
     let mut full = Vec::with_capacity(repeats);
@@ -213,8 +232,7 @@ fn bench_relight(
         "full_over_bound": full_ms / bound_ms,
         "fastest_incremental_over_full": incremental_ms / full_ms,
     });
-    print_figures(&figures, json);
-    Ok(())
+    Ok(figures)
 }
 
 fn print_figures(figures: &serde_json::Value, json: bool) {

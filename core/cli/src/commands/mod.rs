@@ -6,6 +6,7 @@ pub mod bench;
 pub mod compare;
 pub mod reference;
 pub mod relight;
+pub mod report;
 
 use serde::Serialize;
 

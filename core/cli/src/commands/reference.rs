@@ -42,7 +42,7 @@ pub struct Args {
 
 pub fn run(args: Args) -> Result<(), RelumeError> {
     let scene = load_scene(&args.scene)?;
-    let settings = args.options.settings()?;
+    let settings = args.options.settings(scene.resolution)?;
     let edits = match &args.materials {
         Some(p) => load_materials(p)?,
         None => MaterialsFile::default(),

@@ -58,12 +58,20 @@ impl Preset {
 
     /// The values this preset sets. The mixture sampling costs ≈ 15 % more per sample than
     /// uniform and lowers the variance of glossy paths, so every preset uses it.
+    ///
+    /// Measured on the Cornell scene (README, "Presets"): the error of a relit image is Monte
+    /// Carlo noise far more than basis error (tolerance 0.03 costs 0.34 %, 0.01 costs 0.10 %),
+    /// and the noise is shared between the direct light at the eye vertex (light samples ×
+    /// eye samples) and the one indirect bounce (indirect samples × eye samples), which a
+    /// single indirect direction per eye sample leaves dominant. Indirect samples are cheaper
+    /// than eye samples (no camera ray, no direct light at the eye vertex), so the presets
+    /// spend on them: 16 × 4 × 4 lowers squared error × time 1.5–2.3× from 16 × 4 × 1.
     pub fn values(self) -> PresetValues {
         match self {
             Preset::Draft => PresetValues {
                 spp: 4,
-                light_samples: 1,
-                indirect_samples: 1,
+                light_samples: 2,
+                indirect_samples: 2,
                 sampling: IndirectSampling::Mixture,
                 basis_tolerance: 0.05,
                 resolution_scale: 0.5,
@@ -71,7 +79,7 @@ impl Preset {
             Preset::Preview => PresetValues {
                 spp: 16,
                 light_samples: 4,
-                indirect_samples: 1,
+                indirect_samples: 4,
                 sampling: IndirectSampling::Mixture,
                 basis_tolerance: 0.03,
                 resolution_scale: 1.0,
@@ -112,7 +120,9 @@ mod tests {
         assert_eq!(Preset::parse("ultra"), None);
         let cost = |p: Preset| {
             let v = p.values();
-            v.spp as f64 * (v.light_samples + v.indirect_samples) as f64 * v.resolution_scale.powi(2)
+            v.spp as f64
+                * (v.light_samples + v.indirect_samples) as f64
+                * v.resolution_scale.powi(2)
         };
         assert!(cost(Preset::Draft) < cost(Preset::Preview));
         assert!(cost(Preset::Preview) < cost(Preset::Final));
