@@ -291,9 +291,9 @@ fn direct_light<B: VertexBrdf, T: Tracer>(
     (first, count)
 }
 
-/// Draws an indirect direction at a vertex with normal `n`: uniform (the paper), the cosine
-/// + lobes mixture, or (guided, where the pixel's tile has a guide map) [`GUIDE_WEIGHT`] of
-/// the map and the rest that mixture. Returns the direction and its solid-angle pdf (of the
+/// Draws an indirect direction at a vertex with normal `n`: uniform (the paper), the
+/// cosine-and-lobes mixture, or (guided, where the pixel's tile has a guide map)
+/// [`GUIDE_WEIGHT`] of the map and the rest that mixture. Returns the direction and its solid-angle pdf (of the
 /// whole mixture); consumes 2 (uniform) or 3 (mixture, guided) random numbers always.
 pub fn sample_indirect(
     sampling: IndirectSampling,
