@@ -83,12 +83,21 @@ fn both_samplings_give_the_exact_irradiance() {
     for (name, lights) in [("solid angle", &solid), ("area", &area)] {
         let (m, se) = irradiance(lights, p, Vec3::Z, 400_000, 1);
         println!("E below the centre by {name}: {m:.5} ± {se:.5} (exact {exact:.5})");
-        assert!((m - exact).abs() < 5.0 * se + 1e-6 * exact, "{name}: {m} ± {se} vs {exact}");
+        assert!(
+            (m - exact).abs() < 5.0 * se + 1e-6 * exact,
+            "{name}: {m} ± {se} vs {exact}"
+        );
     }
     // Off to the side, close to the light's plane, tilted normal: the two agree.
     for (p, n) in [
-        (Vec3::new(0.9, 0.2, 0.95), Vec3::new(-1.0, 0.0, 0.2).normalize()),
-        (Vec3::new(0.3, -0.1, 0.2), Vec3::new(0.2, 0.3, 0.9).normalize()),
+        (
+            Vec3::new(0.9, 0.2, 0.95),
+            Vec3::new(-1.0, 0.0, 0.2).normalize(),
+        ),
+        (
+            Vec3::new(0.3, -0.1, 0.2),
+            Vec3::new(0.2, 0.3, 0.9).normalize(),
+        ),
     ] {
         let (m1, e1) = irradiance(&solid, p, n, 400_000, 3);
         let (m2, e2) = irradiance(&area, p, n, 400_000, 5);
@@ -103,7 +112,13 @@ fn both_samplings_give_the_exact_irradiance() {
 }
 
 /// Reference render of `scene` at 48² (true BRDF, 1 light sample per eye sample).
-fn render(scene: &Scene, spp: u32, seed: u64, sampling: AreaSampling, bounces: u32) -> (Vec<f32>, f64) {
+fn render(
+    scene: &Scene,
+    spp: u32,
+    seed: u64,
+    sampling: AreaSampling,
+    bounces: u32,
+) -> (Vec<f32>, f64) {
     let settings = BakeSettings {
         spp,
         bounces,
@@ -175,6 +190,9 @@ fn solid_angle_sampling_lowers_the_variance_on_the_cornell_scene() {
         );
         // The 256-spp reference has its own noise (≈ 1/8 of the 4-spp RMSE), which only
         // lowers the measured factor.
-        assert!(factor > min_factor, "{bounces} bounce(s): variance reduction {factor:.2}×");
+        assert!(
+            factor > min_factor,
+            "{bounces} bounce(s): variance reduction {factor:.2}×"
+        );
     }
 }

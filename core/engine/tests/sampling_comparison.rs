@@ -20,7 +20,8 @@ use relume_engine::scene::file::load_scene;
 use relume_engine::scene::{Resolution, Scene};
 
 fn scene(name: &str) -> Scene {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../../assets/{name}.scene.json"));
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../../assets/{name}.scene.json"));
     load_scene(&path).unwrap()
 }
 
@@ -64,7 +65,10 @@ fn render(scene: &Scene, method: Method, spp: u32, seed: u64) -> (Vec<f32>, f64)
         .collect();
     let img = render_with_context(&ctx, &materials, ReferenceBrdf::True, &Progress::new()).unwrap();
     let secs = t.elapsed().as_secs_f64();
-    (img.rgba.chunks(4).flat_map(|p| p[..3].to_vec()).collect(), secs)
+    (
+        img.rgba.chunks(4).flat_map(|p| p[..3].to_vec()).collect(),
+        secs,
+    )
 }
 
 fn rmse(a: &[f32], b: &[f32]) -> f64 {
@@ -89,7 +93,10 @@ fn relume_sampling_against_the_papers_at_equal_samples_and_time() {
             let (mut e2, mut secs, mut bias) = (0.0, 0.0, 0.0);
             for &seed in &seeds {
                 let (img, t) = render(&s, method, spp, seed);
-                assert!(img.iter().all(|v| v.is_finite() && *v >= -1e-6), "{name} {method:?}");
+                assert!(
+                    img.iter().all(|v| v.is_finite() && *v >= -1e-6),
+                    "{name} {method:?}"
+                );
                 e2 += rmse(&img, &reference).powi(2);
                 secs += t;
                 bias += mean(&img);
@@ -108,7 +115,10 @@ fn relume_sampling_against_the_papers_at_equal_samples_and_time() {
             );
             // Every method is unbiased: its mean over seeds matches the converged mean
             // within what 4 × 8 spp of noise allow (2 % of the image mean, checked loosely).
-            assert!((m - mean(&reference)).abs() < 0.03 * mean(&reference) + 1e-4, "{name} {method:?}: {m}");
+            assert!(
+                (m - mean(&reference)).abs() < 0.03 * mean(&reference) + 1e-4,
+                "{name} {method:?}: {m}"
+            );
         }
         rows.push((name, results));
     }
@@ -116,5 +126,8 @@ fn relume_sampling_against_the_papers_at_equal_samples_and_time() {
     // HDRI scene (world warping) — checked; the other scenes' figures are printed.
     let hdri = &rows.iter().find(|r| r.0 == "hdri").unwrap().1;
     let factor = (hdri[0].1 / hdri[1].1).powi(2);
-    assert!(factor >= 2.0, "hdri: mixture reduces the variance only {factor:.2}×");
+    assert!(
+        factor >= 2.0,
+        "hdri: mixture reduces the variance only {factor:.2}×"
+    );
 }

@@ -2,7 +2,9 @@
 //! (non-contiguous, any float or int dtype numpy can cast); a wrong shape or dtype is a
 //! `SceneError` naming the argument and the shape expected.
 
-use numpy::{AllowTypeChange, PyArrayDescrMethods, PyArrayLikeDyn, PyUntypedArray, PyUntypedArrayMethods};
+use numpy::{
+    AllowTypeChange, PyArrayDescrMethods, PyArrayLikeDyn, PyUntypedArray, PyUntypedArrayMethods,
+};
 use pyo3::prelude::*;
 
 use crate::errors::new_err;
@@ -25,7 +27,11 @@ pub fn float_rows<const N: usize>(
     obj: &Bound<'_, PyAny>,
 ) -> PyResult<Vec<[f32; N]>> {
     let array: PyArrayLikeDyn<f32, AllowTypeChange> = obj.extract().map_err(|e| {
-        scene_err(py, what, format!("expected a float array of shape (n, {N}): {e}"))
+        scene_err(
+            py,
+            what,
+            format!("expected a float array of shape (n, {N}): {e}"),
+        )
     })?;
     let view = array.as_array();
     if view.ndim() != 2 || view.shape()[1] != N {
@@ -68,7 +74,11 @@ pub fn index_array(
         None => "(m,)".into(),
     };
     let array: PyArrayLikeDyn<i64, AllowTypeChange> = obj.extract().map_err(|e| {
-        scene_err(py, what, format!("expected an integer array of shape {expected}: {e}"))
+        scene_err(
+            py,
+            what,
+            format!("expected an integer array of shape {expected}: {e}"),
+        )
     })?;
     let view = array.as_array();
     let ok = match columns {

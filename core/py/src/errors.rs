@@ -72,7 +72,10 @@ fn make_classes(py: Python<'_>) -> PyResult<Vec<(&'static str, Py<PyType>)>> {
 /// A new exception of class `name` with `message`.
 pub fn new_err(py: Python<'_>, name: &str, message: impl Into<String>) -> PyErr {
     let message = message.into();
-    match TYPES.get(py).and_then(|t| t.iter().find(|(n, _)| *n == name)) {
+    match TYPES
+        .get(py)
+        .and_then(|t| t.iter().find(|(n, _)| *n == name))
+    {
         Some((_, ty)) => PyErr::from_type(ty.bind(py).clone(), (message,)),
         // Only before the module is initialised, which cannot run Relume code.
         None => pyo3::exceptions::PyRuntimeError::new_err(format!("{name}: {message}")),

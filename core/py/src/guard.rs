@@ -23,9 +23,7 @@ pub fn panic_text(payload: &(dyn std::any::Any + Send)) -> String {
 
 /// The message of an `InternalError` for a panic with text `text`, `where_` naming the call.
 pub fn internal_message(where_: &str, text: &str) -> String {
-    format!(
-        "internal error in {where_} (a Rust panic, caught; please report it): {text}"
-    )
+    format!("internal error in {where_} (a Rust panic, caught; please report it): {text}")
 }
 
 /// Runs `f`, turning a panic into `Err(panic text)`. For code that holds no Python state
@@ -38,7 +36,11 @@ pub fn catch<T>(f: impl FnOnce() -> T) -> Result<T, String> {
 pub fn guard<T>(py: Python<'_>, where_: &str, f: impl FnOnce() -> PyResult<T>) -> PyResult<T> {
     match catch(f) {
         Ok(r) => r,
-        Err(text) => Err(new_err(py, "InternalError", internal_message(where_, &text))),
+        Err(text) => Err(new_err(
+            py,
+            "InternalError",
+            internal_message(where_, &text),
+        )),
     }
 }
 
@@ -51,6 +53,10 @@ pub fn guard_detached<T: Send>(
 ) -> PyResult<T> {
     match py.detach(|| catch(f)) {
         Ok(v) => Ok(v),
-        Err(text) => Err(new_err(py, "InternalError", internal_message(where_, &text))),
+        Err(text) => Err(new_err(
+            py,
+            "InternalError",
+            internal_message(where_, &text),
+        )),
     }
 }

@@ -16,7 +16,9 @@ use crate::guard::guard_detached;
 /// added), any layout.
 fn rgba_of(obj: &Bound<'_, PyAny>) -> PyResult<(u32, u32, Vec<f32>)> {
     let array: PyArrayLikeDyn<f32, AllowTypeChange> = obj.extract().map_err(|e| {
-        PyValueError::new_err(format!("expected a float image of shape (h, w, 4) or (h, w, 3): {e}"))
+        PyValueError::new_err(format!(
+            "expected a float image of shape (h, w, 4) or (h, w, 3): {e}"
+        ))
     })?;
     let view = array.as_array();
     let shape = view.shape();
@@ -56,10 +58,14 @@ pub fn write_png(
 ) -> PyResult<()> {
     let (w, h, data) = rgba_of(rgba)?;
     if !exposure.is_finite() {
-        return Err(PyValueError::new_err(format!("exposure {exposure} is not finite")));
+        return Err(PyValueError::new_err(format!(
+            "exposure {exposure} is not finite"
+        )));
     }
-    guard_detached(py, "write_png", move || write_png_srgb(&path, w, h, &data, exposure))?
-        .py_err(py)
+    guard_detached(py, "write_png", move || {
+        write_png_srgb(&path, w, h, &data, exposure)
+    })?
+    .py_err(py)
 }
 
 /// Reads an OpenEXR image as float32 (h, w, 3) scene-linear RGB, rows top first.

@@ -119,7 +119,11 @@ impl BakeJob {
             }))
         };
         let (completion, _handle) = spawn("relume-bake", work).map_err(|e| {
-            new_err(py, "RelumeError", format!("could not start the bake thread: {e}"))
+            new_err(
+                py,
+                "RelumeError",
+                format!("could not start the bake thread: {e}"),
+            )
         })?;
         Ok(BakeJob { state, completion })
     }
@@ -135,7 +139,11 @@ impl BakeJob {
             Some(Outcome::Finished(Err(RelumeError::Cancelled))) => Some("cancelled"),
             Some(_) => Some("failed"),
         });
-        let fraction = if ended == Some("done") { 1.0 } else { p.fraction() };
+        let fraction = if ended == Some("done") {
+            1.0
+        } else {
+            p.fraction()
+        };
         let stage = match ended {
             Some(s) => s,
             None if p.is_cancelled() => "cancelling",
@@ -165,10 +173,7 @@ impl BakeJob {
         d.set_item("pass_index", written.min(pass_count.saturating_sub(1)))?;
         d.set_item("pass_count", pass_count)?;
         d.set_item("stage", stage)?;
-        d.set_item(
-            "noise",
-            *st.noise.lock().unwrap_or_else(|e| e.into_inner()),
-        )?;
+        d.set_item("noise", *st.noise.lock().unwrap_or_else(|e| e.into_inner()))?;
         d.set_item("stacks_written", written)?;
         Ok(d)
     }
@@ -217,7 +222,9 @@ impl BakeJob {
         settings: PyRef<'_, BakeSettings>,
         stack_path: PathBuf,
     ) -> PyResult<Self> {
-        guard(py, "BakeJob()", || BakeJob::start(py, &scene, &settings, stack_path))
+        guard(py, "BakeJob()", || {
+            BakeJob::start(py, &scene, &settings, stack_path)
+        })
     }
 
     /// `{"fraction", "eta_s", "elapsed_s", "pass_index", "pass_count", "stage", "noise",
@@ -264,7 +271,9 @@ pub fn bake<'py>(
     stack_path: PathBuf,
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let job = guard(py, "bake", || BakeJob::start(py, &scene, &settings, stack_path))?;
+    let job = guard(py, "bake", || {
+        BakeJob::start(py, &scene, &settings, stack_path)
+    })?;
     let mut cancelled = false;
     loop {
         let ended = job.wait_detached(py, Some(Duration::from_millis(100)));

@@ -34,7 +34,9 @@ use rayon::prelude::*;
 #[pyo3(signature = (in_thread = false))]
 fn _debug_panic(py: Python<'_>, in_thread: bool) -> PyResult<()> {
     if !in_thread {
-        return guard::guard(py, "_debug_panic", || panic!("relume debug panic (calling thread)"));
+        return guard::guard(py, "_debug_panic", || {
+            panic!("relume debug panic (calling thread)")
+        });
     }
     let (completion, _handle) = worker::spawn("relume-debug-panic", || {
         (0..64u32).into_par_iter().for_each(|i| {

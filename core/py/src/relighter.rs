@@ -14,8 +14,12 @@ use numpy::ndarray::Array3;
 use numpy::{IntoPyArray, PyArray3};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use relume_engine::brdf::{principled_to_blinn_phong, BlinnPhong, MaterialSpec, PrincipledMaterial, Subsurface};
-use relume_engine::materials::{resolve_light_gains, resolve_materials, LightGroupEdit, MaterialsFile};
+use relume_engine::brdf::{
+    principled_to_blinn_phong, BlinnPhong, MaterialSpec, PrincipledMaterial, Subsurface,
+};
+use relume_engine::materials::{
+    resolve_light_gains, resolve_materials, LightGroupEdit, MaterialsFile,
+};
 use relume_engine::stack::bases::StackBases;
 use relume_engine::stack::TransferStack;
 use relume_engine::{RelumeError, Rgb};
@@ -122,7 +126,9 @@ impl Relighter {
             resolve_light_gains(&self.stack.header, &edits).map_err(PyErrLike::Engine)?
         };
         let coefs_of = |r: usize, m: &MaterialSpec| -> Result<Vec<Rgb>, PyErrLike> {
-            self.bases.region_coefficients(r, m).map_err(PyErrLike::Engine)
+            self.bases
+                .region_coefficients(r, m)
+                .map_err(PyErrLike::Engine)
         };
         if !st.has_image {
             let coefs = st
@@ -144,8 +150,11 @@ impl Relighter {
                 }
             }
             if st.gains_dirty {
-                let g = gains.unwrap_or_else(|| vec![Rgb::ONE; self.stack.header.light_groups.len()]);
-                st.engine.set_light_group_gains(&g).map_err(PyErrLike::Gpu)?;
+                let g =
+                    gains.unwrap_or_else(|| vec![Rgb::ONE; self.stack.header.light_groups.len()]);
+                st.engine
+                    .set_light_group_gains(&g)
+                    .map_err(PyErrLike::Gpu)?;
             }
         }
         st.dirty.iter_mut().for_each(|d| *d = false);
@@ -315,7 +324,10 @@ impl Relighter {
             self.set(
                 py,
                 region,
-                MaterialSpec::Principled(PrincipledMaterial { bsdf: p, subsurface }),
+                MaterialSpec::Principled(PrincipledMaterial {
+                    bsdf: p,
+                    subsurface,
+                }),
             )?;
             blinn_phong_dict(py, &m)
         })
@@ -358,9 +370,16 @@ impl Relighter {
             PyErrLike::Engine(e) => engine_err(py, &e),
             PyErrLike::Gpu(e) => crate::errors::gpu_err(py, &e),
         })?;
-        let (w, h) = (self.stack.header.width as usize, self.stack.header.height as usize);
+        let (w, h) = (
+            self.stack.header.width as usize,
+            self.stack.header.height as usize,
+        );
         let array = Array3::from_shape_vec((h, w, 4), pixels).map_err(|e| {
-            new_err(py, "InternalError", format!("relit image of the wrong size: {e}"))
+            new_err(
+                py,
+                "InternalError",
+                format!("relit image of the wrong size: {e}"),
+            )
         })?;
         Ok(array.into_pyarray(py))
     }

@@ -78,10 +78,7 @@ impl Scene {
             let what = |field: &str| format!("mesh \"{name}\" {field}");
             let positions = float_rows::<3>(py, &what("positions"), positions)?;
             let (flat, triangles) = index_array(py, &what("indices"), indices, Some(3))?;
-            let indices: Vec<[u32; 3]> = flat
-                .chunks_exact(3)
-                .map(|c| [c[0], c[1], c[2]])
-                .collect();
+            let indices: Vec<[u32; 3]> = flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
             let normals = normals
                 .map(|n| float_rows::<3>(py, &what("normals"), n))
                 .transpose()?;
@@ -96,7 +93,10 @@ impl Scene {
                         return Err(new_err(
                             py,
                             "SceneError",
-                            format!("{}: {n} entries for {triangles} triangles", what("triangle_regions")),
+                            format!(
+                                "{}: {n} entries for {triangles} triangles",
+                                what("triangle_regions")
+                            ),
                         ));
                     }
                     Some(regions)
@@ -111,7 +111,11 @@ impl Scene {
                         return Err(new_err(
                             py,
                             "SceneError",
-                            format!("{}: {len} rows for {} vertices", what(field), positions.len()),
+                            format!(
+                                "{}: {len} rows for {} vertices",
+                                what(field),
+                                positions.len()
+                            ),
                         ));
                     }
                 }

@@ -90,7 +90,10 @@ impl BakeSettings {
             "bounces" => {
                 let n: i64 = v.extract().map_err(|_| bad(field, "expected an integer"))?;
                 if !(0..=MAX_BOUNCES as i64).contains(&n) {
-                    return Err(bad(field, format!("{n} (this build bakes 0 to {MAX_BOUNCES})")));
+                    return Err(bad(
+                        field,
+                        format!("{n} (this build bakes 0 to {MAX_BOUNCES})"),
+                    ));
                 }
                 e.bounces = n as u32;
             }
@@ -100,7 +103,12 @@ impl BakeSettings {
                     "uniform" => IndirectSampling::Uniform,
                     "mixture" => IndirectSampling::Mixture,
                     "guided" => IndirectSampling::Guided,
-                    _ => return Err(bad(field, format!("\"{s}\" (expected \"uniform\", \"mixture\" or \"guided\")"))),
+                    _ => {
+                        return Err(bad(
+                            field,
+                            format!("\"{s}\" (expected \"uniform\", \"mixture\" or \"guided\")"),
+                        ))
+                    }
                 };
             }
             "seed" => {

@@ -62,7 +62,12 @@ impl Stack {
     }
     #[getter]
     fn region_names(&self) -> Vec<String> {
-        self.inner.header.regions.iter().map(|r| r.name.clone()).collect()
+        self.inner
+            .header
+            .regions
+            .iter()
+            .map(|r| r.name.clone())
+            .collect()
     }
     #[getter]
     fn editable_regions(&self) -> Vec<String> {
@@ -77,7 +82,12 @@ impl Stack {
     /// Names of the light groups kept apart (empty when all lights share the layers).
     #[getter]
     fn light_groups(&self) -> Vec<String> {
-        self.inner.header.light_groups.iter().map(|g| g.name.clone()).collect()
+        self.inner
+            .header
+            .light_groups
+            .iter()
+            .map(|g| g.name.clone())
+            .collect()
     }
     #[getter]
     fn layer_count(&self) -> usize {

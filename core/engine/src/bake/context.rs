@@ -7,8 +7,8 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use crate::bake::settings::{BakeSettings, IndirectSampling, MAX_BOUNCES};
 use crate::bake::guide::GuideField;
+use crate::bake::settings::{BakeSettings, IndirectSampling, MAX_BOUNCES};
 use crate::bake::signature::PathVertex;
 use crate::bake::subsurface::{self, TranslucentRegion};
 use crate::brdf::{BasisConfig, BlinnPhong, BrdfBasis};

@@ -168,6 +168,9 @@ mod tests {
         assert!((total - 4.0 * PI).abs() < 1e-9, "{total}");
         assert_eq!(texel_of(Vec3::Z) / GUIDE_WIDTH, 0);
         assert_eq!(texel_of(-Vec3::Z) / GUIDE_WIDTH, GUIDE_HEIGHT - 1);
-        assert_eq!(texel_of(Vec3::new(0.3, 0.1, 0.01)) / GUIDE_WIDTH, GUIDE_HEIGHT / 2 - 1);
+        assert_eq!(
+            texel_of(Vec3::new(0.3, 0.1, 0.01)) / GUIDE_WIDTH,
+            GUIDE_HEIGHT / 2 - 1
+        );
     }
 }

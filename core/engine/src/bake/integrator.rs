@@ -12,9 +12,9 @@ use std::f32::consts::PI;
 
 use crate::bake::context::{BakeContext, MAX_BASES};
 use crate::bake::guide::GUIDE_WEIGHT;
-use crate::geometry::env_sampling::EnvSampler;
 use crate::bake::settings::IndirectSampling;
 use crate::geometry::bvh::SurfaceHit;
+use crate::geometry::env_sampling::EnvSampler;
 use crate::geometry::sampling::{
     blinn_phong_half_vector, blinn_phong_pdf, cosine_hemisphere, to_world, uniform_hemisphere,
     SampleStream,
@@ -175,9 +175,14 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(
     let mut bounce_light = [Rgb::ZERO; MAX_GROUPS * MAX_BASES];
     for _ in 0..settings.indirect_samples {
         let guide = ctx.guide.as_ref().and_then(|g| g.sampler(px, py));
-        let Some((wi, pdf)) =
-            sample_indirect(settings.sampling, &region.mixture_lobes, guide, n, wo, &mut stream)
-        else {
+        let Some((wi, pdf)) = sample_indirect(
+            settings.sampling,
+            &region.mixture_lobes,
+            guide,
+            n,
+            wo,
+            &mut stream,
+        ) else {
             continue;
         };
         let cos_i = n.dot(wi);
@@ -376,7 +381,16 @@ pub fn guide_sample<B: VertexBrdf, T: Tracer>(
     )?;
     let mut values = [Rgb::ZERO; MAX_BASES];
     let mut light = [Rgb::ZERO; MAX_GROUPS * MAX_BASES];
-    let (_, count) = direct_light(ctx, brdf, tracer, &hit2, -wi, &mut stream, &mut values, &mut light);
+    let (_, count) = direct_light(
+        ctx,
+        brdf,
+        tracer,
+        &hit2,
+        -wi,
+        &mut stream,
+        &mut values,
+        &mut light,
+    );
     if count == 0 {
         return None;
     }

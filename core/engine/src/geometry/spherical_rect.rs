@@ -35,7 +35,12 @@ impl SphericalRect {
     /// `None` when `p` lies in the rectangle's plane (it subtends nothing) or the rectangle
     /// is degenerate.
     pub fn new(corner: Vec3, ex: Vec3, ey: Vec3, p: Vec3) -> Option<SphericalRect> {
-        let (corner, ex, ey, o) = (corner.as_dvec3(), ex.as_dvec3(), ey.as_dvec3(), p.as_dvec3());
+        let (corner, ex, ey, o) = (
+            corner.as_dvec3(),
+            ex.as_dvec3(),
+            ey.as_dvec3(),
+            p.as_dvec3(),
+        );
         let (exl, eyl) = (ex.length(), ey.length());
         if !(exl > 0.0 && eyl > 0.0) {
             return None;
@@ -159,15 +164,33 @@ mod tests {
             Vec3::new(0.0, 0.0, 1.0),
         )
         .unwrap();
-        assert!((r.solid_angle - exact).abs() < 1e-9, "{} vs {exact}", r.solid_angle);
+        assert!(
+            (r.solid_angle - exact).abs() < 1e-9,
+            "{} vs {exact}",
+            r.solid_angle
+        );
         // Off-centre, below the plane, long and thin.
         for (corner, ex, ey, p) in [
-            (Vec3::new(0.3, -2.0, 1.0), Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 0.5, 0.0), Vec3::ZERO),
-            (Vec3::new(-1.0, 0.0, -0.2), Vec3::new(0.0, 3.0, 0.0), Vec3::new(0.0, 0.0, 0.1), Vec3::new(0.5, 1.0, 0.0)),
+            (
+                Vec3::new(0.3, -2.0, 1.0),
+                Vec3::new(2.0, 0.0, 0.0),
+                Vec3::new(0.0, 0.5, 0.0),
+                Vec3::ZERO,
+            ),
+            (
+                Vec3::new(-1.0, 0.0, -0.2),
+                Vec3::new(0.0, 3.0, 0.0),
+                Vec3::new(0.0, 0.0, 0.1),
+                Vec3::new(0.5, 1.0, 0.0),
+            ),
         ] {
             let r = SphericalRect::new(corner, ex, ey, p).unwrap();
             let b = brute_solid_angle(corner, ex, ey, p);
-            assert!((r.solid_angle - b).abs() < 2e-4 * b, "{} vs {b}", r.solid_angle);
+            assert!(
+                (r.solid_angle - b).abs() < 2e-4 * b,
+                "{} vs {b}",
+                r.solid_angle
+            );
         }
     }
 
@@ -195,7 +218,10 @@ mod tests {
             assert!(local.z.abs() < 1e-5, "off the plane: {q}");
             let (fx, fy) = (local.x / ex.x, local.y / ey.y);
             assert!((-1e-5..=1.0 + 1e-5).contains(&fx) && (-1e-5..=1.0 + 1e-5).contains(&fy));
-            let (i, j) = (((fx * cells as f32) as usize).min(cells - 1), ((fy * cells as f32) as usize).min(cells - 1));
+            let (i, j) = (
+                ((fx * cells as f32) as usize).min(cells - 1),
+                ((fy * cells as f32) as usize).min(cells - 1),
+            );
             counts[i * cells + j] += 1;
         }
         for i in 0..cells {
@@ -205,7 +231,10 @@ mod tests {
                 let expected = cell.solid_angle / r.solid_angle;
                 let got = counts[i * cells + j] as f64 / n as f64;
                 let sigma = (expected * (1.0 - expected) / n as f64).sqrt();
-                assert!((got - expected).abs() < 5.0 * sigma + 1e-4, "cell {i},{j}: {got} vs {expected}");
+                assert!(
+                    (got - expected).abs() < 5.0 * sigma + 1e-4,
+                    "cell {i},{j}: {got} vs {expected}"
+                );
             }
         }
     }
@@ -224,9 +253,17 @@ mod tests {
         let q = r.sample(0.3, 0.9);
         assert!(q.is_finite() && (q.z - 10.0).abs() < 1e-4);
         // In the plane: nothing.
-        assert!(SphericalRect::new(Vec3::new(1.0, 0.0, 0.0), Vec3::X, Vec3::Y, Vec3::ZERO).is_none());
+        assert!(
+            SphericalRect::new(Vec3::new(1.0, 0.0, 0.0), Vec3::X, Vec3::Y, Vec3::ZERO).is_none()
+        );
         // Just above the plane, beside the light.
-        let r = SphericalRect::new(Vec3::new(1.0, 0.0, 0.0), Vec3::X, Vec3::Y, Vec3::new(0.0, 0.0, 1e-6)).unwrap();
+        let r = SphericalRect::new(
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::X,
+            Vec3::Y,
+            Vec3::new(0.0, 0.0, 1e-6),
+        )
+        .unwrap();
         for (u, v) in [(0.0, 0.0), (0.999_999, 0.999_999), (0.5, 0.5)] {
             assert!(r.sample(u, v).is_finite());
         }
