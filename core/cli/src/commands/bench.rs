@@ -75,6 +75,17 @@ pub fn run(bench: Bench) -> Result<(), RelumeError> {
     }
 }
 
+/// Names of the stack's editable regions, in editable order (the order of the coefficients).
+fn editable_region_names(stack: &TransferStack) -> Vec<String> {
+    stack
+        .header
+        .regions
+        .iter()
+        .filter(|r| r.editable)
+        .map(|r| r.name.clone())
+        .collect()
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(|a, b| a.total_cmp(b));
     v[v.len() / 2]
@@ -89,13 +100,7 @@ fn bench_relight(
     let stack = read_stack(path)?;
     let materials = resolve_materials(&stack.header.regions, &MaterialsFile::default())?;
     let coefs = StackBases::from_header(&stack.header)?.coefficients(&materials)?;
-    let editable_names: Vec<String> = stack
-        .header
-        .regions
-        .iter()
-        .filter(|r| r.editable)
-        .map(|r| r.name.clone())
-        .collect();
+    let editable_names = editable_region_names(&stack);
     let stack = Arc::new(stack);
     let mut reason = "CPU: chosen by the caller".to_string();
     if !matches!(device, Device::Cpu) {
@@ -129,13 +134,7 @@ pub fn cpu_relight_figures(
     let repeats = repeats.max(1);
     let stack_bytes = stack.sample_bytes();
     let (width, height, layers) = (stack.header.width, stack.header.height, stack.layers.len());
-    let editable_names: Vec<String> = stack
-        .header
-        .regions
-        .iter()
-        .filter(|r| r.editable)
-        .map(|r| r.name.clone())
-        .collect();
+    let editable_names = editable_region_names(&stack);
     let materials = resolve_materials(&stack.header.regions, &MaterialsFile::default())?;
     let bases = StackBases::from_header(&stack.header)?;
     let coefs = bases.coefficients(&materials)?;
