@@ -1186,8 +1186,7 @@ pub(crate) fn pivoted_cholesky(g: &[f64], l: usize) -> Vec<Vec<f64>> {
 
 /// Leading eigenpairs of a symmetric PSD `l×l` matrix, descending, via [`pivoted_cholesky`]
 /// and Jacobi on the small `RᵀR`; `v = R u / √λ`. Returns (λ, V as l×r row-major).
-#[cfg(test)]
-fn top_eigenpairs(g: &[f64], l: usize) -> (Vec<f64>, Vec<f64>) {
+pub(crate) fn top_eigenpairs(g: &[f64], l: usize) -> (Vec<f64>, Vec<f64>) {
     let cols = pivoted_cholesky(g, l);
     let r = cols.len();
     let mut m = vec![0.0; r * r];

@@ -33,7 +33,7 @@ use serde::{Deserialize, Serialize};
 
 use super::dipole::DipoleParams;
 use super::mapping::ALPHA_MAX;
-use crate::brdf::basis::{jacobi_eigen, pivoted_cholesky};
+use crate::brdf::basis::top_eigenpairs;
 use crate::{RelumeError, Result};
 
 /// Standard deviation of the sample-scale blur in units of ρ. Samples are `h = ρ√π` apart
@@ -275,7 +275,8 @@ impl SssBasis {
                 gram[j * n + i] = gram[i * n + j];
             }
         }
-        let (lam, vecs, rank) = top_eigenpairs(&gram, n);
+        let (lam, vecs) = top_eigenpairs(&gram, n);
+        let rank = lam.len();
         let kmax = rank.min(MAX_SSS_BASES);
         if kmax == 0 {
             return Err(RelumeError::Basis("subsurface basis: empty family".into()));
@@ -624,33 +625,4 @@ fn blur_matrix(radii: &[f64], edges: &[f64], areas: &[f64], sd: f64) -> (BlurRow
         })
         .collect();
     (rows, norm)
-}
-
-/// Leading eigenpairs of the symmetric PSD `n×n` matrix `g` via a pivoted Cholesky
-/// `G ≈ R Rᵀ` (to 10⁻¹⁵ of the trace) and Jacobi on the small `RᵀR`: returns the eigenvalues
-/// (descending), the eigenvectors as an `n×rank` row-major matrix, and the rank.
-fn top_eigenpairs(g: &[f64], n: usize) -> (Vec<f64>, Vec<f64>, usize) {
-    let cols = pivoted_cholesky(g, n);
-    let r = cols.len();
-    let mut m = vec![0.0; r * r];
-    for a in 0..r {
-        for b in 0..=a {
-            let s: f64 = cols[a].iter().zip(&cols[b]).map(|(x, y)| x * y).sum();
-            m[a * r + b] = s;
-            m[b * r + a] = s;
-        }
-    }
-    let (lam, u) = jacobi_eigen(&m, r);
-    let mut v = vec![0.0; n * r];
-    for k in 0..r {
-        let inv = 1.0 / lam[k].max(1e-300).sqrt();
-        for i in 0..n {
-            let mut s = 0.0;
-            for (a, col) in cols.iter().enumerate() {
-                s += col[i] * u[a * r + k];
-            }
-            v[i * r + k] = s * inv;
-        }
-    }
-    (lam, v, r)
 }
