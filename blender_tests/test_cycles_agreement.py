@@ -65,12 +65,23 @@ def results_file(tmp_path_factory):
     print(f"\nCycles agreement figures: {path}")
 
 
-def _relume_image(addon, tmp: pathlib.Path, seed: int, name: str, bounces: int = 1):
-    """Bake with the final preset through the add-on and relight the current materials."""
+#: Cycles' two half-sample images per case, for the 2 % goal check.
+_CYCLES: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+
+
+def _relume_image(addon, tmp: pathlib.Path, seed: int, name: str, bounces: int = 1,
+                  denoise: bool = False):
+    """Bake with the final preset through the add-on and relight the current materials.
+
+    The agreement cases turn the preset's denoiser off: they test the transport, and the
+    two-seed noise estimate their floor rests on holds only for an unbiased image. The 2 %
+    goal is checked on the preset as users get it (denoised)."""
     import relume
 
+    off = {} if denoise else {"denoise_direct": 0, "denoise_bounce": 0}
     t0 = time.perf_counter()
-    report = addon.api.bake(settings=relume.BakeSettings.preset("final", seed=seed, bounces=bounces))
+    report = addon.api.bake(settings=relume.BakeSettings.preset("final", seed=seed, bounces=bounces,
+                                                                 **off))
     bake_s = time.perf_counter() - t0
     out = addon.api.render(str(tmp / f"{name}_relume_seed{seed}.exr"))
     image = np.asarray(relume.read_exr(out), dtype=np.float64)[..., :3]
@@ -97,6 +108,7 @@ def compare(addon, tmp: pathlib.Path, name: str, spp: int, bounces: int = 1,
     c2, t2 = cy.render_cycles(scene, tmp / f"{name}_cycles_2.exr", spp // 2, seed=2, bounces=bounces)
     r0, b0, report = _relume_image(addon, tmp, 0, name, bounces)
     r1, b1, _ = _relume_image(addon, tmp, 1, name, bounces)
+    _CYCLES[name] = (c1, c2)
     reference = 0.5 * (c1 + c2)
     assert reference.shape == r0.shape, (reference.shape, r0.shape)
     assert np.isfinite(reference).all() and np.isfinite(r0).all() and np.isfinite(r1).all()
@@ -107,7 +119,7 @@ def compare(addon, tmp: pathlib.Path, name: str, spp: int, bounces: int = 1,
         "resolution": list(reference.shape[:2]),
         "bounces": bounces,
         "cycles_spp": spp,
-        "relume_preset": "final",
+        "relume_preset": "final, denoiser off",
         **pixel,
         "rel_l2_mean_of_two_relume_seeds": cy.rel_l2(0.5 * (r0 + r1), reference),
         **{f"block{BLOCK}_{k}": v for k, v in blocks.items()},
@@ -143,18 +155,25 @@ def test_cornell_diffuse_agrees_with_cycles(addon, prefs, blend_dir, results_fil
     compare(addon, blend_dir, f"cornell_diffuse_b{bounces}", CORNELL_SPP, bounces=bounces)
 
 
-@pytest.mark.xfail(reason="Relume's own noise at the final preset (128 spp) on the Cornell box is "
-                          "≈ 3.5 % rel. L2 per pixel, above the issue's 2 % goal. Its light "
-                          "sampling has ≈ 29× Cycles' variance per sample (direct only, 1024 "
-                          "samples: 1.0 % vs 0.19 %), most likely i.i.d. random numbers and area lights "
-                          "sampled uniformly on their surface, against Cycles' Sobol sequence "
-                          "and solid-angle sampling",
-                   strict=False)
-def test_cornell_noise_floor_meets_the_2_percent_goal():
-    f = _RESULTS.get("cornell_diffuse_b1")
-    if f is None:
+def test_cornell_final_preset_is_within_2_percent_of_cycles(addon, prefs, blend_dir, results_file):
+    """The issue's goal: the final preset as users get it (QMC sampling, denoised bounce
+    layers) against the 1024-spp Cycles image of the diffuse Cornell box, direct + one bounce:
+    relative L2 ≤ 2 % per pixel. The difference includes Cycles' own noise (printed), the
+    denoiser's bias and Relume's remaining noise; nothing is taken out of it."""
+    name = "cornell_diffuse_b1"
+    if name not in _CYCLES:
         pytest.skip("needs test_cornell_diffuse_agrees_with_cycles[1] first")
-    assert f["rel_l2"] <= 0.02 and f["tolerance"] <= 0.02 + MARGIN, f
+    import_scene(ROOT / "assets" / "cornell.scene.json", resolution=(CORNELL_RES, CORNELL_RES),
+                 diffuse_only=True)
+    c1, c2 = _CYCLES[name]
+    reference = 0.5 * (c1 + c2)
+    r, bake_s, _ = _relume_image(addon, blend_dir, 0, name + "_denoised", 1, denoise=True)
+    figures = {"rel_l2": cy.rel_l2(r, reference), "sigma_cycles": cy.noise_of_mean(c1, c2),
+               "relume_bake_s": bake_s, "cycles_spp": CORNELL_SPP, "relume_preset": "final"}
+    _RESULTS["cornell_final_preset_goal"] = figures
+    print(f"\n[cycles agreement] final preset (denoised) against Cycles 1024 spp: {figures}")
+    assert np.isfinite(r).all() and r.min() >= 0.0
+    assert figures["rel_l2"] <= 0.02, figures
 
 
 @pytest.mark.parametrize("kind", ["point", "spot", "sun", "area"])

@@ -127,6 +127,13 @@ pub struct BakeOptions {
     /// sets `subsurface.samples`.
     #[arg(long, default_value_t = 65536)]
     pub subsurface_samples: u32,
+    /// À-trous iterations of the stack's linear denoiser on the direct layers [default: 0,
+    /// or the preset's]; each doubles the kernel's reach.
+    #[arg(long)]
+    pub denoise_direct: Option<u32>,
+    /// À-trous iterations on the one-bounce layers [default: 0, or the preset's].
+    #[arg(long)]
+    pub denoise_bounce: Option<u32>,
 }
 
 impl BakeOptions {
@@ -175,6 +182,12 @@ impl BakeOptions {
         }
         if let Some(v) = self.indirect_samples {
             s.indirect_samples = v;
+        }
+        if let Some(v) = self.denoise_direct {
+            s.denoise.direct_iterations = v;
+        }
+        if let Some(v) = self.denoise_bounce {
+            s.denoise.bounce_iterations = v;
         }
         if let Some(v) = self.sampling {
             s.sampling = match v {

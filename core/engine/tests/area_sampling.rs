@@ -155,8 +155,10 @@ fn rmse(a: &[f32], b: &[f32]) -> f64 {
 fn solid_angle_sampling_lowers_the_variance_on_the_cornell_scene() {
     let scene = cornell();
     // Direct light alone shows the light sampling's own variance; with the bounce, the
-    // indirect direction's variance is added to both.
-    for (bounces, min_factor) in [(0u32, 1.5f64), (1, 1.1)] {
+    // indirect direction's variance is added to both. With i.i.d. random numbers the direct
+    // factor was 1.67×; with the stratified (Owen-scrambled Sobol) numbers both samplings
+    // gain and the factor measured 1.49× (4 spp, 6 seeds), hence the 1.3 floor.
+    for (bounces, min_factor) in [(0u32, 1.3f64), (1, 1.1)] {
         let (reference, t_ref) = render(&scene, 256, 99, AreaSampling::SolidAngle, bounces);
         let (area_ref, _) = render(&scene, 256, 98, AreaSampling::Area, bounces);
         let mean = |v: &[f32]| v.iter().map(|x| *x as f64).sum::<f64>() / v.len() as f64;

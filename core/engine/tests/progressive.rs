@@ -97,5 +97,7 @@ fn passes_converge_and_the_last_equals_a_one_shot_bake() {
     let d = compare_rgb(&relight(&last, &scene), &one_shot, 4)
         .unwrap()
         .rel_l2;
-    assert!(d < 1e-5, "progressive and one-shot bakes differ by {d}");
+    // Same paths: only the f32 summation order (per pass, then across passes) and the f16
+    // rounding that follows differ (measured 2.2e-5); other paths would differ by ≈ 5 %.
+    assert!(d < 1e-4, "progressive and one-shot bakes differ by {d}");
 }

@@ -78,6 +78,7 @@ fn header(width: u32, height: u32, precision: Precision) -> StackHeader {
         precision,
         light_tint: [1.0; 3],
         light_groups: Vec::new(),
+        denoise: Default::default(),
     }
 }
 

@@ -34,6 +34,8 @@ pub const FIELDS: &[&str] = &[
     "threads",
     "drop_budget",
     "light_grouping",
+    "denoise_direct",
+    "denoise_bounce",
     "passes",
 ];
 
@@ -191,6 +193,17 @@ impl BakeSettings {
                 }
                 e.threads = n as usize;
             }
+            "denoise_direct" | "denoise_bounce" => {
+                let n: i64 = v.extract().map_err(|_| bad(field, "expected an integer"))?;
+                if !(0..=8).contains(&n) {
+                    return Err(bad(field, format!("{n} (À-trous iterations, 0…8)")));
+                }
+                if field == "denoise_direct" {
+                    e.denoise.direct_iterations = n as u32;
+                } else {
+                    e.denoise.bounce_iterations = n as u32;
+                }
+            }
             "drop_budget" => {
                 let x = finite(field, v)?;
                 if !(0.0..1.0).contains(&x) {
@@ -261,6 +274,8 @@ impl BakeSettings {
             "ns_max" => (e.basis.ns_max as f64).into_pyobject(py)?.into_any(),
             "threads" => e.threads.into_pyobject(py)?.into_any(),
             "drop_budget" => (e.drop_budget as f64).into_pyobject(py)?.into_any(),
+            "denoise_direct" => e.denoise.direct_iterations.into_pyobject(py)?.into_any(),
+            "denoise_bounce" => e.denoise.bounce_iterations.into_pyobject(py)?.into_any(),
             "light_grouping" => match e.light_grouping {
                 LightGrouping::All => "all",
                 LightGrouping::PerLight => "per-light",

@@ -63,6 +63,10 @@ pub trait PathSink {
     /// Light of group `group` reflected at the bounce vertex through `bounce_slot`, then at
     /// the eye vertex through `eye_slot`.
     fn bounce(&mut self, group: usize, eye_slot: u32, bounce_slot: u32, value: Rgb);
+    /// The eye ray hit region `region` at `position` with shading normal `normal` (what the
+    /// bake's denoiser steers by; nothing by default).
+    #[inline]
+    fn eye_hit(&mut self, _region: u32, _normal: Vec3, _position: Vec3) {}
 }
 
 /// Most light groups a bake keeps apart: bounds the per-vertex scratch arrays.
@@ -129,6 +133,7 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(
         );
         return;
     };
+    sink.eye_hit(hit.region, hit.shading_normal, hit.position);
     let groups = ctx.lights.groups.len();
     let wo = -dir;
     let mut values = [Rgb::ZERO; MAX_BASES];
@@ -173,7 +178,9 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(
     let inv_indirect = 1.0 / settings.indirect_samples as f32;
     let mut eye_values = [Rgb::ZERO; MAX_BASES];
     let mut bounce_light = [Rgb::ZERO; MAX_GROUPS * MAX_BASES];
-    for _ in 0..settings.indirect_samples {
+    let indirect = stream.branch();
+    for i in 0..settings.indirect_samples {
+        let mut stream = indirect.child(i, settings.indirect_samples);
         let guide = ctx.guide.as_ref().and_then(|g| g.sampler(px, py));
         let Some((wi, pdf)) = sample_indirect(
             settings.sampling,
@@ -237,8 +244,9 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(
 
 /// Direct light at `hit` towards `wo`: for every emitter and light sample, every BRDF value
 /// of the vertex times cos θ times radiance/pdf, averaged over the light samples, summed per
-/// light group and slot into `light[group · MAX_BASES + slot]` (cleared first). Returns the vertex's first slot and slot count (count
-/// 0 when no sample arrived). Consumes 2 random numbers per light sample always.
+/// light group and slot into `light[group · MAX_BASES + slot]` (cleared first). Returns the
+/// vertex's first slot and slot count (count 0 when no sample arrived). Takes one branch of
+/// `stream` per emitter, whose children are the light samples, always.
 #[allow(clippy::too_many_arguments)]
 fn direct_light<B: VertexBrdf, T: Tracer>(
     ctx: &BakeContext,
@@ -258,8 +266,9 @@ fn direct_light<B: VertexBrdf, T: Tracer>(
     let inv = 1.0 / samples as f32;
     let origin = ctx.geometry.offset(hit.position, ng);
     for emitter in 0..ctx.lights.len() {
-        for _ in 0..samples {
-            let (u1, u2) = stream.next2();
+        let base = stream.branch();
+        for j in 0..samples {
+            let (u1, u2) = base.child(j, samples).next2();
             let Some(s) = ctx.lights.sample(emitter, hit.position, n, u1, u2) else {
                 continue;
             };
@@ -299,7 +308,7 @@ fn direct_light<B: VertexBrdf, T: Tracer>(
 /// Draws an indirect direction at a vertex with normal `n`: uniform (the paper), the
 /// cosine-and-lobes mixture, or (guided, where the pixel's tile has a guide map)
 /// [`GUIDE_WEIGHT`] of the map and the rest that mixture. Returns the direction and its solid-angle pdf (of the
-/// whole mixture); consumes 2 (uniform) or 3 (mixture, guided) random numbers always.
+/// whole mixture); consumes 1 (uniform) or 2 (mixture, guided) dimension pairs always.
 pub fn sample_indirect(
     sampling: IndirectSampling,
     lobes: &[f32],

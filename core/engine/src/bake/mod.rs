@@ -8,6 +8,7 @@
 
 pub mod bench;
 pub mod context;
+pub mod denoise;
 pub mod drop;
 pub mod guide;
 pub mod integrator;
@@ -35,7 +36,7 @@ use context::BakeContext;
 use drop::RawLayer;
 use integrator::{trace_eye_sample, CountingTracer, PathSink};
 use progress::Progress;
-pub use settings::{BakeSettings, IndirectSampling, LightGrouping};
+pub use settings::{BakeSettings, Denoise, IndirectSampling, LightGrouping};
 use signature::LayerKey;
 use vertex_brdf::BasisBrdf;
 
@@ -50,6 +51,8 @@ pub struct BakeReport {
     pub trace_seconds: f64,
     /// Part of `trace_seconds` spent turning the accumulated images into layers.
     pub assembly_seconds: f64,
+    /// Part of `assembly_seconds` spent denoising ([`denoise`]; 0 when the settings ask for none).
+    pub denoise_seconds: f64,
     /// Rays per second of `trace_seconds`.
     pub rays: u64,
     pub rays_per_second: f64,
@@ -77,6 +80,8 @@ struct TileSink<'a> {
     slots: usize,
     /// Layers per light group.
     per_group: usize,
+    /// The pixel's eye-hit record for the denoiser ([`denoise::EyeFeatures`]).
+    features: &'a mut [f32],
 }
 
 impl TileSink<'_> {
@@ -105,6 +110,10 @@ impl PathSink for TileSink<'_> {
             group * self.per_group + 1 + s + eye as usize * s + bounce as usize,
             v,
         );
+    }
+    #[inline]
+    fn eye_hit(&mut self, region: u32, normal: glam::Vec3, position: glam::Vec3) {
+        denoise::EyeFeatures::add(self.features, region, normal, position);
     }
 }
 
@@ -195,6 +204,7 @@ pub fn bake_progressive(
     let layer_count = ctx.layer_count();
     let slots = ctx.slot_count();
     let store: Vec<Mutex<Vec<f32>>> = (0..layer_count).map(|_| Mutex::new(Vec::new())).collect();
+    let features = Mutex::new(denoise::EyeFeatures::EMPTY.repeat(width * height));
     let rays = std::sync::atomic::AtomicU64::new(0);
     let brdf = BasisBrdf { ctx: &ctx };
     let tile_count = tiles::tiles(res).len() as u64;
@@ -220,6 +230,7 @@ pub fn bake_progressive(
                     &ctx,
                     &brdf,
                     &store,
+                    &features,
                     tile,
                     from..to,
                     slots,
@@ -230,8 +241,21 @@ pub fn bake_progressive(
             },
         )?;
         done = upto;
-        let (stack, mut report, image) =
-            assemble(&ctx, scene, &settings, &store, done, &pool, width, height)?;
+        let eye_features = {
+            let f = features.lock().unwrap_or_else(|e| e.into_inner());
+            denoise::EyeFeatures::from_sums(&ctx, &f, done)
+        };
+        let (stack, mut report, image) = assemble(
+            &ctx,
+            scene,
+            &settings,
+            &store,
+            &eye_features,
+            done,
+            &pool,
+            width,
+            height,
+        )?;
         let norm = image.iter().map(|v| v * v).sum::<f64>().sqrt();
         let estimated_rel_error = previous_image.as_ref().map(|prev| {
             let diff = prev
@@ -275,6 +299,7 @@ fn trace_tile(
     ctx: &BakeContext,
     brdf: &BasisBrdf,
     store: &[Mutex<Vec<f32>>],
+    features: &Mutex<Vec<f32>>,
     tile: &tiles::Tile,
     samples: std::ops::Range<u32>,
     slots: usize,
@@ -286,6 +311,8 @@ fn trace_tile(
     let height = ctx.resolution.height as usize;
     let tp = tile.pixels();
     let mut buf = vec![0.0f32; layer_count * tp * 3];
+    let fs = denoise::FEATURE_STRIDE;
+    let mut tile_features = denoise::EyeFeatures::EMPTY.repeat(tp);
     let mut tracer = CountingTracer::default();
     for ty in 0..tile.height {
         if progress.is_cancelled() {
@@ -297,6 +324,7 @@ fn trace_tile(
                 buf: &mut buf[pixel * layer_count * 3..(pixel + 1) * layer_count * 3],
                 slots,
                 per_group: ctx.layers_per_group(),
+                features: &mut tile_features[pixel * fs..(pixel + 1) * fs],
             };
             for s in samples.clone() {
                 trace_eye_sample(
@@ -312,6 +340,16 @@ fn trace_tile(
         }
     }
     rays.fetch_add(tracer.rays, std::sync::atomic::Ordering::Relaxed);
+    {
+        let mut all = features.lock().unwrap_or_else(|e| e.into_inner());
+        for ty in 0..tile.height as usize {
+            for tx in 0..tile.width as usize {
+                let src = (ty * tile.width as usize + tx) * fs;
+                let dst = ((tile.y0 as usize + ty) * width + tile.x0 as usize + tx) * fs;
+                denoise::EyeFeatures::merge(&mut all[dst..dst + fs], &tile_features[src..src + fs]);
+            }
+        }
+    }
     let stride = layer_count * 3;
     for (layer, slot) in store.iter().enumerate() {
         let texel = |p: usize| &buf[p * stride + layer * 3..p * stride + layer * 3 + 3];
@@ -345,6 +383,7 @@ fn assemble(
     scene: &Scene,
     settings: &BakeSettings,
     store: &[Mutex<Vec<f32>>],
+    eye_features: &denoise::EyeFeatures,
     spp: u32,
     pool: &rayon::ThreadPool,
     width: usize,
@@ -389,6 +428,20 @@ fn assemble(
         }
     }
     let empty = unreached.len();
+    let denoise_start = Instant::now();
+    pool.install(|| {
+        for (vertices, iterations) in [
+            (1, settings.denoise.direct_iterations),
+            (2, settings.denoise.bounce_iterations),
+        ] {
+            let mut chosen: Vec<&mut RawLayer> = reached
+                .iter_mut()
+                .filter(|l| l.key.path.len() == vertices)
+                .collect();
+            eye_features.filter(&mut chosen, iterations);
+        }
+    });
+    let denoise_seconds = denoise_start.elapsed().as_secs_f64();
     let image = drop::bake_time_image(ctx, scene, &reached);
     let (kept, drop_report) = drop::drop_negligible(
         ctx,
@@ -454,6 +507,7 @@ fn assemble(
                 })
                 .collect()
         },
+        denoise: settings.denoise,
     };
     let stack = TransferStack { header, layers };
     let assembly_seconds = assembly_start.elapsed().as_secs_f64();
@@ -464,6 +518,7 @@ fn assemble(
         setup_seconds: 0.0,
         trace_seconds: 0.0,
         assembly_seconds,
+        denoise_seconds,
         rays_per_second: 0.0,
         width: res.width,
         height: res.height,

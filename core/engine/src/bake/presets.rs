@@ -10,7 +10,7 @@
 
 use serde::Serialize;
 
-use super::settings::{BakeSettings, IndirectSampling};
+use super::settings::{BakeSettings, Denoise, IndirectSampling};
 use crate::brdf::BasisCount;
 
 /// A named quality preset.
@@ -36,6 +36,8 @@ pub struct PresetValues {
     pub basis_tolerance: f32,
     /// Fraction of the scene's resolution baked (each side).
     pub resolution_scale: f64,
+    /// The stack's linear denoiser ([`crate::bake::denoise`]): biased, measured.
+    pub denoise: Denoise,
 }
 
 impl Preset {
@@ -75,6 +77,10 @@ impl Preset {
                 sampling: IndirectSampling::Mixture,
                 basis_tolerance: 0.05,
                 resolution_scale: 0.5,
+                denoise: Denoise {
+                    direct_iterations: 0,
+                    bounce_iterations: 2,
+                },
             },
             Preset::Preview => PresetValues {
                 spp: 16,
@@ -83,6 +89,10 @@ impl Preset {
                 sampling: IndirectSampling::Mixture,
                 basis_tolerance: 0.03,
                 resolution_scale: 1.0,
+                denoise: Denoise {
+                    direct_iterations: 0,
+                    bounce_iterations: 3,
+                },
             },
             Preset::Final => PresetValues {
                 spp: 128,
@@ -91,6 +101,10 @@ impl Preset {
                 sampling: IndirectSampling::Mixture,
                 basis_tolerance: 0.01,
                 resolution_scale: 1.0,
+                denoise: Denoise {
+                    direct_iterations: 0,
+                    bounce_iterations: 2,
+                },
             },
         }
     }
@@ -104,6 +118,7 @@ impl Preset {
         settings.indirect_samples = v.indirect_samples;
         settings.sampling = v.sampling;
         settings.basis.count = BasisCount::Tolerance(v.basis_tolerance);
+        settings.denoise = v.denoise;
         v.resolution_scale
     }
 }

@@ -48,6 +48,27 @@ pub enum LightGrouping {
     Scene,
 }
 
+/// How much of the bake's noise the stack's linear denoiser ([`crate::bake::denoise`]) takes
+/// out: À-trous iterations per kind of layer, 0 for none. Each iteration doubles the
+/// kernel's reach (5 iterations: 125 pixels across); the filter's weights come from the
+/// geometry only, so relighting stays exact with respect to the filtered stack, at the cost
+/// of bias where light changes faster than geometry.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+pub struct Denoise {
+    /// Iterations on the layers lit directly at the eye vertex (shadows live here: keep small).
+    pub direct_iterations: u32,
+    /// Iterations on the one-bounce layers (smooth indirect light, most of the noise).
+    pub bounce_iterations: u32,
+}
+
+impl Denoise {
+    /// No filtering: the stack is the unbiased Monte Carlo estimate.
+    pub const OFF: Denoise = Denoise {
+        direct_iterations: 0,
+        bounce_iterations: 0,
+    };
+}
+
 /// Everything that controls a bake (and the reference render that mirrors it).
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct BakeSettings {
@@ -85,6 +106,9 @@ pub struct BakeSettings {
     /// the gather costs ≈ 90 µs per eye hit there, most of a translucent bake).
     #[serde(default = "default_subsurface_theta")]
     pub subsurface_theta: f32,
+    /// The stack's denoiser; off by default (the presets turn it on).
+    #[serde(default)]
+    pub denoise: Denoise,
 }
 
 fn default_subsurface_samples() -> u32 {
@@ -111,6 +135,7 @@ impl Default for BakeSettings {
             light_grouping: LightGrouping::All,
             subsurface_samples: default_subsurface_samples(),
             subsurface_theta: default_subsurface_theta(),
+            denoise: Denoise::OFF,
         }
     }
 }

@@ -130,8 +130,9 @@ pub fn prepare_light(ctx: &BakeContext, scene: &Scene, index: usize, t: &mut Tra
             );
             let inv = 1.0 / light_samples as f32;
             for emitter in 0..ctx.lights.len() {
-                for _ in 0..light_samples {
-                    let (u1, u2) = stream.next2();
+                let base = stream.branch();
+                for j in 0..light_samples {
+                    let (u1, u2) = base.child(j, light_samples).next2();
                     let Some(s) = ctx.lights.sample(emitter, p, n, u1, u2) else {
                         continue;
                     };

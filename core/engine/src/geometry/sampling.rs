@@ -77,37 +77,130 @@ pub fn blinn_phong_pdf(cos_h: f32, wo_dot_h: f32, ns: f32) -> f32 {
     pdf_h / (4.0 * wo_dot_h)
 }
 
-/// Counter-based random numbers: value `i` of the stream for (seed, pixel, sample) is a hash
-/// of the four, so every pixel draws the same numbers whatever the tiling and thread count.
+/// Counter-based, randomised quasi-Monte Carlo numbers: the same numbers for a pixel
+/// whatever the tiling and thread count, and stratified across a pixel's samples.
+///
+/// Every call draws from its own *dimension pair* of an Owen-scrambled 2-D Sobol sequence
+/// (Burley 2020, "Practical hash-based Owen scrambling": the index is shuffled and each
+/// coordinate scrambled by hash, with seeds from (seed, pixel, dimension)), at the stream's
+/// `index` — the eye sample for a fresh stream. So the 16 pixel jitters of 16 eye samples
+/// are one stratified 16-point set rather than 16 independent points, and so is every other
+/// dimension. Loops inside an eye sample (light samples, indirect directions) take a
+/// [`SampleStream::branch`] and a [`SampleStream::child`] per iteration, whose index
+/// is `index · count + j`: the 4 light samples of 16 eye samples are one 64-point set.
+///
+/// Each number is still uniform on [0, 1) (over the scrambles) and numbers of different
+/// dimensions are independent, so every estimator stays unbiased; only the variance falls.
+/// Measured on the Cornell scene (16 eye × 4 light × 4 indirect samples): see the README.
 #[derive(Clone, Copy, Debug)]
 pub struct SampleStream {
+    /// Seeds the dimensions of this stream (hash of seed and pixel, and of the branch).
     key: u64,
-    next: u32,
+    /// Index of the point in every dimension's sequence.
+    index: u32,
+    /// Next dimension pair.
+    dim: u32,
 }
 
 impl SampleStream {
     /// The stream of eye sample `sample` of pixel `pixel` for bake seed `seed`.
     pub fn new(seed: u64, pixel: u64, sample: u32) -> Self {
-        let key = mix64(
-            seed ^ mix64(
-                pixel.wrapping_mul(0x9E3779B97F4A7C15) ^ ((sample as u64) << 32 | 0x5bd1e995),
-            ),
-        );
-        SampleStream { key, next: 0 }
+        let key = mix64(seed ^ mix64(pixel.wrapping_mul(0x9E3779B97F4A7C15) ^ 0x5bd1e995));
+        SampleStream {
+            key,
+            index: sample,
+            dim: 0,
+        }
     }
-    /// The next uniform number in [0, 1).
+    /// The next uniform number in [0, 1) (the first coordinate of a fresh dimension pair).
     #[allow(clippy::should_implement_trait)]
     #[inline]
     pub fn next(&mut self) -> f32 {
-        let h = mix64(self.key ^ (self.next as u64).wrapping_mul(0xD1B54A32D192ED03));
-        self.next += 1;
-        (h >> 40) as f32 * (1.0 / (1u64 << 24) as f32)
+        self.next2().0
     }
-    /// Two numbers.
+    /// Two numbers: one point of a fresh dimension pair.
     #[inline]
     pub fn next2(&mut self) -> (f32, f32) {
-        (self.next(), self.next())
+        let k = mix64(self.key ^ (self.dim as u64 + 1).wrapping_mul(0xD1B54A32D192ED03));
+        self.dim += 1;
+        sobol_owen_2d(self.index, k)
     }
+    /// Opens a nested loop: takes one dimension of this stream and returns the stream whose
+    /// [`SampleStream::child`]ren the loop's iterations draw from.
+    #[inline]
+    pub fn branch(&mut self) -> SampleStream {
+        let key = mix64(self.key ^ (self.dim as u64 + 1).wrapping_mul(0x9FB21C651E98DF25));
+        self.dim += 1;
+        SampleStream {
+            key,
+            index: self.index,
+            dim: 0,
+        }
+    }
+    /// Iteration `j` of `count` of the loop `self` was branched for: index `index · count + j`,
+    /// so the iterations of all eye samples together form one stratified sequence.
+    #[inline]
+    pub fn child(&self, j: u32, count: u32) -> SampleStream {
+        SampleStream {
+            key: self.key,
+            index: self.index.wrapping_mul(count).wrapping_add(j),
+            dim: 0,
+        }
+    }
+}
+
+/// Point `index` of the first two Sobol dimensions, index shuffled and both coordinates
+/// Owen-scrambled by hash with seeds drawn from `key`.
+#[inline]
+fn sobol_owen_2d(index: u32, key: u64) -> (f32, f32) {
+    let i = nested_uniform_scramble(index, key as u32);
+    let x = nested_uniform_scramble(i.reverse_bits(), (key >> 32) as u32);
+    let y = nested_uniform_scramble(sobol_second_dimension(i), mix64(key) as u32);
+    (to_unit(x), to_unit(y))
+}
+
+/// Direction numbers of Sobol's second dimension (polynomial x + 1), most significant bit
+/// first: bit k of the index contributes `SOBOL_SECOND[k]`.
+const SOBOL_SECOND: [u32; 32] = {
+    let mut t = [0u32; 32];
+    let mut v = 1u32 << 31;
+    let mut k = 0;
+    while k < 32 {
+        t[k] = v;
+        v ^= v >> 1;
+        k += 1;
+    }
+    t
+};
+
+/// Sobol's second dimension, most significant bit first: 0, ½, ¾, ¼, …
+#[inline]
+fn sobol_second_dimension(mut i: u32) -> u32 {
+    let mut r = 0u32;
+    while i != 0 {
+        let k = i.trailing_zeros();
+        r ^= SOBOL_SECOND[k as usize];
+        i &= i - 1;
+    }
+    r
+}
+
+/// Owen scrambling of a 32-bit fraction (most significant bit first) by hash: each bit is
+/// flipped by a function of the bits above it (Laine–Karras permutation on the reversed bits).
+#[inline]
+fn nested_uniform_scramble(x: u32, seed: u32) -> u32 {
+    let mut v = x.reverse_bits().wrapping_add(seed);
+    v ^= v.wrapping_mul(0x6c50b47c);
+    v ^= v.wrapping_mul(0xb82f1e52);
+    v ^= v.wrapping_mul(0xc7afe638);
+    v ^= v.wrapping_mul(0x8d22f6e6);
+    v.reverse_bits()
+}
+
+/// The top 24 bits of a fraction as an f32 in [0, 1).
+#[inline]
+fn to_unit(x: u32) -> f32 {
+    (x >> 8) as f32 * (1.0 / (1u32 << 24) as f32)
 }
 
 /// SplitMix64 finaliser.
@@ -169,5 +262,81 @@ mod tests {
         let b = SampleStream::new(7, 124, 4).next();
         let c = SampleStream::new(8, 123, 4).next();
         assert!(a != b && a != c);
+    }
+
+    /// The 16 eye samples of a pixel, in any dimension pair, form a (0, 4, 2)-net: one point
+    /// in each cell of every 1×16, 2×8, 4×4, 8×2, 16×1 grid. So do the 4 light samples of
+    /// those 16 eye samples (64 points, a (0, 6, 2)-net) — what makes them stratified.
+    #[test]
+    fn a_pixels_samples_are_stratified_in_every_dimension_pair() {
+        fn is_net(points: &[(f32, f32)]) -> bool {
+            let m = points.len().trailing_zeros();
+            (0..=m).all(|a| {
+                let (nx, ny) = (1usize << a, 1usize << (m - a));
+                let mut seen = vec![false; points.len()];
+                points.iter().all(|&(x, y)| {
+                    let cell = (x * nx as f32) as usize * ny + (y * ny as f32) as usize;
+                    !std::mem::replace(&mut seen[cell], true)
+                })
+            })
+        }
+        for (seed, pixel) in [(0u64, 0u64), (7, 123), (99, 1 << 40)] {
+            for dim in 0..5 {
+                let eye: Vec<(f32, f32)> = (0..16)
+                    .map(|s| {
+                        let mut st = SampleStream::new(seed, pixel, s);
+                        (0..dim).for_each(|_| {
+                            st.next2();
+                        });
+                        st.next2()
+                    })
+                    .collect();
+                assert!(is_net(&eye), "seed {seed} pixel {pixel} dim {dim}: {eye:?}");
+            }
+            let light: Vec<(f32, f32)> = (0..16)
+                .flat_map(|s| {
+                    let mut st = SampleStream::new(seed, pixel, s);
+                    st.next2();
+                    let base = st.branch();
+                    (0..4).map(move |j| base.child(j, 4).next2())
+                })
+                .collect();
+            assert!(is_net(&light), "seed {seed} pixel {pixel}: {light:?}");
+        }
+    }
+
+    /// Different dimension pairs are decorrelated (the index is shuffled per pair): the
+    /// correlation of x across two pairs over many pixels is ≈ 0, as is that of a pixel's
+    /// sample with the same sample of the next pixel.
+    #[test]
+    fn dimensions_and_pixels_are_uncorrelated() {
+        let n = 20_000u64;
+        let corr = |f: &dyn Fn(u64) -> (f32, f32)| {
+            let (mut sa, mut sb, mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0, 0.0, 0.0);
+            for i in 0..n {
+                let (a, b) = f(i);
+                let (a, b) = (a as f64, b as f64);
+                sa += a;
+                sb += b;
+                sab += a * b;
+                saa += a * a;
+                sbb += b * b;
+            }
+            let nf = n as f64;
+            let cov = sab / nf - sa / nf * sb / nf;
+            cov / ((saa / nf - (sa / nf).powi(2)) * (sbb / nf - (sb / nf).powi(2))).sqrt()
+        };
+        let across_dims = corr(&|i| {
+            let mut s = SampleStream::new(3, i, (i % 16) as u32);
+            (s.next(), s.next())
+        });
+        let across_pixels = corr(&|i| {
+            (
+                SampleStream::new(3, 2 * i, 5).next(),
+                SampleStream::new(3, 2 * i + 1, 5).next(),
+            )
+        });
+        assert!(across_dims.abs() < 0.03, "{across_dims}");
+        assert!(across_pixels.abs() < 0.03, "{across_pixels}");
     }
 }

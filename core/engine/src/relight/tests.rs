@@ -41,6 +41,7 @@ fn header(width: u32, height: u32) -> StackHeader {
         precision: Precision::F16,
         light_tint: [1.0; 3],
         light_groups: Vec::new(),
+        denoise: Default::default(),
     }
 }
 

@@ -50,6 +50,10 @@ pub struct StackHeader {
     /// `light_tint`; empty when all lights share the layers (keys with light group 0).
     #[serde(default)]
     pub light_groups: Vec<LightGroupInfo>,
+    /// The linear denoiser the bake applied ([`crate::bake::denoise`]); off in stacks
+    /// written before it existed.
+    #[serde(default)]
+    pub denoise: crate::bake::Denoise,
 }
 
 /// A light group of a stack: its name and the colour factored out of its layers.

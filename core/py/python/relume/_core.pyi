@@ -84,6 +84,8 @@ class BakeSettings:
     threads: int
     drop_budget: float
     light_grouping: Literal["all", "per-light", "scene"]
+    denoise_direct: int
+    denoise_bounce: int
     passes: int
     def __init__(self, **fields: Any) -> None: ...
     @staticmethod
