@@ -15,8 +15,10 @@ Kd := Kd + Ks, the same albedo, and stays editable in Relume, so the bake keeps 
 2. Imports the variant into Blender (meshes, Diffuse BSDF materials, the area light, black
    world, camera, resolution) and renders it with Cycles on the CPU at increasing samples
    per pixel: one bounce (max bounces 1: direct light and one indirect bounce, as the bake),
-   box pixel filter of 1 px (Relume's jitter), no denoising, no adaptive sampling, no clamping,
-   the light invisible to the camera (as in Relume), `--threads` threads. Each render's
+   box pixel filter of 1 px (Relume's jitter), no adaptive sampling, no clamping,
+   the light invisible to the camera (as in Relume), `--threads` threads; once without
+   denoising and once (`--denoised-spp`) with Cycles' OpenImageDenoise, since Relume's
+   presets apply their own (linear) denoiser to the stack. Each render's
    wall time (scene sync, BVH build and path tracing; not Blender's start-up) and its error
    against the same reference are recorded.
 3. Prints and writes (OUT/cycles_time_to_error.json) Cycles' time to the preview's error,
@@ -192,7 +194,11 @@ def main() -> None:
     ap.add_argument("--out", default=str(ROOT / "out/cycles"))
     ap.add_argument("--spp", default="1,2,4,8,16,32,64,128,256",
                     help="Cycles samples per pixel, comma-separated, increasing")
-    ap.add_argument("--reference-spp", type=int, default=128)
+    ap.add_argument("--reference-spp", type=int, default=256)
+    ap.add_argument("--denoised-spp", default="1,2,4,8,16,32,64",
+                    help="Cycles samples per pixel of a second series with Cycles' own "
+                         "denoiser (OpenImageDenoise) on, since Relume's presets denoise too; "
+                         "empty to skip")
     ap.add_argument("--threads", type=int, default=os.cpu_count() or 2)
     args = ap.parse_args()
     out = pathlib.Path(args.out)
@@ -218,35 +224,52 @@ def main() -> None:
     import bpy
 
     _, _, ref = load_exr_rgb(ref_path)
-    points = []
-    for spp in [int(s) for s in args.spp.split(",")]:
-        scene.cycles.samples = spp
-        exr = out / f"cycles_{spp:05d}spp.exr"
-        scene.render.filepath = str(exr)
-        t = time.perf_counter()
-        bpy.ops.render.render(write_still=True)
-        seconds = time.perf_counter() - t
-        _, _, img = load_exr_rgb(exr)
-        raw = rel_l2(img, ref)
-        err = math.sqrt(max(raw * raw - ref_noise * ref_noise, 0.0))
-        points.append({"spp": spp, "seconds": seconds, "rel_l2": err, "rel_l2_raw": raw})
-        print(f"cycles {spp:5d} spp: {seconds:7.2f} s, error {err * 100:.3f} % (raw {raw * 100:.3f} %)",
-              file=sys.stderr)
 
-    # Time to the preview's error: log–log interpolation between the bracketing points.
-    cycles_time = None
-    for a, b in zip(points, points[1:]):
-        if a["rel_l2"] > target >= b["rel_l2"]:
-            f = math.log(a["rel_l2"] / target) / math.log(a["rel_l2"] / b["rel_l2"])
-            cycles_time = {
-                "seconds": math.exp(math.log(a["seconds"]) + f * math.log(b["seconds"] / a["seconds"])),
-                "spp": math.exp(math.log(a["spp"]) + f * math.log(b["spp"] / a["spp"])),
-                "interpolated_between_spp": [a["spp"], b["spp"]],
-            }
-            break
-    if cycles_time is None and points and points[0]["rel_l2"] <= target:
-        cycles_time = {"seconds": points[0]["seconds"], "spp": points[0]["spp"],
-                       "note": "the lowest sample count already reaches the error"}
+    def series(spps: list[int], denoise: bool) -> list[dict]:
+        scene.cycles.use_denoising = denoise
+        if denoise:
+            scene.cycles.denoiser = "OPENIMAGEDENOISE"
+        points = []
+        for spp in spps:
+            scene.cycles.samples = spp
+            exr = out / f"cycles_{spp:05d}spp{'_oidn' if denoise else ''}.exr"
+            scene.render.filepath = str(exr)
+            t = time.perf_counter()
+            bpy.ops.render.render(write_still=True)
+            seconds = time.perf_counter() - t
+            _, _, img = load_exr_rgb(exr)
+            raw = rel_l2(img, ref)
+            err = math.sqrt(max(raw * raw - ref_noise * ref_noise, 0.0))
+            points.append({"spp": spp, "seconds": seconds, "rel_l2": err, "rel_l2_raw": raw})
+            print(f"cycles{' + OIDN' if denoise else ''} {spp:5d} spp: {seconds:7.2f} s, error "
+                  f"{err * 100:.3f} % (raw {raw * 100:.3f} %)", file=sys.stderr)
+        return points
+
+    def time_to(points: list[dict]) -> dict | None:
+        """Time to the preview's error: log–log interpolation between the bracketing points."""
+        for a, b in zip(points, points[1:]):
+            if a["rel_l2"] > target >= b["rel_l2"]:
+                f = math.log(a["rel_l2"] / target) / math.log(a["rel_l2"] / b["rel_l2"])
+                return {
+                    "seconds": math.exp(math.log(a["seconds"]) + f * math.log(b["seconds"] / a["seconds"])),
+                    "spp": math.exp(math.log(a["spp"]) + f * math.log(b["spp"] / a["spp"])),
+                    "interpolated_between_spp": [a["spp"], b["spp"]],
+                }
+        if points and points[0]["rel_l2"] <= target:
+            return {"seconds": points[0]["seconds"], "spp": points[0]["spp"],
+                    "note": "the lowest sample count already reaches the error"}
+        return None
+
+    points = series([int(s) for s in args.spp.split(",")], denoise=False)
+    cycles_time = time_to(points)
+    denoised_points, denoised_time, denoised_error = [], None, None
+    if args.denoised_spp:
+        try:
+            denoised_points = series([int(s) for s in args.denoised_spp.split(",")], denoise=True)
+            denoised_time = time_to(denoised_points)
+        except (RuntimeError, TypeError) as e:  # a bpy build without OpenImageDenoise
+            denoised_error = str(e)
+            print(f"Cycles with OpenImageDenoise could not run: {e}", file=sys.stderr)
     result = {
         "date_utc": time.strftime("%Y-%m-%d", time.gmtime()),
         "blender": bpy.app.version_string,
@@ -258,6 +281,9 @@ def main() -> None:
         "cycles": points,
         "cycles_time_to_preview_error": cycles_time,
         "cycles_floor_rel_l2": points[-1]["rel_l2"] if points else None,
+        "cycles_oidn": denoised_points,
+        "cycles_oidn_time_to_preview_error": denoised_time,
+        "cycles_oidn_error": denoised_error,
     }
     (out / "cycles_time_to_error.json").write_text(json.dumps(result, indent=2))
     if cycles_time:
@@ -266,6 +292,9 @@ def main() -> None:
     else:
         print(f"Cycles does not reach the preview's {target * 100:.2f} % within {points[-1]['spp']} spp "
               f"(its error there: {points[-1]['rel_l2'] * 100:.2f} %)")
+    if denoised_time:
+        print(f"Cycles + OpenImageDenoise reaches it in {denoised_time['seconds']:.2f} s "
+              f"(≈ {denoised_time['spp']:.0f} spp)")
     print(f"→ {out / 'cycles_time_to_error.json'}")
 
 

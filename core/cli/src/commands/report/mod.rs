@@ -501,6 +501,8 @@ fn measure_preset(
         "indirect_samples": settings.indirect_samples,
         "sampling": settings.sampling.name(),
         "basis_tolerance": preset.values().basis_tolerance,
+        "denoise_bounce": settings.denoise.bounce_iterations,
+        "denoise_direct": settings.denoise.direct_iterations,
         "bases_per_editable_region": bases,
         "bake_seconds": r.seconds,
         "trace_seconds": r.trace_seconds,
@@ -536,8 +538,8 @@ fn markdown(report: &Value) -> String {
         report["load_average_after"].as_str().unwrap_or("?"),
         report["seconds"].as_f64().unwrap_or(0.0),
     ));
-    s.push_str("| Scene | Preset | Resolution | spp × light × indirect | N_b | Bake | Layers | Stack file | Relight (CPU) | Rel. L2 error | raw (ref. noise) |\n");
-    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|\n");
+    s.push_str("| Scene | Preset | Resolution | spp × light × indirect | Denoise | N_b | Bake | Layers | Stack file | Relight (CPU) | Rel. L2 error | raw (ref. noise) |\n");
+    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for row in report["rows"].as_array().into_iter().flatten() {
         let bases: Vec<String> = row["bases_per_editable_region"]
             .as_array()
@@ -545,8 +547,20 @@ fn markdown(report: &Value) -> String {
             .flatten()
             .map(|v| v.to_string())
             .collect();
+        // Rows written before the denoiser was recorded: the preset's value.
+        let denoise = row["denoise_bounce"].as_u64().unwrap_or_else(|| {
+            row["preset"]
+                .as_str()
+                .and_then(Preset::parse)
+                .map_or(0, |p| p.values().denoise.bounce_iterations as u64)
+        });
+        let denoise = if denoise == 0 {
+            "off".to_string()
+        } else {
+            format!("bounce ×{denoise}")
+        };
         s.push_str(&format!(
-            "| {} | {} | {}×{} | {} × {} × {} | {} | {:.2} s | {} | {:.1} MB | {:.2} ms | **{:.2} %** | {:.2} % ({:.2} %) |\n",
+            "| {} | {} | {}×{} | {} × {} × {} | {} | {} | {:.2} s | {} | {:.1} MB | {:.2} ms | **{:.2} %** | {:.2} % ({:.2} %) |\n",
             row["scene"].as_str().unwrap_or("?"),
             row["preset"].as_str().unwrap_or("?"),
             row["width"],
@@ -554,6 +568,7 @@ fn markdown(report: &Value) -> String {
             row["spp"],
             row["light_samples"],
             row["indirect_samples"],
+            denoise,
             if bases.is_empty() { "–".to_string() } else { bases.join(", ") },
             row["bake_seconds"].as_f64().unwrap_or(f64::NAN),
             row["layers"],
