@@ -305,12 +305,8 @@ mod tests {
             .collect();
         let mut l = layer(data.clone(), 1);
         f.filter(&mut [&mut l], 4);
-        for p in 0..w * h {
-            assert!(
-                (l.data[p] - data[p]).abs() < 1e-5,
-                "pixel {p}: {}",
-                l.data[p]
-            );
+        for (p, (got, want)) in l.data.iter().zip(&data).enumerate() {
+            assert!((got - want).abs() < 1e-5, "pixel {p}: {got}");
         }
     }
 
