@@ -2,28 +2,12 @@
 //! bake, touches only the layers it is asked to, and the header says it ran.
 mod common;
 
-use std::sync::Arc;
-
 use relume_engine::bake::{bake, progress::Progress, BakeSettings, Denoise};
 use relume_engine::image_io::compare_rgb;
-use relume_engine::relight::CpuRelighter;
-use relume_engine::stack::bases::StackBases;
 use relume_engine::stack::TransferStack;
 
 fn relight(stack: &TransferStack, scene: &relume_engine::scene::Scene) -> Vec<f32> {
-    let bases = StackBases::from_header(&stack.header).unwrap();
-    let materials: Vec<_> = scene
-        .regions
-        .iter()
-        .filter(|r| r.editable)
-        .map(|r| r.material.clone())
-        .collect();
-    let coefs = bases.coefficients(&materials).unwrap();
-    CpuRelighter::new(Arc::new(stack.clone()))
-        .unwrap()
-        .relight(&coefs)
-        .unwrap()
-        .to_vec()
+    common::relight_at_bake_materials(stack, scene)
 }
 
 #[test]

@@ -205,3 +205,23 @@ pub fn furnace(material: MaterialSpec, editable: bool, size: u32) -> Scene {
         light_groups: Vec::new(),
     }
 }
+
+/// `stack` relit on the CPU with the bake-time materials of `scene`'s editable regions.
+pub fn relight_at_bake_materials(
+    stack: &relume_engine::stack::TransferStack,
+    scene: &Scene,
+) -> Vec<f32> {
+    let bases = relume_engine::stack::bases::StackBases::from_header(&stack.header).unwrap();
+    let materials: Vec<_> = scene
+        .regions
+        .iter()
+        .filter(|r| r.editable)
+        .map(|r| r.material.clone())
+        .collect();
+    let coefs = bases.coefficients(&materials).unwrap();
+    relume_engine::relight::CpuRelighter::new(std::sync::Arc::new(stack.clone()))
+        .unwrap()
+        .relight(&coefs)
+        .unwrap()
+        .to_vec()
+}
