@@ -5,7 +5,11 @@
 //! incoming light from a short first pass). RMSE against a converged render (true BRDF, one
 //! bounce), averaged over seeds; the variance reduction is the squared RMSE ratio.
 //!
-//! `cargo test --release --test sampling_comparison -- --nocapture` prints the table.
+//! `cargo test --release --test sampling_comparison -- --nocapture` prints the table and a
+//! JSON line per scene. The image is 64 pixels wide by default (CI); set
+//! `RELUME_SAMPLING_WIDTH=128` for the README's figures (guiding works per 16-pixel tile, so
+//! its gain grows with the resolution). Times exclude the set-up every method shares (BVH,
+//! bases) but include the guide pass.
 
 use std::path::Path;
 use std::time::Instant;
@@ -32,11 +36,18 @@ enum Method {
     Guided,
 }
 
-/// Renders at 64×48-ish (the scene's aspect) with `spp` eye samples; returns RGB and seconds
-/// (guide pass included).
-fn render(scene: &Scene, method: Method, spp: u32, seed: u64) -> (Vec<f32>, f64) {
+fn width() -> u32 {
+    std::env::var("RELUME_SAMPLING_WIDTH")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(64)
+}
+
+/// Renders `width()` pixels wide (the scene's aspect) with `spp` eye samples; returns RGB,
+/// seconds (guide pass and tracing) and the guide pass's rays.
+fn render(scene: &Scene, method: Method, spp: u32, seed: u64) -> (Vec<f32>, f64, u64) {
     let (w, h) = (scene.resolution.width, scene.resolution.height);
-    let width = 64u32;
+    let width = width();
     let height = ((width as f64 * h as f64 / w as f64).round() as u32).max(1);
     let settings = BakeSettings {
         spp,
@@ -51,8 +62,8 @@ fn render(scene: &Scene, method: Method, spp: u32, seed: u64) -> (Vec<f32>, f64)
         resolution: Some(Resolution { width, height }),
         ..Default::default()
     };
-    let t = Instant::now();
     let (mut ctx, _) = BakeContext::new(scene, &settings).unwrap();
+    let (guide_seconds, guide_rays) = ctx.guide.as_ref().map_or((0.0, 0), |g| (g.seconds, g.rays));
     if method == Method::Paper {
         ctx.lights.set_area_sampling(AreaSampling::Area);
         ctx.lights.set_world_sampling(WorldSampling::Cosine);
@@ -63,11 +74,13 @@ fn render(scene: &Scene, method: Method, spp: u32, seed: u64) -> (Vec<f32>, f64)
         .filter(|r| r.editable)
         .map(|r| r.material.to_blinn_phong())
         .collect();
+    let t = Instant::now();
     let img = render_with_context(&ctx, &materials, ReferenceBrdf::True, &Progress::new()).unwrap();
-    let secs = t.elapsed().as_secs_f64();
+    let secs = t.elapsed().as_secs_f64() + guide_seconds;
     (
         img.rgba.chunks(4).flat_map(|p| p[..3].to_vec()).collect(),
         secs,
+        guide_rays,
     )
 }
 
@@ -85,14 +98,14 @@ fn relume_sampling_against_the_papers_at_equal_samples_and_time() {
     let spp = 8;
     let seeds = [1u64, 2, 3, 4];
     let mut rows = Vec::new();
-    for name in ["cornell", "ring", "hdri", "textured"] {
+    for name in ["cornell", "ring", "hdri", "textured", "translucent"] {
         let s = scene(name);
-        let (reference, _) = render(&s, Method::Mixture, 512, 1000);
+        let (reference, _, _) = render(&s, Method::Mixture, 512, 1000);
         let mut results = Vec::new();
         for method in [Method::Paper, Method::Mixture, Method::Guided] {
             let (mut e2, mut secs, mut bias) = (0.0, 0.0, 0.0);
             for &seed in &seeds {
-                let (img, t) = render(&s, method, spp, seed);
+                let (img, t, _) = render(&s, method, spp, seed);
                 assert!(
                     img.iter().all(|v| v.is_finite() && *v >= -1e-6),
                     "{name} {method:?}"
@@ -105,9 +118,15 @@ fn relume_sampling_against_the_papers_at_equal_samples_and_time() {
             results.push((method, (e2 / n).sqrt(), secs / n, bias / n));
         }
         let paper = results[0];
+        let mut json = Vec::new();
         for &(method, r, t, m) in &results {
             let var_red = (paper.1 / r).powi(2);
             let time_red = var_red * paper.2 / t;
+            json.push(serde_json::json!({
+                "method": format!("{method:?}").to_lowercase(), "rmse": r, "seconds": t,
+                "variance_reduction_equal_samples": var_red,
+                "variance_reduction_equal_time": time_red,
+            }));
             println!(
                 "{name:>8} {method:>8?}: RMSE {r:.5}  time {t:.3} s  mean {m:.5} (ref {:.5})  \
                  variance ÷{var_red:.2} at equal samples, ÷{time_red:.2} at equal time",
@@ -120,14 +139,28 @@ fn relume_sampling_against_the_papers_at_equal_samples_and_time() {
                 "{name} {method:?}: {m}"
             );
         }
+        println!(
+            "{}",
+            serde_json::json!({"scene": name, "width": width(), "spp": spp,
+                "seeds": seeds.len(), "reference_spp": 512, "methods": json})
+        );
         rows.push((name, results));
     }
     // The issue's aim: ≥ 2× lower variance than the paper's sampling at equal samples on the
-    // HDRI scene (world warping) — checked; the other scenes' figures are printed.
+    // HDRI scene (world warping) — checked; the other scenes' figures are printed (the glossy
+    // scenes fall short of it: README, "Sampling against the paper's").
     let hdri = &rows.iter().find(|r| r.0 == "hdri").unwrap().1;
     let factor = (hdri[0].1 / hdri[1].1).powi(2);
     assert!(
         factor >= 2.0,
         "hdri: mixture reduces the variance only {factor:.2}×"
+    );
+    // Guiding must pay on the glossy Cornell box even at this small size (measured ÷1.21 at
+    // 64 px, ÷1.65 at 128 px; the run is deterministic, so this cannot flake).
+    let cornell = &rows.iter().find(|r| r.0 == "cornell").unwrap().1;
+    let guided = (cornell[0].1 / cornell[2].1).powi(2);
+    assert!(
+        guided >= 1.1,
+        "cornell: guided sampling reduces the variance only {guided:.2}×"
     );
 }

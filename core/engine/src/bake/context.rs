@@ -8,6 +8,7 @@ use std::collections::HashMap;
 use std::sync::Arc;
 
 use crate::bake::guide::GuideField;
+use crate::bake::mixture::DirectionMixture;
 use crate::bake::settings::{BakeSettings, IndirectSampling, MAX_BOUNCES};
 use crate::bake::signature::PathVertex;
 use crate::bake::subsurface::{self, TranslucentRegion};
@@ -39,8 +40,9 @@ pub struct PreparedRegion {
     /// First slot and slot count of this region.
     pub first_slot: u32,
     pub slot_count: u32,
-    /// Exponents of the Blinn–Phong lobes in the mixture sampling pdf.
-    pub mixture_lobes: Vec<f32>,
+    /// The cosine-and-lobes mixture its indirect directions are drawn from (unused by
+    /// uniform sampling).
+    pub mixture: DirectionMixture,
 }
 
 /// Everything fixed for a bake.
@@ -180,24 +182,17 @@ impl BakeContext {
                     texture,
                     first_slot,
                     slot_count: count as u32,
-                    mixture_lobes: (0..4)
-                        .map(|k| lo * (hi / lo).powf(k as f32 / 3.0))
-                        .collect(),
+                    mixture: DirectionMixture::editable(&material, lo, hi),
                 });
                 editable_index += 1;
             } else {
-                let lobes = if material.ks.iter().any(|k| *k > 0.0) {
-                    vec![material.ns]
-                } else {
-                    vec![]
-                };
                 regions.push(PreparedRegion {
                     name: region.name.clone(),
                     model: RegionModel::Fixed { material },
                     texture,
                     first_slot: u32::MAX,
                     slot_count: 1,
-                    mixture_lobes: lobes,
+                    mixture: DirectionMixture::fixed(&material),
                 });
             }
         }
@@ -206,12 +201,6 @@ impl BakeContext {
         for r in &mut regions {
             if let RegionModel::Fixed { .. } = r.model {
                 r.first_slot = fixed_slot;
-            }
-        }
-        if settings.sampling == IndirectSampling::Uniform {
-            // Guided keeps the lobes: its non-guide half is the cosine + lobes mixture.
-            for r in &mut regions {
-                r.mixture_lobes.clear();
             }
         }
         let lights = LightSet::new(scene, settings.light_grouping);

@@ -12,13 +12,11 @@ use std::f32::consts::PI;
 
 use crate::bake::context::{BakeContext, MAX_BASES};
 use crate::bake::guide::GUIDE_WEIGHT;
+use crate::bake::guide_tree::DirectionTree;
+use crate::bake::mixture::DirectionMixture;
 use crate::bake::settings::IndirectSampling;
 use crate::geometry::bvh::SurfaceHit;
-use crate::geometry::env_sampling::EnvSampler;
-use crate::geometry::sampling::{
-    blinn_phong_half_vector, blinn_phong_pdf, cosine_hemisphere, to_world, uniform_hemisphere,
-    SampleStream,
-};
+use crate::geometry::sampling::{cosine_hemisphere, to_world, uniform_hemisphere, SampleStream};
 use crate::Rgb;
 
 /// The BRDF values at a path vertex, one per slot of its region.
@@ -184,7 +182,7 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(
         let guide = ctx.guide.as_ref().and_then(|g| g.sampler(px, py));
         let Some((wi, pdf)) = sample_indirect(
             settings.sampling,
-            &region.mixture_lobes,
+            &region.mixture,
             guide,
             n,
             wo,
@@ -306,13 +304,14 @@ fn direct_light<B: VertexBrdf, T: Tracer>(
 }
 
 /// Draws an indirect direction at a vertex with normal `n`: uniform (the paper), the
-/// cosine-and-lobes mixture, or (guided, where the pixel's tile has a guide map)
-/// [`GUIDE_WEIGHT`] of the map and the rest that mixture. Returns the direction and its solid-angle pdf (of the
-/// whole mixture); consumes 1 (uniform) or 2 (mixture, guided) dimension pairs always.
+/// region's cosine-and-lobes [`DirectionMixture`], or (guided, where the pixel's tile has a
+/// guide map) [`GUIDE_WEIGHT`] of the map and the rest that mixture. Returns the direction
+/// and its solid-angle pdf (of the whole mixture); consumes 1 (uniform) or 2 (mixture,
+/// guided) dimension pairs always.
 pub fn sample_indirect(
     sampling: IndirectSampling,
-    lobes: &[f32],
-    guide: Option<&EnvSampler>,
+    mixture: &DirectionMixture,
+    guide: Option<&DirectionTree>,
     n: Vec3,
     wo: Vec3,
     stream: &mut SampleStream,
@@ -325,32 +324,19 @@ pub fn sample_indirect(
     let (u1, u2) = stream.next2();
     let guide = guide.filter(|_| sampling == IndirectSampling::Guided);
     let guide_weight = if guide.is_some() { GUIDE_WEIGHT } else { 0.0 };
-    let rest = 1.0 - guide_weight;
-    let cos_weight = if lobes.is_empty() { rest } else { 0.5 * rest };
-    let lobe_weight = (rest - cos_weight) / lobes.len().max(1) as f32;
-    let wi = if let (Some(g), true) = (guide, pick < guide_weight) {
-        g.sample(u1, u2).0
-    } else if pick < guide_weight + cos_weight || lobes.is_empty() {
-        to_world(n, cosine_hemisphere(u1, u2))
-    } else {
-        let f = (pick - guide_weight - cos_weight) / (rest - cos_weight);
-        let k = ((f * lobes.len() as f32) as usize).min(lobes.len() - 1);
-        let h = to_world(n, blinn_phong_half_vector(u1, u2, lobes[k]));
-        2.0 * wo.dot(h) * h - wo
+    let wi = match guide {
+        Some(g) if pick < guide_weight => g.sample(u1, u2),
+        _ => {
+            let rest = (pick - guide_weight) / (1.0 - guide_weight);
+            mixture.sample(rest.min(1.0 - f32::EPSILON), u1, u2, n, wo)
+        }
     };
-    let cos = n.dot(wi);
-    if cos <= 0.0 {
+    if n.dot(wi) <= 0.0 {
         return None;
     }
-    let mut pdf = cos_weight * cos / PI;
+    let mut pdf = (1.0 - guide_weight) * mixture.pdf(n, wo, wi);
     if let Some(g) = guide {
         pdf += guide_weight * g.pdf(wi);
-    }
-    let h = (wi + wo).normalize_or_zero();
-    if h != Vec3::ZERO {
-        for &ns in lobes {
-            pdf += lobe_weight * blinn_phong_pdf(n.dot(h), wo.dot(h), ns);
-        }
     }
     Some((wi, pdf))
 }
@@ -358,8 +344,9 @@ pub fn sample_indirect(
 /// One sample of the guide pass ([`crate::bake::guide`]) for pixel (`px`, `py`): a
 /// cosine-distributed indirect direction at the eye hit and the luminance of the radiance
 /// that comes back along it (direct light reflected at the secondary hit by `brdf`, each
-/// light group's tint applied) divided by the direction's pdf. `None` when the eye ray or
-/// the indirect ray escapes (escaping indirect rays carry nothing in the bake either).
+/// light group's tint applied) times the cosine at the eye hit over the direction's pdf,
+/// i.e. π × luminance. `None` when the eye ray or the indirect ray escapes (escaping
+/// indirect rays carry nothing in the bake either).
 pub fn guide_sample<B: VertexBrdf, T: Tracer>(
     ctx: &BakeContext,
     brdf: &B,
@@ -408,5 +395,5 @@ pub fn guide_sample<B: VertexBrdf, T: Tracer>(
         radiance += light[g * MAX_BASES] * group.tint;
     }
     let luminance = 0.2126 * radiance.x + 0.7152 * radiance.y + 0.0722 * radiance.z;
-    Some((wi, luminance * PI / local.z))
+    Some((wi, luminance * PI))
 }
