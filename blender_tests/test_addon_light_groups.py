@@ -148,6 +148,9 @@ def test_preference_change_is_not_stale_and_a_plain_stack_has_no_groups(addon, p
     assert addon.api.status()["light_groups"] == []
     with pytest.raises(ValueError, match="the loaded stack has no light groups"):
         addon.api.set_light_group("light 0", 2.0)
+    # A Blender light group is part of the scene (its file's light_groups, in the hash).
+    bpy.data.objects["Key"].lightgroup = "KeyGroup"
+    assert addon.live.check_stale() is not None
 
 
 def test_blender_light_groups_bake_with_scene_grouping(addon, prefs, blend_dir):

@@ -18,8 +18,8 @@ _GROUP_COST = "storage and relight time grow by the number of groups (at most 16
 
 LIGHT_GROUP_ITEMS = [
     ("none", "None", "All lights share one set of layers: the lights are fixed after the bake"),
-    ("per_light", "Per Light", "Each light (and the world) in layers of its own, its strength "
-                               "and colour live after the bake; " + _GROUP_COST),
+    ("per_light", "Per Light", "Each light (and an emitting world) in layers of its own, its "
+                               "strength and colour live after the bake; " + _GROUP_COST),
     ("scene", "Blender Light Groups", "Each of Blender's light groups (Object → Shading → "
                                       "Light Group, and the World's) in layers of its own; "
                                       "lights and world without one share a 'default' group; "
