@@ -51,7 +51,7 @@ def prefs(addon):
     p = bpy.context.preferences.addons["bl_ext.user_default.relume"].preferences
     saved = {k: getattr(p, k) for k in ("preset", "spp", "light_samples", "indirect_samples",
                                         "bounces", "basis_tolerance", "passes", "resolution_scale",
-                                        "device", "stack_folder")}
+                                        "device", "stack_folder", "light_groups")}
     p.preset = "custom"
     p.spp = 2
     p.light_samples = 1
@@ -62,6 +62,7 @@ def prefs(addon):
     p.resolution_scale = 1.0
     p.device = "cpu"
     p.stack_folder = ""
+    p.light_groups = "none"
     yield p
     for k, v in saved.items():
         setattr(p, k, v)
@@ -73,6 +74,7 @@ def blend_dir(addon, tmp_path):
     from support.scenes import clear_scene
 
     clear_scene()
+    bpy.context.scene.relume_light_groups.clear()
     addon.runtime.RUNTIME.live.unload()
     addon.runtime.RUNTIME.session = None
     addon.runtime.RUNTIME.warnings = []

@@ -22,7 +22,8 @@ def _load():
 
 
 _load()
-from relume_logic import camera_map, lights_map, material_map, stack_paths, throttle  # noqa: E402
+from relume_logic import (camera_map, light_groups, lights_map, material_map, stack_paths,  # noqa: E402
+                         throttle)
 from relume_logic.bake_session import format_eta  # noqa: E402
 from relume_logic.export_warnings import WarningList  # noqa: E402
 
@@ -136,3 +137,43 @@ def test_eta_format():
     assert format_eta(None) == "estimating…"
     assert format_eta(5.4) == "5 s"
     assert format_eta(125) == "2 min 05 s"
+
+
+def test_scene_light_groups_from_blender_light_groups():
+    # Lights 0 and 2 in "Key", light 1 in none, light 3 in a group named like the core's
+    # default group (the same thing as none), the world in "Sky"; groups sorted by name.
+    groups = light_groups.scene_light_groups(["Key", "", "Key", "default", "Rim"], "Sky")
+    assert groups == [
+        {"name": "Key", "lights": [0, 2], "world": False},
+        {"name": "Rim", "lights": [4], "world": False},
+        {"name": "Sky", "lights": [], "world": True},
+    ]
+    # The world in a group with lights; no world at all; nothing grouped → no key to write.
+    assert light_groups.scene_light_groups(["A"], "A") == [{"name": "A", "lights": [0], "world": True}]
+    assert light_groups.scene_light_groups(["A"], None) == [{"name": "A", "lights": [0], "world": False}]
+    assert light_groups.scene_light_groups(["", "default"], "") == []
+
+
+def test_light_group_gain_checks_and_messages():
+    assert light_groups.Gain(2, [1, 0.5, 0]).checked("g") == light_groups.Gain(2.0, (1.0, 0.5, 0.0))
+    for bad in (light_groups.Gain(-1.0), light_groups.Gain(1.0, (1.0, float("nan"), 1.0)),
+                light_groups.Gain(float("inf"))):
+        with pytest.raises(ValueError, match="light group 'g': strength and color must be finite"):
+            bad.checked("g")
+    with pytest.raises(ValueError, match="color needs 3 components"):
+        light_groups.Gain(1.0, (1.0, 1.0)).checked("g")
+    assert light_groups.unknown_group_message("x", ["a", "b"]) == \
+        "light group 'x' is not in the loaded stack (its groups: a, b)"
+    assert "has no light groups" in light_groups.unknown_group_message("x", [])
+    assert light_groups.cost_text(3) == "3 light groups: stack and relight cost ×3"
+    assert light_groups.cost_text(1) == "1 light group: stack and relight cost ×1"
+    assert light_groups.GROUPING_OF_PREF == {"none": "all", "per_light": "per-light", "scene": "scene"}
+
+
+def test_light_group_labels_name_the_blender_light():
+    names = ["Key", "Fill"]
+    assert light_groups.group_label("light 1", names) == "light 1 (Fill)"
+    assert light_groups.group_label("light 7", names) == "light 7"  # stack and scene differ
+    assert light_groups.group_label("world", names) == "world"
+    assert light_groups.group_label("default", names).startswith("default (")
+    assert light_groups.group_label("Sky", names) == "Sky"

@@ -6,6 +6,7 @@
     mat = bpy.data.materials["Floor"]
     mat.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value = 0.2
     relume_addon.api.render("/tmp/floor_r02.exr") # relit with the current materials
+    relume_addon.api.set_light_group("light 0", 2.5, (1.0, 0.5, 0.25))  # a baked light group
 
 The operators `bpy.ops.relume.bake()`, `bpy.ops.relume.render(filepath=...)` and
 `bpy.ops.relume.export_scene(filepath=...)` call these functions.
@@ -19,8 +20,9 @@ import time
 import bpy
 
 from .exporter.scene_export import ExportOptions, ExportResult, export_scene
-from .live import current_params, relight_now, write_image
+from .live import current_gains, current_params, on_stack_loaded, write_image
 from .logic.bake_session import BakeSession
+from .logic.light_groups import GROUPING_OF_PREF, Gain, unknown_group_message
 from .prefs import get_prefs
 from .runtime import RUNTIME
 from .stack_location import stack_location
@@ -57,6 +59,7 @@ def export(context=None, scene_file: str | None = None) -> ExportResult:
                             ns_ranges=ns_ranges)
     result = export_scene(context, options)
     RUNTIME.warnings = result.warnings
+    RUNTIME.light_names = result.light_names
     if scene_file:
         result.scene.save(scene_file)
     return result
@@ -67,7 +70,8 @@ def bake_settings(context=None):
     import relume
 
     prefs = get_prefs(context)
-    common = {"bounces": int(prefs.bounces), "passes": int(prefs.passes)}
+    common = {"bounces": int(prefs.bounces), "passes": int(prefs.passes),
+              "light_grouping": GROUPING_OF_PREF[prefs.light_groups]}
     preset = getattr(relume.BakeSettings, "preset", None)
     if prefs.preset != "custom" and preset is not None:
         return preset(prefs.preset, **common)
@@ -92,7 +96,7 @@ def start_bake(context=None, settings=None) -> BakeSession:
     def on_stack(stack_path: str) -> None:
         # Main thread (called from poll): reload and show the newest complete stack.
         if RUNTIME.live.load(stack_path, result.scene, device):
-            relight_now(force=True)
+            on_stack_loaded()
 
     session = BakeSession(result.scene, settings or bake_settings(context), path, on_stack=on_stack)
     session.export = result
@@ -157,7 +161,7 @@ def load_stack(context=None) -> bool:
             return False
     ok = RUNTIME.live.load(path, scene, get_prefs(context).device)
     if ok:
-        relight_now(force=True)
+        on_stack_loaded()
     return ok
 
 
@@ -168,9 +172,34 @@ def relight(context=None):
         raise BakeError(f"no usable Relume stack: {live.load_error or 'not baked yet'}")
     if live.stale_reason is not None:
         raise BakeError(f"the Relume stack is stale: {live.stale_reason}")
-    outcome = live.relight(current_params(), force=True)
+    outcome = live.relight(current_params(), force=True, gains=current_gains())
     write_image(outcome.image)
     return outcome.image
+
+
+def set_light_group(name: str, strength: float = 1.0, color=(1.0, 1.0, 1.0), context=None) -> None:
+    """Set a light group's live strength and colour (a stack baked with light groups).
+
+    Stored on the scene like the Relume tab's sliders — saved with the .blend, re-applied when
+    the stack reloads — and relit through the same live path; `render()` uses it. Raises
+    `BakeError` when there is no stack, `ValueError` for a group the loaded stack does not
+    have (its groups are listed) or a negative or non-finite value.
+    """
+    context = context or bpy.context
+    live = RUNTIME.live
+    if live.stack is None and not load_stack(context):
+        raise BakeError(f"no usable Relume stack: {live.load_error or 'not baked yet'}")
+    groups = live.light_groups
+    if name not in groups:
+        raise ValueError(unknown_group_message(name, groups))
+    gain = Gain(strength, tuple(color)).checked(name)
+    stored = context.scene.relume_light_groups
+    entry = stored.get(name)
+    if entry is None:
+        entry = stored.add()
+        entry.name = name
+    entry.strength = gain.strength  # each assignment relights through the update callback
+    entry.color = gain.color
 
 
 def render(filepath: str, context=None, check_stale: bool = True) -> str:
@@ -198,7 +227,8 @@ def render(filepath: str, context=None, check_stale: bool = True) -> str:
 
 
 def status(context=None) -> dict:
-    """What the panel shows, for scripts: stack, staleness, device, bake state, warnings."""
+    """What the panel shows, for scripts: stack, staleness, device, bake state, warnings,
+    and the light groups with their gains."""
     live = RUNTIME.live
     session = RUNTIME.session
     return {
@@ -212,4 +242,16 @@ def status(context=None) -> dict:
         "last_latency_ms": live.last_latency_ms,
         "relight_error": live.relight_error,
         "warnings": [str(w) for w in RUNTIME.warnings],
+        "light_groups": _light_group_status(context),
     }
+
+
+def _light_group_status(context=None) -> list[dict]:
+    """Each light group of the loaded stack with the gain the next relight uses."""
+    scene = (context or bpy.context).scene
+    gains = current_gains(scene)
+    out = []
+    for name in RUNTIME.live.light_groups:
+        strength, color = gains.get(name, (1.0, (1.0, 1.0, 1.0)))
+        out.append({"name": name, "strength": strength, "color": color})
+    return out

@@ -5,6 +5,9 @@ throttled — relights only the regions that changed, then writes the pixels wit
 `foreach_set` (≈0.4 ms at 512²). Anything else that changes what the bake saw (objects,
 lights, camera, world, fixed materials, editability) triggers a stale check instead: the stack
 is then shown as stale and no longer relit from, never silently misused.
+
+Light group gains (the scene's `relume_light_groups`, the Relume tab's sliders) take the
+same throttled path: their update callbacks call `request_relight`.
 """
 
 from __future__ import annotations
@@ -50,6 +53,37 @@ def current_params() -> dict:
     return params
 
 
+def current_gains(scene=None) -> dict:
+    """Gain of every light group of the loaded stack that the scene stores, by group name:
+    (strength, (r, g, b)). Groups without a stored entry stay at the baked light."""
+    live = RUNTIME.live
+    scene = scene or bpy.context.scene
+    groups = set(live.light_groups)
+    stored = getattr(scene, "relume_light_groups", None) or ()
+    return {g.name: (float(g.strength), tuple(float(c) for c in g.color))
+            for g in stored if g.name in groups}
+
+
+def sync_light_groups(scene=None) -> None:
+    """Give the scene an entry (strength 1, white) for each light group of the loaded stack
+    that it has none for. Called when a stack loads, never from a panel's draw (which may not
+    write data); existing entries, and their gains, are kept."""
+    scene = scene or bpy.context.scene
+    stored = getattr(scene, "relume_light_groups", None)
+    if stored is None:
+        return
+    have = {g.name for g in stored}
+    for name in RUNTIME.live.light_groups:
+        if name not in have:
+            stored.add().name = name
+
+
+def on_stack_loaded() -> None:
+    """After a (re)load: the scene's light group entries, then a full relight with its gains."""
+    sync_light_groups()
+    relight_now(force=True)
+
+
 def write_image(pixels: np.ndarray) -> bpy.types.Image:
     """Put an (h, w, 4) bottom-row-first float image into the "Relume" image."""
     h, w = pixels.shape[0], pixels.shape[1]
@@ -74,7 +108,7 @@ def relight_now(force: bool = False) -> bool:
 
     t0 = time.perf_counter()
     try:
-        outcome = RUNTIME.live.relight(current_params(), force=force)
+        outcome = RUNTIME.live.relight(current_params(), force=force, gains=current_gains())
     except relume.RelumeError as e:
         # A value the relighter refuses (an override with Kd + Ks > 1, say) or a failure in
         # the relight: shown in the panel, never raised into Blender's handlers.

@@ -57,6 +57,7 @@ class RELUME_PT_image(bpy.types.Panel):
             return
         import relume
 
+        _draw_light_groups(layout, context)
         for name in live.stack.editable_regions:
             mat = bpy.data.materials.get(name)
             box = layout.box()
@@ -65,6 +66,32 @@ class RELUME_PT_image(bpy.types.Panel):
                 continue
             box.label(text=name, icon="MATERIAL")
             _draw_region(box, mat, relume)
+
+
+def _draw_light_groups(layout, context) -> None:
+    """One box per light group of the loaded stack: its Strength and Color, relit live.
+
+    The entries are created when the stack loads (`live.sync_light_groups`); a draw may not
+    write data, so a missing one is only reported (Reload Stack creates it).
+    """
+    from .logic.light_groups import cost_text, group_label
+
+    groups = RUNTIME.live.light_groups
+    if not groups:
+        return
+    layout.label(text=cost_text(len(groups)), icon="LIGHT")
+    stored = context.scene.relume_light_groups
+    for name in groups:
+        box = layout.box()
+        box.label(text=group_label(name, RUNTIME.light_names), icon="OUTLINER_OB_LIGHT")
+        entry = stored.get(name)
+        if entry is None:
+            box.label(text="No gain stored: Reload Stack", icon="ERROR")
+            box.operator("relume.reload")
+            continue
+        row = box.row()
+        row.prop(entry, "strength")
+        row.prop(entry, "color", text="")
 
 
 def _principled(mat):

@@ -14,6 +14,18 @@ PRESET_ITEMS = [
     ("custom", "Custom", "The sample counts and tolerance below"),
 ]
 
+_GROUP_COST = "storage and relight time grow by the number of groups (at most 16)"
+
+LIGHT_GROUP_ITEMS = [
+    ("none", "None", "All lights share one set of layers: the lights are fixed after the bake"),
+    ("per_light", "Per Light", "Each light (and an emitting world) in layers of its own, its "
+                               "strength and colour live after the bake; " + _GROUP_COST),
+    ("scene", "Blender Light Groups", "Each of Blender's light groups (Object → Shading → "
+                                      "Light Group, and the World's) in layers of its own; "
+                                      "lights and world without one share a 'default' group; "
+                                      + _GROUP_COST),
+]
+
 
 class RelumePreferences(bpy.types.AddonPreferences):
     bl_idname = ADDON_ID
@@ -40,6 +52,9 @@ class RelumePreferences(bpy.types.AddonPreferences):
         ("gpu", "GPU", "The GPU (an error if none is usable)"),
         ("cpu", "CPU", "The CPU (multi-threaded)"),
     ])
+    light_groups: EnumProperty(name="Light Groups", items=LIGHT_GROUP_ITEMS, default="none",
+                               description="Keep lights apart so their strength and colour can "
+                                           "change live after the bake; " + _GROUP_COST)
     stack_folder: StringProperty(name="Stack Folder", subtype="DIR_PATH", default="",
                                  description="Where stacks are stored: empty = a 'relume' folder "
                                              "beside the .blend; '//' paths are relative to it")
@@ -58,6 +73,9 @@ class RelumePreferences(bpy.types.AddonPreferences):
         col.prop(self, "passes")
         col.prop(self, "resolution_scale")
         col.prop(self, "device")
+        col.prop(self, "light_groups")
+        if self.light_groups != "none":
+            col.label(text="Stack size and relight time grow by the number of groups", icon="INFO")
         col.prop(self, "stack_folder")
         from .panels import draw_bake_controls
 

@@ -1,9 +1,10 @@
-"""Per-material Relume settings, stored in the .blend with the material."""
+"""Relume settings stored in the .blend: per material, and the scene's light group gains."""
 
 from __future__ import annotations
 
 import bpy
-from bpy.props import BoolProperty, FloatProperty, FloatVectorProperty, PointerProperty
+from bpy.props import (BoolProperty, CollectionProperty, FloatProperty, FloatVectorProperty,
+                       PointerProperty)
 
 
 # Changing a registered property of a material does not tag the material for the depsgraph,
@@ -58,16 +59,34 @@ class RelumeMaterialSettings(bpy.types.PropertyGroup):
                                  update=_stale_check_on_change)
 
 
-CLASSES = (RelumeMaterialSettings,)
+class RelumeLightGroup(bpy.types.PropertyGroup):
+    """The live gain of one light group of the stack, keyed by the group's name (`name`).
+
+    Kept on the scene rather than in the session so the gains persist in the .blend and are
+    re-applied when the stack is reloaded; entries are added when a stack with new groups
+    loads and never removed, so a gain survives a rebake with other grouping.
+    """
+
+    strength: FloatProperty(name="Strength", min=0.0, soft_max=10.0, default=1.0,
+                            update=_relight_on_change,
+                            description="Multiplies this light group's light (relit live)")
+    color: FloatVectorProperty(name="Color", subtype="COLOR", size=3, min=0.0, soft_max=1.0,
+                               default=(1.0, 1.0, 1.0), update=_relight_on_change,
+                               description="Tints this light group's light (relit live)")
+
+
+CLASSES = (RelumeMaterialSettings, RelumeLightGroup)
 
 
 def register() -> None:
     for c in CLASSES:
         bpy.utils.register_class(c)
     bpy.types.Material.relume = PointerProperty(type=RelumeMaterialSettings)
+    bpy.types.Scene.relume_light_groups = CollectionProperty(type=RelumeLightGroup)
 
 
 def unregister() -> None:
+    del bpy.types.Scene.relume_light_groups
     del bpy.types.Material.relume
     for c in reversed(CLASSES):
         bpy.utils.unregister_class(c)

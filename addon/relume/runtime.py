@@ -16,6 +16,7 @@ class Runtime:
         self.session = None  # logic.bake_session.BakeSession while a bake runs (and after)
         self.throttle = Throttle()
         self.warnings: list = []  # the last export's warnings (ExportWarning)
+        self.light_names: list[str] = []  # the last export's lights, in scene order
         self.stale_check_pending = False
         self.relight_timer_registered = False
         self.last_status = ""

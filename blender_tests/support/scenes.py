@@ -78,3 +78,18 @@ def box_scene(resolution: int = 48, light_power: float = 60.0):
     scene.world = world
     bpy.context.view_layer.update()
     return scene
+
+
+def two_light_box(resolution: int = 32):
+    """`box_scene` with a second light: a bluish point light "Fill" low in the front left,
+    so the two lights' images differ in colour and in where they fall."""
+    scene = box_scene(resolution=resolution, light_power=40.0)
+    data = bpy.data.lights.new("Fill", "POINT")
+    data.energy = 30.0
+    data.color = (0.4, 0.6, 1.0)
+    data.shadow_soft_size = 0.05
+    fill = bpy.data.objects.new("Fill", data)
+    fill.location = (-0.6, -0.5, 0.6)
+    scene.collection.objects.link(fill)
+    bpy.context.view_layer.update()
+    return scene

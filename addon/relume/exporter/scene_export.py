@@ -5,6 +5,11 @@ which is the editable index in the stack's layer keys — is stable between expo
 without a material share a "Relume Default" region (Blender's default grey). Images (Base
 Color textures, environment maps) are written as OpenEXR files into `texture_dir` and
 referenced by path; the core reads them back and hashes their pixels with the scene.
+
+Blender's light groups (a light object's and the world's `lightgroup`) are written as the
+scene file's `light_groups` whatever the Light Groups preference, so the scene — and its
+hash — does not depend on how the next bake groups the lights; only a bake with "scene"
+grouping keeps them apart (logic/light_groups.py says what happens to lights in none).
 """
 
 from __future__ import annotations
@@ -17,6 +22,7 @@ import numpy as np
 
 from ..logic.camera_map import BlenderCamera, CameraError, map_camera
 from ..logic.export_warnings import ExportWarning, WarningList
+from ..logic.light_groups import scene_light_groups
 from ..logic.lights_map import map_light
 from ..logic.material_map import FALLBACK_PRINCIPLED, map_material
 from .geometry import collect_meshes
@@ -49,6 +55,7 @@ class ExportResult:
     editable: list[str]
     material_of_region: dict  # region name → bpy material (None for the default region)
     triangle_count: int
+    light_names: list[str] = field(default_factory=list)  # exported lights, in scene order
 
 
 def _sanitize(name: str) -> str:
@@ -193,13 +200,16 @@ def export_scene(context, options: ExportOptions) -> ExportResult:
     if not meshes:
         raise ExportError("nothing to bake: the visible objects have no faces")
 
-    lights = []
+    lights, light_names, light_groups = [], [], []
     for inst in depsgraph.object_instances:
         obj = inst.object
         if obj.type == "LIGHT" and not obj.original.hide_render:
-            mapped = map_light(read_light(obj.original, inst.matrix_world), warnings)
+            blender_light = read_light(obj.original, inst.matrix_world)
+            mapped = map_light(blender_light, warnings)
             if mapped is not None:
                 lights.append(mapped)
+                light_names.append(blender_light.name)
+                light_groups.append(blender_light.lightgroup)
 
     if abs(scene.render.pixel_aspect_x - scene.render.pixel_aspect_y) > 1e-6:
         warnings.add(f"Scene '{scene.name}'", "non-square pixel aspect", "square pixels")
@@ -215,6 +225,10 @@ def export_scene(context, options: ExportOptions) -> ExportResult:
     world = _world(scene, warnings, options.texture_dir)
     if world is not None:
         scene_dict["world"] = world
+    world_group = str(getattr(scene.world, "lightgroup", "")) if world is not None else None
+    groups = scene_light_groups(light_groups, world_group)
+    if groups:  # none: the key is left out, as older add-ons wrote it (same scene hash)
+        scene_dict["light_groups"] = groups
     if not lights and (world is None or _world_is_black(world)):
         warnings.add(f"Scene '{scene.name}'", "no light and a black world", "a black image")
 
@@ -233,7 +247,8 @@ def export_scene(context, options: ExportOptions) -> ExportResult:
     return ExportResult(
         scene=rs, scene_dict=scene_dict, warnings=warnings.items(), region_names=names,
         editable=[r["name"] for r in regions if r["editable"]],
-        material_of_region={n: materials[n] for n in names}, triangle_count=triangles)
+        material_of_region={n: materials[n] for n in names}, triangle_count=triangles,
+        light_names=light_names)
 
 
 def _world_is_black(world: dict) -> bool:

@@ -39,6 +39,7 @@ class BlenderLight:
     normalize: bool = True
     cast_shadow: bool = True
     light_linked: bool = False
+    lightgroup: str = ""  # Blender's light group ("" for none): see light_groups.py
     extra: dict = field(default_factory=dict)
 
 

@@ -4,6 +4,9 @@ Material values arrive as plain tuples (read from bpy by the add-on); only regio
 values changed since the last relight are sent to the relighter, which then re-sums only the
 layers whose signature holds those regions (the core's incremental path). A stack that does
 not match the current scene is kept but marked stale and never relit from.
+
+Light group gains (stacks baked with light groups) follow the same rule: only changed gains
+are sent, and a changed gain alone is reason enough to relight.
 """
 
 from __future__ import annotations
@@ -35,6 +38,8 @@ class LiveState:
         #: Why the last live relight failed (a refused material value), for the panel.
         self.relight_error: str | None = None
         self.applied: dict[str, RegionParams] = {}
+        #: Light group → (strength, (r, g, b)) last sent to the relighter.
+        self.applied_gains: dict[str, tuple] = {}
         self.last_latency_ms: float | None = None
         self.last_relight_ms: float | None = None
 
@@ -52,6 +57,7 @@ class LiveState:
         self.stack = None
         self.relighter = None
         self.applied = {}
+        self.applied_gains = {}
 
     def load(self, stack_path: str, scene=None, device: str = "auto") -> bool:
         """Load the stack at `stack_path`; with `scene`, check that it was baked from it.
@@ -112,11 +118,33 @@ class LiveState:
             changed.append(region)
         return changed
 
-    def relight(self, params: dict[str, RegionParams], force: bool = False) -> RelightOutcome | None:
-        """Apply `params` and relight; None when nothing changed (and not forced)."""
+    @property
+    def light_groups(self) -> list[str]:
+        """The loaded stack's light groups ([] without a stack or when baked without)."""
+        return list(self.stack.light_groups) if self.stack is not None else []
+
+    def apply_gains(self, gains: dict[str, tuple], force: bool = False) -> list[str]:
+        """Send changed light group gains, (strength, (r, g, b)) by group name, to the
+        relighter; groups the stack does not have are skipped (gains stored for another
+        bake's groups). Returns the groups changed."""
+        groups = set(self.light_groups)
+        changed = []
+        for name, (strength, color) in gains.items():
+            if name not in groups or (not force and self.applied_gains.get(name) == (strength, color)):
+                continue
+            self.relighter.set_light_group(name, strength, color)
+            self.applied_gains[name] = (strength, color)
+            changed.append(name)
+        return changed
+
+    def relight(self, params: dict[str, RegionParams], force: bool = False,
+                gains: dict[str, tuple] | None = None) -> RelightOutcome | None:
+        """Apply `params` (and light group `gains`) and relight; None when nothing changed
+        (and not forced)."""
         if not self.ready:
             return None
         changed = self.apply(params, force)
+        changed += self.apply_gains(gains or {}, force)
         if not changed and not force:
             return None
         t0 = time.perf_counter()
