@@ -305,9 +305,10 @@ fn direct_light<B: VertexBrdf, T: Tracer>(
 
 /// Draws an indirect direction at a vertex with normal `n`: uniform (the paper), the
 /// region's cosine-and-lobes [`DirectionMixture`], or (guided, where the pixel's tile has a
-/// guide map) [`GUIDE_WEIGHT`] of the map and the rest that mixture. Returns the direction
-/// and its solid-angle pdf (of the whole mixture); consumes 1 (uniform) or 2 (mixture,
-/// guided) dimension pairs always.
+/// guide tree) [`GUIDE_WEIGHT`] of the tree and the rest that mixture. The component is
+/// picked by the first number of the pair, rescaled, so stratification survives inside each
+/// component. Returns the direction and its solid-angle pdf (of the whole mixture);
+/// consumes one dimension pair always.
 pub fn sample_indirect(
     sampling: IndirectSampling,
     mixture: &DirectionMixture,
@@ -316,19 +317,17 @@ pub fn sample_indirect(
     wo: Vec3,
     stream: &mut SampleStream,
 ) -> Option<(Vec3, f32)> {
+    let (u1, u2) = stream.next2();
     if sampling == IndirectSampling::Uniform {
-        let (u1, u2) = stream.next2();
         return Some((to_world(n, uniform_hemisphere(u1, u2)), 1.0 / (2.0 * PI)));
     }
-    let pick = stream.next();
-    let (u1, u2) = stream.next2();
     let guide = guide.filter(|_| sampling == IndirectSampling::Guided);
     let guide_weight = if guide.is_some() { GUIDE_WEIGHT } else { 0.0 };
     let wi = match guide {
-        Some(g) if pick < guide_weight => g.sample(u1, u2),
+        Some(g) if u1 < guide_weight => g.sample(u1 / guide_weight, u2),
         _ => {
-            let rest = (pick - guide_weight) / (1.0 - guide_weight);
-            mixture.sample(rest.min(1.0 - f32::EPSILON), u1, u2, n, wo)
+            let u = ((u1 - guide_weight) / (1.0 - guide_weight)).clamp(0.0, 1.0 - f32::EPSILON);
+            mixture.sample(u, u2, n, wo)
         }
     };
     if n.dot(wi) <= 0.0 {

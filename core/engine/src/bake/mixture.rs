@@ -94,22 +94,38 @@ impl DirectionMixture {
         }
     }
 
-    /// Draws a direction around normal `n` for outgoing `wo` from `pick` (which component)
-    /// and (`u1`, `u2`). May lie below the surface (a lobe's reflection); the caller checks.
-    pub fn sample(&self, pick: f32, u1: f32, u2: f32, n: Vec3, wo: Vec3) -> Vec3 {
-        let mut acc = self.cosine;
-        if pick < acc || self.lobes.is_empty() {
-            return to_world(n, cosine_hemisphere(u1, u2));
-        }
-        let mut ns = self.lobes[self.lobes.len() - 1].0;
-        for &(lobe_ns, w) in &self.lobes {
-            acc += w;
-            if pick < acc {
-                ns = lobe_ns;
+    /// Draws a direction around normal `n` for outgoing `wo` from (`u1`, `u2`) ∈ [0, 1)²:
+    /// `u1` picks the component (cosine, then the lobes in order) and is rescaled to [0, 1)
+    /// inside it, so a stratified 2-D point set stays stratified within each component (a
+    /// separate "pick" number would hand each component a scattered subset of the points).
+    /// May lie below the surface (a lobe's reflection); the caller checks.
+    pub fn sample(&self, u1: f32, u2: f32, n: Vec3, wo: Vec3) -> Vec3 {
+        let mut start = 0.0f32;
+        let mut chosen = None;
+        for (k, w) in std::iter::once(self.cosine)
+            .chain(self.lobes.iter().map(|l| l.1))
+            .enumerate()
+        {
+            if w > 0.0 && u1 < start + w {
+                chosen = Some((k, (u1 - start) / w));
                 break;
             }
+            start += w;
         }
-        let h = to_world(n, blinn_phong_half_vector(u1, u2, ns));
+        // Rounding can leave u1 just past the last weight: take the last non-empty component.
+        let (k, u) = chosen.unwrap_or_else(|| {
+            let last = self
+                .lobes
+                .iter()
+                .rposition(|l| l.1 > 0.0)
+                .map_or(0, |i| i + 1);
+            (last, 1.0 - f32::EPSILON)
+        });
+        let u = u.clamp(0.0, 1.0 - f32::EPSILON);
+        if k == 0 {
+            return to_world(n, cosine_hemisphere(u, u2));
+        }
+        let h = to_world(n, blinn_phong_half_vector(u, u2, self.lobes[k - 1].0));
         2.0 * wo.dot(h) * h - wo
     }
 
@@ -215,7 +231,7 @@ mod tests {
             ((state >> 40) as f32) / (1u64 << 24) as f32
         };
         for _ in 0..draws {
-            let wi = mix.sample(next(), next(), next(), n, wo);
+            let wi = mix.sample(next(), next(), n, wo);
             if wi.z > 0.0 {
                 above += 1;
             }
