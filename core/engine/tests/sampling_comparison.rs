@@ -8,7 +8,8 @@
 //! `cargo test --release --test sampling_comparison -- --nocapture` prints the table and a
 //! JSON line per scene. The image is 64 pixels wide by default (CI); set
 //! `RELUME_SAMPLING_WIDTH=128` for the README's figures (guiding works per 16-pixel tile, so
-//! its gain grows with the resolution). Times exclude the set-up every method shares (BVH,
+//! its gain grows with the resolution), `RELUME_SAMPLING_SAMPLES=16x4x1` for the paper's
+//! sample counts and `RELUME_SAMPLING_REFERENCE_SPP` for the reference's eye samples. Times exclude the set-up every method shares (BVH,
 //! bases) but include the guide pass.
 
 use std::path::Path;
@@ -117,7 +118,10 @@ fn relume_sampling_against_the_papers_at_equal_samples_and_time() {
     let spp = samples();
     // The reference traces 512 indirect paths a pixel: 64× the 8 × 1 × 1 renders', 8× those
     // of 16 × 4 × 4 (its own noise is in every RMSE and pulls the ratios towards 1).
-    let reference_spp = (512 / spp.2).max(64);
+    let reference_spp = std::env::var("RELUME_SAMPLING_REFERENCE_SPP")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or((512 / spp.2).max(64));
     let seeds = [1u64, 2, 3, 4];
     let mut rows = Vec::new();
     for name in ["cornell", "ring", "hdri", "textured", "translucent"] {
