@@ -38,8 +38,9 @@ enum Method {
 }
 
 /// Eye × light × indirect samples of the compared renders: 8 × 1 × 1 by default (every
-/// sample a fresh indirect direction), `RELUME_SAMPLING_SAMPLES=16x4x4` for the preview
-/// preset's structure, where the guide pass is ≈ 3 % of the rays instead of ⅓.
+/// sample a fresh indirect direction; the guide pass's 4 paths a pixel are ⅓ of the rays),
+/// `RELUME_SAMPLING_SAMPLES=16x4x4` for the preview preset's structure (16 guide paths a
+/// pixel, ≈ 12 % of the rays).
 fn samples() -> (u32, u32, u32) {
     let spec = std::env::var("RELUME_SAMPLING_SAMPLES").unwrap_or_else(|_| "8x1x1".into());
     let v: Vec<u32> = spec.split('x').filter_map(|p| p.parse().ok()).collect();

@@ -1,11 +1,11 @@
 //! Guided indirect sampling: a short first pass records where indirect light comes from,
 //! per screen tile, and the bake then draws its indirect directions partly from that record.
 //!
-//! For [`GUIDE_SAMPLES`] cosine-distributed indirect rays per pixel, the pass records the
+//! For [`guide_samples`] cosine-distributed indirect rays per pixel, the pass records the
 //! direction and the luminance of the light that comes back along it (direct light reflected
 //! at the secondary hit by the bake-time materials, i.e. exactly what the bake's indirect
 //! estimator carries) times the cosine at the eye hit, over the cosine pdf: an estimate of
-//! `L(ω)·cos θ`, the diffuse part of the integrand. The samples of a tile of [`GUIDE_TILE`]²
+//! `L(ω)·cos θ`, the diffuse part of the integrand. The samples of a tile of [`guide_tile`]²
 //! pixels build one [`DirectionTree`]: an adaptive quadtree over the sphere, fine where the
 //! light is concentrated (a caustic, the bright patch under a lamp), sampled by hierarchical
 //! sample warping with an exact pdf.
@@ -29,19 +29,40 @@ use std::time::Instant;
 use crate::bake::context::BakeContext;
 use crate::bake::guide_tree::DirectionTree;
 use crate::bake::integrator::{guide_sample, CountingTracer};
+use crate::bake::settings::BakeSettings;
 use crate::bake::vertex_brdf::MaterialBrdf;
 use crate::brdf::BlinnPhong;
 use crate::Result;
 
-/// Side of a guide tile, pixels: a 512² image has 1024 tiles, each fed by 1024 guide samples.
-/// Locality is what pays: on the ring / Cornell scenes at 128², 8 spp, tiles of 32, 16 and
-/// 8 pixels with 4 guide samples per pixel divided the variance of the paper's sampling by
-/// 1.02 / 1.34, 1.43 / 1.47 and 1.06 / 1.58 (8-pixel tiles need more samples per pixel to
-/// fill their trees: 1.40 / 1.76 with 8, at twice the pass's cost).
-pub const GUIDE_TILE: u32 = 16;
-/// Guide paths per pixel (3 rays each: eye, indirect, one shadow ray per light): 12 rays a
-/// pixel, ≈ 3 % of a preview bake's 16 × (1 + 4 + 4 × (1 + 4)) = 400, ⅓ of an 8 × 1 × 1 bake's.
-pub const GUIDE_SAMPLES: u32 = 4;
+/// Fewest guide paths per pixel (3 rays each: eye, indirect, one shadow ray per light).
+pub const MIN_GUIDE_SAMPLES: u32 = 4;
+/// Most guide paths per pixel.
+pub const MAX_GUIDE_SAMPLES: u32 = 32;
+
+/// Guide paths per pixel for `settings`: a quarter of the bake's indirect paths
+/// (spp × indirect samples / 4), clamped to [4, 32]. The pass then costs ≈ 12 % of a preview
+/// bake's rays (16 paths: 48 of 16 × (1 + 4 + 4 × (1 + 4)) = 400 a pixel), 5 % of a final
+/// bake's, 8 % of the paper's 16 × 4 × 1. More paths resolve more: on the ring's caustic at
+/// 16 × 4 × 4 (128²) the paper's variance was divided by 1.00, 1.49 and 2.55 with 4, 16 and
+/// 32 paths, on Cornell by 1.31, 1.64 and 1.73 (`tests/sampling_comparison.rs`).
+pub fn guide_samples(settings: &BakeSettings) -> u32 {
+    (settings.spp.saturating_mul(settings.indirect_samples) / 4)
+        .clamp(MIN_GUIDE_SAMPLES, MAX_GUIDE_SAMPLES)
+}
+
+/// Side of a guide tile, pixels, for `samples` guide paths a pixel: 8 with ≥ 16 paths, else
+/// 16 — about 1 000 paths a tile. Locality is what pays: with 4 paths on the ring / Cornell
+/// scenes (128², 8 × 1 × 1), tiles of 32, 16 and 8 pixels divided the paper's variance by
+/// 1.02 / 1.34, 1.43 / 1.47 and 1.06 / 1.58; 8-pixel tiles need the paths to fill their
+/// trees (16 paths: 2.06 / 1.94 at 16 × 4 × 1, against 2.11 / 1.70 with 16-pixel tiles).
+pub fn guide_tile(samples: u32) -> u32 {
+    if samples >= 16 {
+        8
+    } else {
+        16
+    }
+}
+
 /// Share of the indirect mixture drawn from the guide (the rest is cosine and lobes, which
 /// bound the weight where the guide is wrong).
 pub const GUIDE_WEIGHT: f32 = 0.5;
@@ -51,6 +72,8 @@ const GUIDE_SEED: u64 = 0x6775_6964_655f_7061;
 /// The guide trees of every tile of an image, ready for sampling.
 #[derive(Clone, Debug)]
 pub struct GuideField {
+    /// Tile side, pixels ([`guide_tile`]).
+    side: u32,
     tiles_x: u32,
     tiles_y: u32,
     trees: Vec<Option<DirectionTree>>,
@@ -67,8 +90,10 @@ impl GuideField {
         let start = Instant::now();
         let brdf = MaterialBrdf::new(ctx, materials, false)?;
         let res = ctx.resolution;
-        let tiles_x = res.width.div_ceil(GUIDE_TILE);
-        let tiles_y = res.height.div_ceil(GUIDE_TILE);
+        let samples_per_pixel = guide_samples(&ctx.settings);
+        let side = guide_tile(samples_per_pixel);
+        let tiles_x = res.width.div_ceil(side);
+        let tiles_y = res.height.div_ceil(side);
         let built: Vec<(Option<DirectionTree>, u64)> = (0..tiles_x * tiles_y)
             .into_par_iter()
             .map(|t| {
@@ -76,9 +101,9 @@ impl GuideField {
                 let mut samples = Vec::new();
                 let mut tracer = CountingTracer::default();
                 let seed = ctx.settings.seed ^ GUIDE_SEED;
-                for py in ty * GUIDE_TILE..((ty + 1) * GUIDE_TILE).min(res.height) {
-                    for px in tx * GUIDE_TILE..((tx + 1) * GUIDE_TILE).min(res.width) {
-                        for s in 0..GUIDE_SAMPLES {
+                for py in ty * side..((ty + 1) * side).min(res.height) {
+                    for px in tx * side..((tx + 1) * side).min(res.width) {
+                        for s in 0..samples_per_pixel {
                             if let Some(sample) =
                                 guide_sample(ctx, &brdf, &mut tracer, px, py, s, seed)
                             {
@@ -92,6 +117,7 @@ impl GuideField {
             .collect();
         let rays = built.iter().map(|(_, r)| r).sum();
         Ok(GuideField {
+            side,
             tiles_x,
             tiles_y,
             trees: built.into_iter().map(|(s, _)| s).collect(),
@@ -104,11 +130,16 @@ impl GuideField {
     /// indirect light there.
     #[inline]
     pub fn sampler(&self, px: u32, py: u32) -> Option<&DirectionTree> {
-        let (tx, ty) = (px / GUIDE_TILE, py / GUIDE_TILE);
+        let (tx, ty) = (px / self.side, py / self.side);
         if tx >= self.tiles_x || ty >= self.tiles_y {
             return None;
         }
         self.trees[(ty * self.tiles_x + tx) as usize].as_ref()
+    }
+
+    /// Tile side, pixels.
+    pub fn tile_side(&self) -> u32 {
+        self.side
     }
 
     /// Tiles with a usable tree, of all tiles.
@@ -117,5 +148,25 @@ impl GuideField {
             self.trees.iter().filter(|s| s.is_some()).count(),
             self.trees.len(),
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_pass_grows_with_the_bake_and_the_tiles_shrink_with_it() {
+        let at = |spp, indirect| BakeSettings {
+            spp,
+            indirect_samples: indirect,
+            ..Default::default()
+        };
+        assert_eq!(guide_samples(&at(4, 2)), MIN_GUIDE_SAMPLES);
+        assert_eq!(guide_samples(&at(16, 1)), 4);
+        assert_eq!(guide_samples(&at(16, 4)), 16);
+        assert_eq!(guide_samples(&at(128, 2)), MAX_GUIDE_SAMPLES);
+        assert_eq!(guide_samples(&at(u32::MAX, u32::MAX)), MAX_GUIDE_SAMPLES);
+        assert_eq!((guide_tile(4), guide_tile(16), guide_tile(32)), (16, 8, 8));
     }
 }

@@ -59,10 +59,11 @@ impl Preset {
     }
 
     /// The values this preset sets. Preview and final draw their indirect directions
-    /// guided (a 4-path-a-pixel guide pass, ≈ 3 % of a preview bake's rays): at 16 × 4 × 4 it
-    /// divided the paper's variance by 1.30 on Cornell and 1.02 on the ring's caustic where
-    /// the plain mixture gave 1.02 and 0.49, and matched it elsewhere (README, "Sampling").
-    /// Draft keeps the mixture: at 4 × 2 × 2 the guide pass would be ⅓ of its rays.
+    /// guided (a guide pass of a quarter of their indirect paths: 16 a pixel for preview,
+    /// ≈ 12 % of its rays; 32 for final, ≈ 5 %): at 16 × 4 × 4 it divided the paper's
+    /// variance by 1.64 on Cornell and 1.49 on the ring's caustic where the plain mixture
+    /// gave 1.02 and 0.47, and matched it elsewhere (README, "Sampling"). Draft keeps the
+    /// mixture: at 4 × 2 × 2 even the smallest guide pass (4 paths) is ⅓ of its rays.
     ///
     /// Measured on the Cornell scene (README, "Presets"): the error of a relit image is Monte
     /// Carlo noise far more than basis error (tolerance 0.03 costs 0.34 %, 0.01 costs 0.10 %),
