@@ -10,7 +10,7 @@ import bpy
 import numpy as np
 import pytest
 
-from support.scenes import box_scene
+from support.scenes import box_scene, save_and_reopen
 
 ROOT = __import__("pathlib").Path(__file__).resolve().parent.parent
 
@@ -179,11 +179,7 @@ def test_stale_stack_detected_and_never_used(addon, prefs, blend_dir):
 def test_stack_reloaded_when_the_file_opens(addon, prefs, blend_dir):
     box_scene(resolution=24)
     addon.api.bake()
-    bpy.ops.wm.save_mainfile()
-    path = bpy.data.filepath
-    addon.runtime.RUNTIME.live.unload()
-    bpy.ops.wm.open_mainfile(filepath=path)
-    status = addon.api.status()
+    status = save_and_reopen(addon)
     assert status["loaded"] and status["stale"] is None, status
     assert "Relume" in bpy.data.images
 

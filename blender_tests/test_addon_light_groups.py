@@ -9,7 +9,7 @@ import bpy
 import numpy as np
 import pytest
 
-from support.scenes import two_light_box
+from support.scenes import save_and_reopen, two_light_box
 
 WHITE = (1.0, 1.0, 1.0)
 BLACK = (0.0, 0.0, 0.0)
@@ -117,11 +117,7 @@ def test_gains_persist_in_the_blend_and_are_reapplied_on_reload(addon, per_light
     addon.api.set_light_group(key, 0.25, (1.0, 0.8, 0.6))
     graded = _image()
     assert _rel_err(graded, unit) > 0.1, "the gain did not change the image"
-    bpy.ops.wm.save_mainfile()
-    path = bpy.data.filepath
-    addon.runtime.RUNTIME.live.unload()
-    bpy.ops.wm.open_mainfile(filepath=path)
-    status = addon.api.status()
+    status = save_and_reopen(addon)
     assert status["loaded"] and status["stale"] is None, status
     assert bpy.context.scene.relume_light_groups[key].strength == 0.25
     assert _rel_err(_image(), graded) <= 1e-6, "the stored gain was not re-applied"

@@ -93,3 +93,13 @@ def two_light_box(resolution: int = 32):
     scene.collection.objects.link(fill)
     bpy.context.view_layer.update()
     return scene
+
+
+def save_and_reopen(addon) -> dict:
+    """Saves the .blend, drops the add-on's loaded stack and opens the file again, as a user
+    reopening their file would; returns the add-on's status afterwards."""
+    bpy.ops.wm.save_mainfile()
+    path = bpy.data.filepath
+    addon.runtime.RUNTIME.live.unload()
+    bpy.ops.wm.open_mainfile(filepath=path)
+    return addon.api.status()

@@ -36,3 +36,9 @@ pub use error::{RelumeError, Result};
 
 /// Scene-linear Rec.709 RGB, the colour space of Cycles and of every Relume image.
 pub type Rgb = glam::Vec3;
+
+/// Rec. 709 luminance of a scene-linear colour (what guides and sampling weights steer by).
+#[inline]
+pub fn luminance(c: Rgb) -> f32 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}

@@ -155,28 +155,13 @@ impl DirectionTree {
                 self.nodes[c + 3].energy,
             ];
             let half = size * 0.5;
-            // Column: left (children 0, 2) or right (1, 3).
-            let left = e[0] + e[2];
-            let right = e[1] + e[3];
-            let p_left = left / (left + right);
-            let col = if u1 < p_left {
-                u1 /= p_left;
-                0
-            } else {
-                u1 = (u1 - p_left) / (1.0 - p_left);
-                x0 += half;
-                1
-            };
-            let (bottom, top) = (e[col], e[col + 2]);
-            let p_bottom = bottom / (bottom + top);
-            let row = if u2 < p_bottom {
-                u2 /= p_bottom;
-                0
-            } else {
-                u2 = (u2 - p_bottom) / (1.0 - p_bottom);
-                y0 += half;
-                1
-            };
+            // Column: left (children 0, 2) or right (1, 3); then the row within it.
+            let col;
+            (col, u1) = pick(u1, e[0] + e[2], e[1] + e[3]);
+            let row;
+            (row, u2) = pick(u2, e[col], e[col + 2]);
+            x0 += half * col as f64;
+            y0 += half * row as f64;
             u1 = u1.clamp(0.0, 1.0 - 1e-12);
             u2 = u2.clamp(0.0, 1.0 - 1e-12);
             size = half;
@@ -200,6 +185,18 @@ impl DirectionTree {
             node = self.nodes[node.children as usize + row * 2 + col];
         }
         (node.energy / (size * size) / (4.0 * PI)) as f32
+    }
+}
+
+/// One warping step: chooses side 0 (weight `a`) or 1 (weight `b`) with `u` ∈ [0, 1) in
+/// proportion to the weights, and returns the side with `u` rescaled to [0, 1) inside it.
+#[inline]
+fn pick(u: f64, a: f64, b: f64) -> (usize, f64) {
+    let p = a / (a + b);
+    if u < p {
+        (0, u / p)
+    } else {
+        (1, (u - p) / (1.0 - p))
     }
 }
 

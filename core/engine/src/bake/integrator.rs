@@ -393,6 +393,5 @@ pub fn guide_sample<B: VertexBrdf, T: Tracer>(
     for (g, group) in ctx.lights.groups.iter().enumerate() {
         radiance += light[g * MAX_BASES] * group.tint;
     }
-    let luminance = 0.2126 * radiance.x + 0.7152 * radiance.y + 0.0722 * radiance.z;
-    Some((wi, luminance * PI))
+    Some((wi, crate::luminance(radiance) * PI))
 }

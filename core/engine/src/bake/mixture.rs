@@ -26,6 +26,7 @@ use crate::brdf::BlinnPhong;
 use crate::geometry::sampling::{
     blinn_phong_half_vector, blinn_phong_pdf, cosine_hemisphere, to_world,
 };
+use crate::{luminance, Rgb};
 
 /// Share of an editable region's directions drawn for its bake-time material.
 pub const TUNED_SHARE: f32 = 0.8;
@@ -44,7 +45,7 @@ pub struct DirectionMixture {
 
 /// Luminance share of the specular part of `material` (½ for a black material).
 fn specular_share(material: &BlinnPhong) -> f32 {
-    let lum = |c: [f32; 3]| (0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]).max(0.0);
+    let lum = |c: [f32; 3]| luminance(Rgb::from(c)).max(0.0);
     let (d, s) = (lum(material.kd), lum(material.ks));
     if d + s > 0.0 && (d + s).is_finite() {
         s / (d + s)
