@@ -134,6 +134,10 @@ pub struct BakeOptions {
     /// À-trous iterations on the one-bounce layers [default: 0, or the preset's].
     #[arg(long)]
     pub denoise_bounce: Option<u32>,
+    /// Memory the bake may plan to use at its peak, in MiB; a bake whose estimate exceeds
+    /// it is refused before tracing [default: 80 % of the available memory].
+    #[arg(long)]
+    pub memory_budget_mb: Option<f64>,
 }
 
 impl BakeOptions {
@@ -189,6 +193,15 @@ impl BakeOptions {
         if let Some(v) = self.denoise_bounce {
             s.denoise.bounce_iterations = v;
         }
+        if let Some(mb) = self.memory_budget_mb {
+            if !(mb.is_finite() && mb > 0.0) {
+                return Err(RelumeError::invalid(
+                    "--memory-budget-mb",
+                    format!("{mb} (MiB, must be > 0)"),
+                ));
+            }
+            s.memory_budget = Some((mb * 1024.0 * 1024.0) as u64);
+        }
         if let Some(v) = self.sampling {
             s.sampling = match v {
                 SamplingArg::Uniform => IndirectSampling::Uniform,
@@ -207,12 +220,8 @@ impl BakeOptions {
         };
         let scale = match (self.resolution_scale, explicit) {
             (Some(f), _) => {
-                if !(f.is_finite() && f > 0.0) {
-                    return Err(RelumeError::invalid(
-                        "--resolution-scale",
-                        format!("{f} (must be a positive number)"),
-                    ));
-                }
+                // Checked even at 1, so "--resolution-scale nan" never passes silently.
+                scale_resolution(Resolution { width: 1, height: 1 }, f)?;
                 f
             }
             (None, Some(_)) => 1.0,
@@ -221,20 +230,22 @@ impl BakeOptions {
         s.resolution = match (explicit, scale == 1.0) {
             (None, true) => None,
             (Some(r), true) => Some(r),
-            (base, false) => Some(scale_resolution(base.unwrap_or(scene_resolution), scale)),
+            (base, false) => Some(scale_resolution(base.unwrap_or(scene_resolution), scale)?),
         };
+        s.validate()?;
         Ok(s)
     }
 }
 
-/// `r` with each side multiplied by `scale`, rounded, at least 1 (as the Python bindings'
-/// `resolution_scale`).
-pub fn scale_resolution(r: Resolution, scale: f64) -> Resolution {
-    let side = |v: u32| ((v as f64 * scale).round() as u32).max(1);
-    Resolution {
-        width: side(r.width),
-        height: side(r.height),
-    }
+/// `r` with each side multiplied by `scale` (the engine's [`Resolution::scaled`], as the
+/// Python bindings' `resolution_scale`): errors name `--resolution-scale`.
+pub fn scale_resolution(r: Resolution, scale: f64) -> Result<Resolution, RelumeError> {
+    r.scaled(scale).map_err(|e| match e {
+        RelumeError::InvalidValue { message, .. } => {
+            RelumeError::invalid("--resolution-scale", message)
+        }
+        other => other,
+    })
 }
 
 /// Parses `WxH`.
@@ -248,10 +259,9 @@ pub fn parse_resolution(s: &str) -> Result<Resolution, RelumeError> {
     let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
     let width: u32 = w.trim().parse().map_err(|_| bad())?;
     let height: u32 = h.trim().parse().map_err(|_| bad())?;
-    if width == 0 || height == 0 {
-        return Err(bad());
-    }
-    Ok(Resolution { width, height })
+    let r = Resolution { width, height };
+    r.validate("--resolution")?;
+    Ok(r)
 }
 
 #[cfg(test)]
@@ -302,7 +312,7 @@ mod tests {
                 preset.name()
             );
             let expected =
-                (v.resolution_scale != 1.0).then(|| scale_resolution(SCENE, v.resolution_scale));
+                (v.resolution_scale != 1.0).then(|| scale_resolution(SCENE, v.resolution_scale).unwrap());
             assert_eq!(s.resolution, expected, "{}", preset.name());
         }
         assert_eq!(

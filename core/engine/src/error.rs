@@ -59,6 +59,19 @@ pub enum RelumeError {
     Basis(String),
     #[error("image {path}: {message}")]
     Image { path: PathBuf, message: String },
+    /// A large allocation that would not fit: refused before it is tried (an estimate over
+    /// the budget) or after the allocator said no — never an abort.
+    #[error("not enough memory for {what}: it needs {} but {} {}", crate::memory::human_bytes(*needed), crate::memory::human_bytes(*available), if *budget { "is the memory budget (see --memory-budget / BakeSettings.memory_budget_mb)" } else { "could be allocated" })]
+    OutOfMemory {
+        what: String,
+        needed: u64,
+        available: u64,
+        /// True when `available` is the configured budget rather than what the allocator gave.
+        budget: bool,
+    },
+    /// A command whose output path is one of its inputs: refused before anything is read.
+    #[error("the output {output} is also an input of this command ({role}): writing it would destroy the input; choose another output path")]
+    OutputIsInput { output: PathBuf, role: String },
 }
 
 /// Result with [`RelumeError`].

@@ -44,6 +44,47 @@ fn temp_path_for(path: &Path) -> Result<PathBuf> {
     })
 }
 
+/// Whether process `pid` is still running: `/proc/<pid>` exists (Linux). Elsewhere every
+/// process counts as alive, so no temp file is ever removed by mistake.
+fn process_alive(pid: u32) -> bool {
+    if !Path::new("/proc/self").exists() {
+        return true;
+    }
+    Path::new(&format!("/proc/{pid}")).exists()
+}
+
+/// Removes the temp files a killed writer of `path` left behind (`.<name>.tmp-<pid>-<seq>`
+/// whose `pid` is no longer running). Best effort: a file that cannot be removed stays.
+/// Returns how many were removed.
+pub fn remove_stale_temp_files(path: &Path) -> usize {
+    let Some(name) = path.file_name() else {
+        return 0;
+    };
+    let prefix = format!(".{}.tmp-", name.to_string_lossy());
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let Ok(entries) = fs::read_dir(dir) else {
+        return 0;
+    };
+    let mut removed = 0;
+    for entry in entries.flatten() {
+        let file_name = entry.file_name();
+        let file_name = file_name.to_string_lossy();
+        let Some(rest) = file_name.strip_prefix(&prefix) else {
+            continue;
+        };
+        let Some(pid) = rest.split('-').next().and_then(|p| p.parse::<u32>().ok()) else {
+            continue;
+        };
+        if pid != std::process::id() && !process_alive(pid) && fs::remove_file(entry.path()).is_ok() {
+            removed += 1;
+        }
+    }
+    removed
+}
+
 /// Writes a file atomically and returns its size in bytes.
 ///
 /// `write` fills a buffered temp file in the target's directory; the temp file is then
@@ -55,6 +96,19 @@ pub fn write_atomic<F>(path: &Path, write: F) -> Result<u64>
 where
     F: FnOnce(&mut BufWriter<File>) -> Result<()>,
 {
+    write_atomic_checked(path, write, || Ok(()))
+}
+
+/// [`write_atomic`] with `before_rename` asked last, after the data is on disk and before
+/// the rename: an error from it (a cancel, say) removes the temp file and leaves `path` as
+/// it was. Stale temp files of dead writers of `path` are removed first
+/// ([`remove_stale_temp_files`]).
+pub fn write_atomic_checked<F, C>(path: &Path, write: F, before_rename: C) -> Result<u64>
+where
+    F: FnOnce(&mut BufWriter<File>) -> Result<()>,
+    C: FnOnce() -> Result<()>,
+{
+    remove_stale_temp_files(path);
     let tmp = temp_path_for(path)?;
     let file = OpenOptions::new()
         .write(true)
@@ -73,6 +127,7 @@ where
         file.sync_all().map_err(|e| RelumeError::io(path, e))?;
         let bytes = file.metadata().map_err(|e| RelumeError::io(path, e))?.len();
         drop(file);
+        before_rename()?;
         fs::rename(&tmp, path).map_err(|e| RelumeError::io(path, e))?;
         Ok(bytes)
     })();

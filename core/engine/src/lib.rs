@@ -28,6 +28,8 @@ pub mod error;
 pub mod geometry;
 pub mod image_io;
 pub mod materials;
+pub mod memory;
+pub mod output_path;
 pub mod relight;
 pub mod scene;
 pub mod stack;

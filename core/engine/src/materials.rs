@@ -252,6 +252,9 @@ pub fn resolve_materials(
             Some(_) => {}
         }
     }
+    for (name, spec) in &edits.regions {
+        spec.validate(&format!("region \"{name}\""))?;
+    }
     Ok(regions
         .iter()
         .filter(|r| r.editable)

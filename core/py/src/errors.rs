@@ -32,6 +32,7 @@ const CLASSES: &[Class] = &[
     Class { name: "BasisError", bases: &["RelumeError"], doc: "The BRDF basis cannot be built as asked." },
     Class { name: "DeviceError", bases: &["RelumeError"], doc: "The relight device asked for cannot be used (no GPU with device='gpu', a GPU failure)." },
     Class { name: "RelumeIOError", bases: &["RelumeError", "OSError"], doc: "A file cannot be read or written (also an OSError); an image file that is not what it should be." },
+    Class { name: "OutOfMemoryError", bases: &["RelumeError", "MemoryError"], doc: "Not enough memory: a bake whose estimated peak exceeds the memory budget (refused before tracing, the estimate in the message), or a large allocation the system refused. Nothing was written; the process is unharmed." },
     Class { name: "InternalError", bases: &["RelumeError"], doc: "A bug in Relume: a Rust panic caught at the boundary (the message has the panic text). The process is unharmed." },
 ];
 
@@ -100,6 +101,8 @@ pub fn class_of(e: &Engine) -> &'static str {
         Engine::Cancelled => "CancelledError",
         Engine::Materials(_) => "MaterialsError",
         Engine::Basis(_) => "BasisError",
+        Engine::OutOfMemory { .. } => "OutOfMemoryError",
+        Engine::OutputIsInput { .. } => "RelumeIOError",
     }
 }
 

@@ -62,7 +62,9 @@ impl BakeJob {
         stack_path: PathBuf,
     ) -> PyResult<BakeJob> {
         let scene = scene.snapshot();
-        let engine_settings = settings.for_scene(scene.resolution);
+        let engine_settings = settings
+            .for_scene(scene.resolution)
+            .map_err(|e| engine_err(py, &e))?;
         let passes = settings.passes;
         let dir = match stack_path.parent() {
             Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),

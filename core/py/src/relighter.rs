@@ -30,9 +30,6 @@ use crate::guard::{guard, guard_detached};
 use crate::materials::{blinn_phong_dict, principled, rgb};
 use crate::stack::Stack;
 
-/// Tolerance on Kd + Ks ≤ 1 (the Principled mapping's own rounding stays far below it).
-const ENERGY_SLACK: f32 = 1e-6;
-
 struct State {
     engine: Engine,
     /// Current material of every editable region, in editable order: Blinn–Phong values,
@@ -64,44 +61,23 @@ fn materials_err(py: Python<'_>, e: RelumeError) -> PyErr {
     }
 }
 
-/// The Blinn–Phong surface a material spec maps to (for the energy check and reports).
-fn blinn_phong_of(spec: &MaterialSpec) -> BlinnPhong {
-    match spec {
-        MaterialSpec::BlinnPhong(m) => *m,
-        MaterialSpec::Principled(p) => principled_to_blinn_phong(&p.bsdf),
-    }
-}
-
 impl Relighter {
     fn lock(&self) -> std::sync::MutexGuard<'_, State> {
         self.state.lock().unwrap_or_else(|e| e.into_inner())
     }
 
-    /// The editable index of `region`, with the core's errors for unknown and fixed ones.
-    fn region_index(&self, py: Python<'_>, region: &str, m: &BlinnPhong) -> PyResult<usize> {
+    /// The editable index of `region`, with the core's errors for unknown and fixed regions
+    /// and for values outside the core's rules ([`MaterialSpec::validate`], the same words
+    /// as the command line's materials file).
+    fn region_index(&self, py: Python<'_>, region: &str, spec: &MaterialSpec) -> PyResult<usize> {
         let mut edits = MaterialsFile::default();
-        edits
-            .regions
-            .insert(region.to_string(), MaterialSpec::BlinnPhong(*m));
+        edits.regions.insert(region.to_string(), spec.clone());
         resolve_materials(&self.stack.header.regions, &edits).map_err(|e| materials_err(py, e))?;
         Ok(self.editable.iter().position(|n| n == region).unwrap_or(0))
     }
 
     fn set(&self, py: Python<'_>, region: &str, spec: MaterialSpec) -> PyResult<()> {
-        let m = blinn_phong_of(&spec);
-        let index = self.region_index(py, region, &m)?;
-        m.validate(&format!("region \"{region}\""))
-            .map_err(|e| materials_err(py, e))?;
-        if let Some(c) = (0..3).find(|&c| m.kd[c] + m.ks[c] > 1.0 + ENERGY_SLACK) {
-            return Err(new_err(
-                py,
-                "MaterialsError",
-                format!(
-                    "region \"{region}\": Kd + Ks = {} > 1 in channel {c}: the surface would reflect more light than it receives",
-                    m.kd[c] + m.ks[c]
-                ),
-            ));
-        }
+        let index = self.region_index(py, region, &spec)?;
         let mut st = self.lock();
         if st.materials[index] != spec {
             st.materials[index] = spec;
@@ -294,8 +270,6 @@ impl Relighter {
     ) -> PyResult<Bound<'py, PyDict>> {
         guard(py, "Relighter.set_principled", || {
             let p = principled(base_color, metallic, roughness, ior, specular_ior_level)?;
-            p.validate(&format!("region \"{region}\""))
-                .map_err(|e| materials_err(py, e))?;
             let mut subsurface = Subsurface {
                 weight: subsurface_weight,
                 ..Subsurface::default()
@@ -305,20 +279,6 @@ impl Relighter {
             }
             if let Some(scale) = subsurface_scale {
                 subsurface.scale = scale;
-            }
-            let ok = |x: f32| x.is_finite() && x >= 0.0;
-            if !(ok(subsurface.weight) && subsurface.weight <= 1.0)
-                || !subsurface.radius.iter().all(|c| ok(*c))
-                || !ok(subsurface.scale)
-            {
-                return Err(new_err(
-                    py,
-                    "MaterialsError",
-                    format!(
-                        "region \"{region}\": subsurface weight {} (0…1), radius {:?} and scale {} (≥ 0, finite)",
-                        subsurface.weight, subsurface.radius, subsurface.scale
-                    ),
-                ));
             }
             let m = principled_to_blinn_phong(&p);
             self.set(
@@ -396,7 +356,7 @@ impl Relighter {
         let st = self.lock();
         let d = PyDict::new(py);
         for (name, m) in self.editable.iter().zip(&st.materials) {
-            d.set_item(name, blinn_phong_dict(py, &blinn_phong_of(m))?)?;
+            d.set_item(name, blinn_phong_dict(py, &m.to_blinn_phong())?)?;
         }
         Ok(d)
     }

@@ -10,7 +10,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 use relume_engine::bake::presets::Preset;
-use relume_engine::bake::settings::MAX_BOUNCES;
+use relume_engine::bake::settings::{MAX_BOUNCES, MAX_THREADS};
 use relume_engine::bake::{BakeSettings as Engine, IndirectSampling, LightGrouping};
 use relume_engine::brdf::BasisCount;
 use relume_engine::scene::Resolution;
@@ -37,6 +37,7 @@ pub const FIELDS: &[&str] = &[
     "denoise_direct",
     "denoise_bounce",
     "passes",
+    "memory_budget_mb",
 ];
 
 /// Bake settings (all keyword fields, readable and writable; see `to_dict()`).
@@ -69,18 +70,19 @@ fn finite(field: &str, v: &Bound<'_, PyAny>) -> PyResult<f64> {
 }
 
 impl BakeSettings {
-    /// The engine settings for `scene_resolution` (the scale applied, each side ≥ 1).
-    pub(crate) fn for_scene(&self, scene_resolution: Resolution) -> Engine {
+    /// The engine settings for `scene_resolution` (the scale applied by the engine's
+    /// [`Resolution::scaled`]), checked by the engine's [`Engine::validate`].
+    pub(crate) fn for_scene(
+        &self,
+        scene_resolution: Resolution,
+    ) -> Result<Engine, relume_engine::RelumeError> {
         let mut s = self.engine.clone();
         if self.resolution_scale != 1.0 || s.resolution.is_some() {
             let base = s.resolution.unwrap_or(scene_resolution);
-            let scale = |v: u32| ((v as f64 * self.resolution_scale).round() as u32).max(1);
-            s.resolution = Some(Resolution {
-                width: scale(base.width),
-                height: scale(base.height),
-            });
+            s.resolution = Some(base.scaled(self.resolution_scale)?);
         }
-        s
+        s.validate()?;
+        Ok(s)
     }
 
     fn set(&mut self, field: &str, v: &Bound<'_, PyAny>) -> PyResult<()> {
@@ -188,8 +190,11 @@ impl BakeSettings {
             }
             "threads" => {
                 let n: i64 = v.extract().map_err(|_| bad(field, "expected an integer"))?;
-                if !(0..=4096).contains(&n) {
-                    return Err(bad(field, format!("{n} (0 = all cores, else 1…4096)")));
+                if !(0..=MAX_THREADS as i64).contains(&n) {
+                    return Err(bad(
+                        field,
+                        format!("{n} (0 = all cores, else 1…{MAX_THREADS})"),
+                    ));
                 }
                 e.threads = n as usize;
             }
@@ -224,6 +229,17 @@ impl BakeSettings {
                         ))
                     }
                 };
+            }
+            "memory_budget_mb" => {
+                e.memory_budget = if v.is_none() {
+                    None
+                } else {
+                    let x = finite(field, v)?;
+                    if !(x > 0.0) {
+                        return Err(bad(field, format!("{x} (MiB, must be > 0; None: 80 % of the available memory)")));
+                    }
+                    Some((x * 1024.0 * 1024.0) as u64)
+                }
             }
             "passes" => {
                 let n = positive_u32(field, v)?;
@@ -284,6 +300,10 @@ impl BakeSettings {
             .into_pyobject(py)?
             .into_any(),
             "passes" => self.passes.into_pyobject(py)?.into_any(),
+            "memory_budget_mb" => match e.memory_budget {
+                None => py.None().into_bound(py),
+                Some(b) => (b as f64 / (1024.0 * 1024.0)).into_pyobject(py)?.into_any(),
+            },
             _ => {
                 return Err(pyo3::exceptions::PyAttributeError::new_err(format!(
                     "BakeSettings has no field \"{field}\""

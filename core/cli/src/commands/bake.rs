@@ -29,6 +29,10 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Result<(), RelumeError> {
+    relume_engine::output_path::refuse_output_over_inputs(
+        &args.output,
+        &[(&args.scene, "the scene")],
+    )?;
     let scene = load_scene(&args.scene)?;
     let settings = args.options.settings(scene.resolution)?;
     let output = args.output.clone();

@@ -41,6 +41,13 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Result<(), RelumeError> {
+    let mut inputs: Vec<(&std::path::Path, &str)> = vec![(&args.scene, "the scene")];
+    if let Some(m) = &args.materials {
+        inputs.push((m, "the materials file"));
+    }
+    for out in std::iter::once(&args.output).chain(&args.png) {
+        relume_engine::output_path::refuse_output_over_inputs(out, &inputs)?;
+    }
     let scene = load_scene(&args.scene)?;
     let settings = args.options.settings(scene.resolution)?;
     let edits = match &args.materials {

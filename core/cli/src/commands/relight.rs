@@ -77,6 +77,16 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Result<(), RelumeError> {
+    let mut inputs: Vec<(&std::path::Path, &str)> = vec![(&args.stack, "the stack")];
+    if let Some(m) = &args.materials {
+        inputs.push((m, "the materials file"));
+    }
+    if let Some(s) = &args.scene {
+        inputs.push((s, "the scene"));
+    }
+    for out in std::iter::once(&args.output).chain(&args.png) {
+        relume_engine::output_path::refuse_output_over_inputs(out, &inputs)?;
+    }
     let t = Instant::now();
     let stack = read_stack(&args.stack)?;
     let load_seconds = t.elapsed().as_secs_f64();

@@ -9,7 +9,7 @@ use std::sync::Arc;
 
 use crate::bake::guide::GuideField;
 use crate::bake::mixture::DirectionMixture;
-use crate::bake::settings::{BakeSettings, IndirectSampling, MAX_BOUNCES};
+use crate::bake::settings::{BakeSettings, IndirectSampling};
 use crate::bake::signature::PathVertex;
 use crate::bake::subsurface::{self, TranslucentRegion};
 use crate::brdf::{BasisConfig, BlinnPhong, BrdfBasis};
@@ -68,28 +68,45 @@ pub struct BakeContext {
 }
 
 impl BakeContext {
-    /// Validates `scene` and prepares it for `settings`.
+    /// Validates `scene` and prepares it for `settings`, with the guide pass of a guided bake.
     pub fn new(scene: &Scene, settings: &BakeSettings) -> Result<(BakeContext, ValidationReport)> {
-        if settings.spp == 0 || settings.light_samples == 0 || settings.indirect_samples == 0 {
-            return Err(RelumeError::invalid(
-                "bake settings",
-                "spp, light samples and indirect samples must be ≥ 1",
-            ));
+        let progress = crate::bake::progress::Progress::new();
+        let (mut ctx, report) = Self::prepare(scene, settings, &progress)?;
+        ctx.build_guide(scene, &progress)?;
+        Ok((ctx, report))
+    }
+
+    /// Runs the guide pass when the settings ask for guided sampling (a first trace over the
+    /// image: seconds); stops with [`RelumeError::Cancelled`] when `progress` is cancelled.
+    pub fn build_guide(
+        &mut self,
+        scene: &Scene,
+        progress: &crate::bake::progress::Progress,
+    ) -> Result<()> {
+        if self.settings.sampling == IndirectSampling::Guided && self.settings.bounces >= 1 {
+            let materials = scene
+                .regions
+                .iter()
+                .filter(|r| r.editable)
+                .map(|r| r.material.to_blinn_phong())
+                .collect();
+            progress.check()?;
+            self.guide = Some(GuideField::build(self, materials, progress)?);
         }
-        if settings.bounces > MAX_BOUNCES {
-            return Err(RelumeError::invalid(
-                "bake settings",
-                format!(
-                    "{} bounces asked; this build bakes 0 or {MAX_BOUNCES}",
-                    settings.bounces
-                ),
-            ));
-        }
+        Ok(())
+    }
+
+    /// [`Self::new`] without the guide pass ([`Self::build_guide`]), stopping with
+    /// [`RelumeError::Cancelled`] soon after `progress` is cancelled (the subsurface samples
+    /// take seconds).
+    pub fn prepare(
+        scene: &Scene,
+        settings: &BakeSettings,
+        progress: &crate::bake::progress::Progress,
+    ) -> Result<(BakeContext, ValidationReport)> {
+        settings.validate()?;
         let mut report = validate_scene(scene)?;
         let resolution = settings.resolution.unwrap_or(scene.resolution);
-        if resolution.width == 0 || resolution.height == 0 {
-            return Err(RelumeError::invalid("resolution", "zero size"));
-        }
         let mut bases: HashMap<String, Arc<BrdfBasis>> = HashMap::new();
         let mut sss_bases: HashMap<String, Arc<SssBasis>> = HashMap::new();
         let mut translucent: Vec<Option<TranslucentRegion>> = Vec::new();
@@ -97,6 +114,7 @@ impl BakeContext {
         let mut slot_vertex = Vec::new();
         let mut editable_index = 0u16;
         for (region_index, region) in scene.regions.iter().enumerate() {
+            progress.check()?;
             translucent.push(None);
             let texture = region.albedo_texture.as_ref().and_then(Texture::from_ref);
             let material = region.material.to_blinn_phong();
@@ -247,20 +265,11 @@ impl BakeContext {
                 .map_err(|e| RelumeError::invalid("threads", e.to_string()))?;
             for (i, t) in translucent.iter_mut().enumerate() {
                 if let Some(t) = t {
-                    pool.install(|| subsurface::prepare_light(&ctx, scene, i, t));
+                    pool.install(|| subsurface::prepare_light(&ctx, scene, i, t, progress))?;
                 }
             }
         }
         ctx.translucent = translucent;
-        if settings.sampling == IndirectSampling::Guided && settings.bounces >= 1 {
-            let materials = scene
-                .regions
-                .iter()
-                .filter(|r| r.editable)
-                .map(|r| r.material.to_blinn_phong())
-                .collect();
-            ctx.guide = Some(GuideField::build(&ctx, materials)?);
-        }
         Ok((ctx, report))
     }
 

@@ -186,10 +186,26 @@ impl EyeFeatures {
     /// Filters `layers` in place with `iterations` À-trous steps (steps 1, 2, 4, …: a
     /// footprint of 2·(2^iterations − 1) + 1 pixels). Pixels with no weights keep their value.
     pub fn filter(&self, layers: &mut [&mut RawLayer], iterations: u32) {
+        let never = crate::bake::progress::Progress::new();
+        let _ = self.filter_cancellable(layers, iterations, &never);
+    }
+
+    /// [`Self::filter`], stopping between layers with [`crate::RelumeError::Cancelled`] when
+    /// `progress` is cancelled (the layers are then partly filtered: the caller drops them).
+    pub fn filter_cancellable(
+        &self,
+        layers: &mut [&mut RawLayer],
+        iterations: u32,
+        progress: &crate::bake::progress::Progress,
+    ) -> crate::Result<()> {
         for k in 0..iterations {
+            progress.check()?;
             let step = 1usize << k;
             let w = self.weights(step);
             layers.par_iter_mut().for_each(|layer| {
+                if progress.is_cancelled() {
+                    return;
+                }
                 let c = layer.channels as usize;
                 let src = &layer.data;
                 // A region on which the layer is zero stays zero (weights never cross
@@ -225,6 +241,7 @@ impl EyeFeatures {
                 layer.data = out;
             });
         }
+        progress.check()
     }
 }
 

@@ -86,7 +86,12 @@ pub struct GuideField {
 impl GuideField {
     /// Runs the guide pass over `ctx`'s image with the bake-time `materials` (editable
     /// regions, in editable order).
-    pub fn build(ctx: &BakeContext, materials: Vec<BlinnPhong>) -> Result<GuideField> {
+    /// Stops early with [`crate::RelumeError::Cancelled`] when `progress` is cancelled.
+    pub fn build(
+        ctx: &BakeContext,
+        materials: Vec<BlinnPhong>,
+        progress: &crate::bake::progress::Progress,
+    ) -> Result<GuideField> {
         let start = Instant::now();
         let brdf = MaterialBrdf::new(ctx, materials, false)?;
         let res = ctx.resolution;
@@ -97,6 +102,9 @@ impl GuideField {
         let built: Vec<(Option<DirectionTree>, u64)> = (0..tiles_x * tiles_y)
             .into_par_iter()
             .map(|t| {
+                if progress.is_cancelled() {
+                    return (None, 0);
+                }
                 let (tx, ty) = (t % tiles_x, t / tiles_x);
                 let mut samples = Vec::new();
                 let mut tracer = CountingTracer::default();
@@ -115,6 +123,7 @@ impl GuideField {
                 (DirectionTree::build(&samples), tracer.rays)
             })
             .collect();
+        progress.check()?;
         let rays = built.iter().map(|(_, r)| r).sum();
         Ok(GuideField {
             side,

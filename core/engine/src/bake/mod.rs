@@ -10,6 +10,7 @@ pub mod bench;
 pub mod context;
 pub mod denoise;
 pub mod drop;
+pub mod estimate;
 pub mod guide;
 pub mod guide_tree;
 pub mod integrator;
@@ -37,7 +38,7 @@ use crate::{Result, Rgb};
 use context::BakeContext;
 use drop::RawLayer;
 use integrator::{trace_eye_sample, CountingTracer, PathSink};
-use progress::Progress;
+use progress::{Progress, Stage};
 pub use settings::{BakeSettings, Denoise, IndirectSampling, LightGrouping};
 use signature::LayerKey;
 use vertex_brdf::BasisBrdf;
@@ -72,6 +73,8 @@ pub struct BakeReport {
     pub sample_bytes: usize,
     /// Layers kept and left out, per region, and what leaving them out costs.
     pub layers: drop::DropReport,
+    /// The memory forecast made before tracing (compare with the measured peak).
+    pub estimate: Option<estimate::BakeEstimate>,
 }
 
 /// Accumulates one pixel of a tile densely: the tile buffer is pixel-major (all layers of
@@ -190,6 +193,7 @@ pub fn bake_progressive(
     progress: &Progress,
     mut on_pass: impl FnMut(&TransferStack, &BakeReport, &PassReport) -> Result<()>,
 ) -> Result<(TransferStack, BakeReport, Vec<PassReport>)> {
+    settings.validate()?;
     if passes.is_empty() || passes.windows(2).any(|w| w[0] >= w[1]) || passes[0] == 0 {
         return Err(crate::RelumeError::invalid(
             "bake passes",
@@ -197,19 +201,46 @@ pub fn bake_progressive(
         ));
     }
     let start = Instant::now();
+    progress.set_stage(Stage::Setup);
     let mut settings = settings.clone();
     settings.spp = *passes.last().unwrap_or(&1);
-    let (ctx, validation) = BakeContext::new(scene, &settings)?;
+    let (mut ctx, validation) = BakeContext::prepare(scene, &settings, progress)?;
+    // The forecast and the budget come before the guide pass and the trace, so a bake that
+    // cannot fit is refused in a second, not after minutes of tracing.
+    let forecast = estimate::estimate(&ctx, scene, passes.len());
+    crate::memory::check_budget(
+        &format!(
+            "this bake ({}×{}, {} of {} possible layers reached by a probe; stack ≈ {})",
+            forecast.width,
+            forecast.height,
+            forecast.layers_reached,
+            forecast.layers_possible,
+            crate::memory::human_bytes(forecast.stack_bytes)
+        ),
+        forecast.peak_bytes,
+        settings.memory_budget,
+    )?;
+    ctx.build_guide(scene, progress)?;
     let setup_seconds = start.elapsed().as_secs_f64();
     let res = ctx.resolution;
     let (width, height) = (res.width as usize, res.height as usize);
     let layer_count = ctx.layer_count();
     let slots = ctx.slot_count();
     let store: Vec<Mutex<Vec<f32>>> = (0..layer_count).map(|_| Mutex::new(Vec::new())).collect();
-    let features = Mutex::new(denoise::EyeFeatures::EMPTY.repeat(width * height));
+    let feature_len = crate::memory::checked_product(
+        "the denoiser's per-pixel features",
+        &[width as u64, height as u64, denoise::FEATURE_STRIDE as u64],
+    )? as usize;
+    let mut feature_store = crate::memory::try_with_capacity(feature_len, "the denoiser's per-pixel features")?;
+    for _ in 0..width * height {
+        feature_store.extend_from_slice(&denoise::EyeFeatures::EMPTY);
+    }
+    let features = Mutex::new(feature_store);
+    let alloc_failure: Mutex<Option<crate::RelumeError>> = Mutex::new(None);
     let rays = std::sync::atomic::AtomicU64::new(0);
     let brdf = BasisBrdf { ctx: &ctx };
     let tile_count = tiles::tiles(res).len() as u64;
+    progress.set_stage(Stage::Tracing);
     progress.start(tile_count * settings.spp as u64);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(settings.threads)
@@ -222,13 +253,17 @@ pub fn bake_progressive(
     for (pass, &upto) in passes.iter().enumerate() {
         let trace_start = Instant::now();
         let (from, to) = (done, upto);
+        progress.set_stage(Stage::Tracing);
         tiles::run_tiles(
             res,
             settings.threads,
             progress,
             (to - from) as u64,
             |tile| {
-                trace_tile(
+                if alloc_failure.lock().map_or(true, |f| f.is_some()) {
+                    return false;
+                }
+                match trace_tile(
                     &ctx,
                     &brdf,
                     &store,
@@ -239,10 +274,22 @@ pub fn bake_progressive(
                     width,
                     progress,
                     &rays,
-                )
+                ) {
+                    Ok(done) => done,
+                    Err(e) => {
+                        if let Ok(mut slot) = alloc_failure.lock() {
+                            slot.get_or_insert(e);
+                        }
+                        false
+                    }
+                }
             },
         )?;
+        if let Some(e) = alloc_failure.lock().unwrap_or_else(|e| e.into_inner()).take() {
+            return Err(e);
+        }
         done = upto;
+        let last_pass = pass + 1 == passes.len();
         let eye_features = {
             let f = features.lock().unwrap_or_else(|e| e.into_inner());
             denoise::EyeFeatures::from_sums(&ctx, &f, done)
@@ -257,6 +304,8 @@ pub fn bake_progressive(
             &pool,
             width,
             height,
+            progress,
+            last_pass,
         )?;
         let norm = image.iter().map(|v| v * v).sum::<f64>().sqrt();
         let estimated_rel_error = previous_image.as_ref().map(|prev| {
@@ -280,6 +329,7 @@ pub fn bake_progressive(
         report.triangles = validation.triangles;
         report.degenerate_triangles = validation.degenerate_triangles;
         report.warnings = validation.warnings.clone();
+        report.estimate = Some(forecast.clone());
         let _ = trace_seconds;
         let pass_report = PassReport {
             pass,
@@ -287,10 +337,12 @@ pub fn bake_progressive(
             seconds: report.seconds,
             estimated_rel_error,
         };
+        progress.check()?;
         on_pass(&stack, &report, &pass_report)?;
         pass_reports.push(pass_report);
         result = Some((stack, report));
     }
+    progress.set_stage(Stage::Done);
     let (stack, report) = result.expect("at least one pass");
     Ok((stack, report, pass_reports))
 }
@@ -308,17 +360,17 @@ fn trace_tile(
     width: usize,
     progress: &Progress,
     rays: &std::sync::atomic::AtomicU64,
-) -> bool {
+) -> Result<bool> {
     let layer_count = store.len();
     let height = ctx.resolution.height as usize;
     let tp = tile.pixels();
-    let mut buf = vec![0.0f32; layer_count * tp * 3];
+    let mut buf: Vec<f32> = crate::memory::try_zeroed(layer_count * tp * 3, "a tile's layer sums")?;
     let fs = denoise::FEATURE_STRIDE;
     let mut tile_features = denoise::EyeFeatures::EMPTY.repeat(tp);
     let mut tracer = CountingTracer::default();
     for ty in 0..tile.height {
         if progress.is_cancelled() {
-            return false;
+            return Ok(false);
         }
         for tx in 0..tile.width {
             let pixel = (ty * tile.width + tx) as usize;
@@ -360,7 +412,7 @@ fn trace_tile(
         }
         let mut image = slot.lock().unwrap_or_else(|e| e.into_inner());
         if image.is_empty() {
-            *image = vec![0.0; width * height * 3];
+            *image = crate::memory::try_zeroed(width * height * 3, "a layer's full-frame sums")?;
         }
         for ty in 0..tile.height as usize {
             for tx in 0..tile.width as usize {
@@ -374,7 +426,7 @@ fn trace_tile(
             }
         }
     }
-    true
+    Ok(true)
 }
 
 /// Turns the store (sums over `spp` eye samples) into a stack, the report of its layers, and
@@ -390,48 +442,75 @@ fn assemble(
     pool: &rayon::ThreadPool,
     width: usize,
     height: usize,
+    progress: &Progress,
+    last_pass: bool,
 ) -> Result<(TransferStack, BakeReport, Vec<f64>)> {
     let assembly_start = Instant::now();
+    progress.set_stage(Stage::Assembly);
     let res = ctx.resolution;
     let layer_count = store.len();
     let inv_spp = 1.0 / spp as f32;
     // Whole-image layers: averaged over the eye samples, grey when the three channels are
     // bit-identical everywhere (the path met no colour), `None` when nothing reached them.
-    let assemble = |(index, slot): (usize, &Mutex<Vec<f32>>)| -> Result<RawLayer, LayerKey> {
-        let sums = slot.lock().unwrap_or_else(|e| e.into_inner());
+    // The last pass averages each accumulator in place (its sums are not needed again), so
+    // assembly adds no second full copy of the layers to the bake's peak memory.
+    enum Assembled {
+        Layer(RawLayer),
+        Empty(LayerKey),
+        Skipped,
+    }
+    let assemble = |(index, slot): (usize, &Mutex<Vec<f32>>)| -> Result<Assembled> {
+        if progress.is_cancelled() {
+            return Ok(Assembled::Skipped);
+        }
+        let mut sums = slot.lock().unwrap_or_else(|e| e.into_inner());
         let key = layer_key(ctx, index);
         if sums.is_empty() || sums.iter().all(|v| *v == 0.0) {
-            return Err(key);
+            return Ok(Assembled::Empty(key));
         }
-        let image: Vec<f32> = sums.iter().map(|v| v * inv_spp).collect();
+        let mut image: Vec<f32> = if last_pass {
+            std::mem::take(&mut *sums)
+        } else {
+            let mut copy = crate::memory::try_with_capacity(sums.len(), "an averaged layer")?;
+            copy.extend_from_slice(&sums);
+            copy
+        };
+        drop(sums);
+        for v in image.iter_mut() {
+            *v *= inv_spp;
+        }
         if image.chunks_exact(3).all(|c| c[0] == c[1] && c[1] == c[2]) {
-            let y: Vec<f32> = image.chunks_exact(3).map(|c| c[0]).collect();
-            Ok(RawLayer {
+            let mut y = crate::memory::try_with_capacity(image.len() / 3, "a grey layer")?;
+            y.extend(image.chunks_exact(3).map(|c| c[0]));
+            Ok(Assembled::Layer(RawLayer {
                 key,
                 channels: 1,
                 data: y,
-            })
+            }))
         } else {
-            Ok(RawLayer {
+            Ok(Assembled::Layer(RawLayer {
                 key,
                 channels: 3,
                 data: image,
-            })
+            }))
         }
     };
-    let assembled: Vec<Result<RawLayer, LayerKey>> =
+    let assembled: Vec<Result<Assembled>> =
         pool.install(|| store.par_iter().enumerate().map(assemble).collect());
+    progress.check()?;
     let mut reached = Vec::new();
     let mut unreached = Vec::new();
     for a in assembled {
-        match a {
-            Ok(l) => reached.push(l),
-            Err(k) => unreached.push(k),
+        match a? {
+            Assembled::Layer(l) => reached.push(l),
+            Assembled::Empty(k) => unreached.push(k),
+            Assembled::Skipped => return Err(crate::RelumeError::Cancelled),
         }
     }
     let empty = unreached.len();
     let denoise_start = Instant::now();
-    pool.install(|| {
+    progress.set_stage(Stage::Denoising);
+    pool.install(|| -> Result<()> {
         for (vertices, iterations) in [
             (1, settings.denoise.direct_iterations),
             (2, settings.denoise.bounce_iterations),
@@ -440,11 +519,14 @@ fn assemble(
                 .iter_mut()
                 .filter(|l| l.key.path.len() == vertices)
                 .collect();
-            eye_features.filter(&mut chosen, iterations);
+            eye_features.filter_cancellable(&mut chosen, iterations, progress)?;
         }
-    });
+        Ok(())
+    })?;
     let denoise_seconds = denoise_start.elapsed().as_secs_f64();
+    progress.set_stage(Stage::Finishing);
     let image = drop::bake_time_image(ctx, scene, &reached);
+    progress.check()?;
     let (kept, drop_report) = drop::drop_negligible(
         ctx,
         scene,
@@ -453,11 +535,19 @@ fn assemble(
         &unreached,
         settings.drop_budget as f64,
     );
+    progress.check()?;
     let mut layers: Vec<Layer> = pool.install(|| {
         kept.into_par_iter()
-            .map(|l| Layer::from_f32(l.key, l.channels, &l.data, settings.precision))
-            .collect()
-    });
+            .map(|l| {
+                if progress.is_cancelled() {
+                    None
+                } else {
+                    Some(Layer::from_f32(l.key, l.channels, &l.data, settings.precision))
+                }
+            })
+            .collect::<Option<Vec<Layer>>>()
+    })
+    .ok_or(crate::RelumeError::Cancelled)?;
     let grey = layers.iter().filter(|l| l.channels == 1).count();
     let rgb = layers.len() - grey;
     if layers.is_empty() {
@@ -533,6 +623,7 @@ fn assemble(
         layers_empty: empty,
         sample_bytes: stack.sample_bytes(),
         layers: drop_report,
+        estimate: None,
     };
     Ok((stack, report, image))
 }

@@ -4,6 +4,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::brdf::BasisConfig;
 use crate::scene::Resolution;
+
 use crate::stack::Precision;
 
 /// How indirect directions are drawn at the eye hit. Both are unbiased and share one sample
@@ -109,6 +110,11 @@ pub struct BakeSettings {
     /// The stack's denoiser; off by default (the presets turn it on).
     #[serde(default)]
     pub denoise: Denoise,
+    /// Bytes the bake may plan to use at its peak; `None`: a share of the machine's
+    /// available memory ([`crate::memory::budget_bytes`]). A bake whose estimate
+    /// ([`crate::bake::estimate`]) exceeds it is refused before tracing.
+    #[serde(default)]
+    pub memory_budget: Option<u64>,
 }
 
 fn default_subsurface_samples() -> u32 {
@@ -136,7 +142,83 @@ impl Default for BakeSettings {
             subsurface_samples: default_subsurface_samples(),
             subsurface_theta: default_subsurface_theta(),
             denoise: Denoise::OFF,
+            memory_budget: None,
         }
+    }
+}
+
+/// Most worker threads a bake starts: far above any core count the bake scales to, far
+/// below the thousands that would exhaust the OS's thread limits.
+pub const MAX_THREADS: usize = 1024;
+
+/// Most À-trous iterations of the denoiser (a 2⁸ × 4-pixel reach already spans any frame).
+pub const MAX_DENOISE_ITERATIONS: u32 = 8;
+
+impl BakeSettings {
+    /// The one set of rules every front end (command line, Python, add-on) applies, with
+    /// the same words: sample counts ≥ 1, bounces within [`MAX_BOUNCES`], threads within
+    /// [`MAX_THREADS`], a resolution override within [`Resolution::MAX_SIDE`], finite
+    /// budgets. Scene-dependent checks (regions, lights) happen when the bake prepares.
+    pub fn validate(&self) -> crate::Result<()> {
+        let bad = |what: &str, message: String| Err(crate::RelumeError::invalid(what, message));
+        for (what, v) in [
+            ("spp", self.spp),
+            ("light samples", self.light_samples),
+            ("indirect samples", self.indirect_samples),
+            ("subsurface samples", self.subsurface_samples),
+        ] {
+            if v == 0 {
+                return bad(what, "must be ≥ 1, got 0".into());
+            }
+        }
+        if self.bounces > MAX_BOUNCES {
+            return bad(
+                "bounces",
+                format!(
+                    "{} asked; this build bakes 0 to {MAX_BOUNCES}",
+                    self.bounces
+                ),
+            );
+        }
+        if self.threads > MAX_THREADS {
+            return bad(
+                "threads",
+                format!(
+                    "{} asked; at most {MAX_THREADS} (0 uses every core)",
+                    self.threads
+                ),
+            );
+        }
+        if let Some(r) = self.resolution {
+            r.validate("resolution")?;
+        }
+        if !(self.drop_budget.is_finite() && (0.0..1.0).contains(&self.drop_budget)) {
+            return bad(
+                "drop budget",
+                format!("must be in [0, 1), got {}", self.drop_budget),
+            );
+        }
+        if !(self.subsurface_theta.is_finite() && self.subsurface_theta > 0.0) {
+            return bad(
+                "subsurface theta",
+                format!("must be finite and > 0, got {}", self.subsurface_theta),
+            );
+        }
+        for (what, n) in [
+            ("denoise direct iterations", self.denoise.direct_iterations),
+            ("denoise bounce iterations", self.denoise.bounce_iterations),
+        ] {
+            if n > MAX_DENOISE_ITERATIONS {
+                return bad(
+                    what,
+                    format!("{n} asked; at most {MAX_DENOISE_ITERATIONS}"),
+                );
+            }
+        }
+        if self.memory_budget == Some(0) {
+            return bad("memory budget", "must be > 0 bytes".into());
+        }
+        Ok(())
     }
 }
 

@@ -106,8 +106,15 @@ pub fn basis_config(
     ))
 }
 
-/// Samples region `index`, gathers E′ at every sample and builds the octree.
-pub fn prepare_light(ctx: &BakeContext, scene: &Scene, index: usize, t: &mut TranslucentRegion) {
+/// Samples region `index`, gathers E′ at every sample and builds the octree; stops early
+/// with [`crate::RelumeError::Cancelled`] when `progress` is cancelled.
+pub fn prepare_light(
+    ctx: &BakeContext,
+    scene: &Scene,
+    index: usize,
+    t: &mut TranslucentRegion,
+    progress: &crate::bake::progress::Progress,
+) -> crate::Result<()> {
     let settings = &ctx.settings;
     t.points = sample_region(scene, index as u32, t.info.samples as usize, settings.seed);
     let groups = ctx.lights.groups.len();
@@ -119,9 +126,12 @@ pub fn prepare_light(ctx: &BakeContext, scene: &Scene, index: usize, t: &mut Tra
         .par_iter()
         .enumerate()
         .map(|(i, &p)| {
+            let mut e = vec![Rgb::ZERO; groups];
+            if progress.is_cancelled() {
+                return e;
+            }
             let n = t.points.normals[i];
             let ng = t.points.geometric_normals[i];
-            let mut e = vec![Rgb::ZERO; groups];
             let origin = ctx.geometry.offset(p, ng);
             let mut stream = SampleStream::new(
                 settings.seed ^ 0x4952_5241_4449_414e,
@@ -155,6 +165,7 @@ pub fn prepare_light(ctx: &BakeContext, scene: &Scene, index: usize, t: &mut Tra
             e
         })
         .collect();
+    progress.check()?;
     t.irradiance = irradiance.into_iter().flatten().collect();
     let area = t.points.area_each as f32;
     let power: Vec<Rgb> = t.irradiance.iter().map(|e| *e * area).collect();
@@ -164,6 +175,7 @@ pub fn prepare_light(ctx: &BakeContext, scene: &Scene, index: usize, t: &mut Tra
         groups,
         settings.subsurface_theta,
     );
+    Ok(())
 }
 
 /// Adds the subsurface layers of eye hit `x` (shading normal `n`, towards-eye `wo`) on

@@ -13,8 +13,11 @@ use std::time::Instant;
 use super::progress::Progress;
 use super::{bake_progressive, doubling_passes, BakeReport, BakeSettings, PassReport};
 use crate::scene::Scene;
-use crate::stack::{exr_file::write_stack, TransferStack};
+use crate::stack::{exr_file::write_stack_cancellable, TransferStack};
 use crate::Result;
+
+/// Most progressive passes: each doubles the samples, so 16 spans a 65 536-fold range.
+pub const MAX_PASSES: u32 = 16;
 
 /// What [`bake_to_file`] did.
 pub struct BakedFile {
@@ -44,6 +47,12 @@ pub fn bake_to_file(
     progress: &Progress,
     mut on_written: impl FnMut(&PassReport, u64),
 ) -> Result<BakedFile> {
+    if !(1..=MAX_PASSES).contains(&passes) {
+        return Err(crate::RelumeError::invalid(
+            "passes",
+            format!("{passes} asked; a bake has 1…{MAX_PASSES} passes"),
+        ));
+    }
     let counts = doubling_passes(settings.spp, passes);
     let mut file_bytes = 0;
     let mut write_seconds = 0.0;
@@ -51,7 +60,8 @@ pub fn bake_to_file(
     let (stack, report, passes) =
         bake_progressive(scene, settings, &counts, progress, |stack, _, pass| {
             let t = Instant::now();
-            file_bytes = write_stack(path, stack)?;
+            progress.set_stage(super::progress::Stage::Writing);
+            file_bytes = write_stack_cancellable(path, stack, progress)?;
             write_seconds = t.elapsed().as_secs_f64();
             stacks_written += 1;
             on_written(pass, file_bytes);

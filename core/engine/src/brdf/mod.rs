@@ -42,7 +42,35 @@ impl From<Principled> for PrincipledMaterial {
     }
 }
 
+/// Tolerance on Kd + Ks ≤ 1 (the Principled mapping's own rounding stays far below it).
+pub const ENERGY_SLACK: f32 = 1e-6;
+
 impl MaterialSpec {
+    /// The rules a material edit must meet, the same for the command line's materials file,
+    /// the Python bindings and the add-on; errors name `"{what}.field"`: Blinn–Phong values
+    /// finite with Kd, Ks ≥ 0, ns > 0 ([`BlinnPhong::validate`]) and Kd + Ks ≤ 1 per channel
+    /// (a surface that reflects more than it receives makes relit light grow without bound);
+    /// Principled inputs in their ranges ([`Principled::validate`], nothing clamped
+    /// silently) and subsurface inputs ([`Subsurface::validate`]).
+    pub fn validate(&self, what: &str) -> crate::Result<()> {
+        if let MaterialSpec::Principled(p) = self {
+            p.bsdf.validate(what)?;
+            p.subsurface.validate(what)?;
+        }
+        let m = self.to_blinn_phong();
+        m.validate(what)?;
+        if let Some(c) = (0..3).find(|&c| m.kd[c] + m.ks[c] > 1.0 + ENERGY_SLACK) {
+            return Err(crate::RelumeError::invalid(
+                format!("{what}.kd + ks"),
+                format!(
+                    "Kd + Ks = {} > 1 in channel {c}: the surface would reflect more light than it receives",
+                    m.kd[c] + m.ks[c]
+                ),
+            ));
+        }
+        Ok(())
+    }
+
     /// A Principled material without subsurface scattering.
     pub fn principled(p: Principled) -> MaterialSpec {
         MaterialSpec::Principled(p.into())

@@ -45,6 +45,50 @@ pub struct Resolution {
     pub height: u32,
 }
 
+impl Resolution {
+    /// Largest side a scene or a bake may have (OpenEXR and the camera handle more; the
+    /// bound keeps sizes, and what a hostile file can claim, in a range that is checked).
+    pub const MAX_SIDE: u32 = 65536;
+    /// Largest factor a resolution scale may have.
+    pub const MAX_SCALE: f64 = 16.0;
+
+    /// Errors (naming `what`) unless each side is 1…[`Self::MAX_SIDE`].
+    pub fn validate(&self, what: &str) -> crate::Result<()> {
+        let ok = |v: u32| (1..=Self::MAX_SIDE).contains(&v);
+        if ok(self.width) && ok(self.height) {
+            Ok(())
+        } else {
+            Err(crate::RelumeError::invalid(
+                what,
+                format!(
+                    "{}×{} (each side must be 1…{})",
+                    self.width,
+                    self.height,
+                    Self::MAX_SIDE
+                ),
+            ))
+        }
+    }
+
+    /// Each side multiplied by `scale` and rounded (at least 1). Errors: a scale that is not
+    /// finite or not in (0, [`Self::MAX_SCALE`]], or a result outside [`Self::validate`].
+    pub fn scaled(self, scale: f64) -> crate::Result<Resolution> {
+        if !(scale.is_finite() && scale > 0.0 && scale <= Self::MAX_SCALE) {
+            return Err(crate::RelumeError::invalid(
+                "resolution scale",
+                format!("{scale} (must be in (0, {}])", Self::MAX_SCALE),
+            ));
+        }
+        let side = |v: u32| (v as f64 * scale).round().clamp(1.0, u32::MAX as f64) as u32;
+        let r = Resolution {
+            width: side(self.width),
+            height: side(self.height),
+        };
+        r.validate("scaled resolution")?;
+        Ok(r)
+    }
+}
+
 /// A triangle mesh in world space.
 #[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct Mesh {

@@ -48,13 +48,7 @@ pub fn validate_scene(scene: &Scene) -> Result<ValidationReport> {
     if scene.triangle_count() == 0 {
         return Err(RelumeError::EmptyScene("no triangle in any mesh".into()));
     }
-    let res = scene.resolution;
-    if res.width == 0 || res.height == 0 || res.width > 65536 || res.height > 65536 {
-        return Err(RelumeError::invalid(
-            "resolution",
-            format!("{}×{} (each side must be 1…65536)", res.width, res.height),
-        ));
-    }
+    scene.resolution.validate("resolution")?;
     for (ri, region) in scene.regions.iter().enumerate() {
         validate_material(
             &format!("region {ri} \"{}\" material", region.name),

@@ -36,7 +36,7 @@ use serde::{Deserialize, Serialize};
 use super::{Layer, LayerSamples, Precision, StackHeader, TransferStack, STACK_FORMAT_VERSION};
 use crate::bake::signature::LayerKey;
 use crate::error::{RelumeError, Result};
-use crate::image_io::write_atomic;
+use crate::image_io::write_atomic_checked;
 
 /// Attribute: the [`StackHeader`] as JSON.
 pub const ATTR_HEADER: &str = "relume/header";
@@ -210,6 +210,56 @@ fn validate_for_write(path: &Path, stack: &TransferStack) -> Result<String> {
 /// read-only directory gives [`RelumeError::Io`]; an existing file at `path` survives any
 /// failure.
 pub fn write_stack(path: &Path, stack: &TransferStack) -> Result<u64> {
+    write_stack_cancellable(path, stack, &crate::bake::progress::Progress::new())
+}
+
+/// Passes writes through while `progress` is not cancelled; after a cancel every write
+/// fails, which stops the OpenEXR encoder within one chunk.
+struct CancellableWriter<'a, W> {
+    inner: W,
+    progress: &'a crate::bake::progress::Progress,
+}
+
+impl<W> CancellableWriter<'_, W> {
+    fn check(&self) -> std::io::Result<()> {
+        if self.progress.is_cancelled() {
+            Err(std::io::Error::new(std::io::ErrorKind::Interrupted, CANCELLED_WRITE))
+        } else {
+            Ok(())
+        }
+    }
+}
+
+/// The message of the I/O error a cancelled write ends with (mapped back to `Cancelled`).
+const CANCELLED_WRITE: &str = "relume: write cancelled";
+
+impl<W: std::io::Write> std::io::Write for CancellableWriter<'_, W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.check()?;
+        self.inner.write(buf)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush()
+    }
+}
+
+impl<W: std::io::Seek> std::io::Seek for CancellableWriter<'_, W> {
+    fn seek(&mut self, pos: SeekFrom) -> std::io::Result<u64> {
+        self.check()?;
+        self.inner.seek(pos)
+    }
+}
+
+/// [`write_stack`] that stops when `progress` is cancelled — while encoding, or after the
+/// data is on disk but before the rename — with [`RelumeError::Cancelled`], removing its
+/// temp file and leaving an existing file at `path` byte for byte as it was. Once renamed,
+/// the stack is written and a later cancel changes nothing.
+pub fn write_stack_cancellable(
+    path: &Path,
+    stack: &TransferStack,
+    progress: &crate::bake::progress::Progress,
+) -> Result<u64> {
+    progress.check()?;
     let header_json = validate_for_write(path, stack)?;
     let h = &stack.header;
     let pixels = h.width as usize * h.height as usize;
@@ -278,12 +328,22 @@ pub fn write_stack(path: &Path, stack: &TransferStack) -> Result<u64> {
         channels,
     );
     let image = x::Image::from_layer(layer);
-    write_atomic(path, |w| {
-        image.write().to_buffered(w).map_err(|e| match e {
-            x::Error::Io(io) => RelumeError::io(path, io),
-            other => format_err(path, format!("OpenEXR write failed: {other}")),
-        })
-    })
+    progress.check()?;
+    write_atomic_checked(
+        path,
+        |w| {
+            let writer = CancellableWriter {
+                inner: w,
+                progress,
+            };
+            image.write().to_buffered(writer).map_err(|e| match e {
+                _ if progress.is_cancelled() => RelumeError::Cancelled,
+                x::Error::Io(io) => RelumeError::io(path, io),
+                other => format_err(path, format!("OpenEXR write failed: {other}")),
+            })
+        },
+        || progress.check(),
+    )
 }
 
 /// The message exr gives for an `UnexpectedEof` (it maps EOF to `Invalid`).
@@ -511,6 +571,8 @@ pub fn read_stack(path: &Path) -> Result<TransferStack> {
         ));
     }
 
+    check_claims_against_file(path, &header, &meta.headers[0], &reader)?;
+
     // Decode the pixels.
     reader
         .seek(SeekFrom::Start(0))
@@ -531,22 +593,20 @@ pub fn read_stack(path: &Path) -> Result<TransferStack> {
         .ok_or_else(|| format_err(path, "the file has no part"))?;
 
     let pixels = header.width as usize * header.height as usize;
-    let mut layers: Vec<Layer> = entries
-        .iter()
-        .zip(keys)
-        .map(|(e, key)| {
-            let n = pixels * e.channels as usize;
-            Layer {
-                key,
-                channels: e.channels,
-                scale: e.scale,
-                samples: match header.precision {
-                    Precision::F16 => LayerSamples::F16(vec![half::f16::ZERO; n]),
-                    Precision::F32 => LayerSamples::F32(vec![0.0; n]),
-                },
-            }
-        })
-        .collect();
+    let mut layers: Vec<Layer> = crate::memory::try_with_capacity(entries.len(), "the stack's layers")?;
+    for (e, key) in entries.iter().zip(keys) {
+        let n = pixels * e.channels as usize;
+        let what = "a layer of the stack";
+        layers.push(Layer {
+            key,
+            channels: e.channels,
+            scale: e.scale,
+            samples: match header.precision {
+                Precision::F16 => LayerSamples::F16(crate::memory::try_zeroed(n, what)?),
+                Precision::F32 => LayerSamples::F32(crate::memory::try_zeroed(n, what)?),
+            },
+        });
+    }
     for channel in part.channel_data.list {
         let name = String::from_utf8_lossy(channel.name.as_slice()).into_owned();
         let (li, k) = expected[&name];
@@ -592,6 +652,72 @@ pub fn read_stack(path: &Path) -> Result<TransferStack> {
         check_layer(path, &header, layer)?;
     }
     Ok(TransferStack { header, layers })
+}
+
+/// Most bytes of pixel data one byte of a compressed chunk can stand for: deflate (ZIP,
+/// PXR24's second stage) peaks near 1032:1, RLE at 64:1, PIZ's run-length Huffman codes
+/// below that; the margin covers chunk headers and PXR24's 24-to-32-bit widening.
+const MAX_COMPRESSION_RATIO: u64 = 1400;
+
+/// Checks what the header claims (image size, channels, sample types) against the file's
+/// length *before* anything of that size is allocated: a few-KiB file that claims 16384²
+/// pixels of 100 channels cannot hold them even at the best compression ratio, and decoding
+/// it would preallocate gigabytes (an abort, killing Blender). Then checks the decoded size
+/// against the memory budget ([`crate::memory::check_budget`]): decoding needs the file's
+/// channels and the stack's layers at once, ≈ twice the pixel data.
+fn check_claims_against_file(
+    path: &Path,
+    header: &StackHeader,
+    part: &exr::meta::header::Header,
+    reader: &BufReader<File>,
+) -> Result<()> {
+    crate::scene::Resolution {
+        width: header.width,
+        height: header.height,
+    }
+    .validate("stack resolution")
+    .map_err(|e| format_err(path, e.to_string()))?;
+    let file_len = reader
+        .get_ref()
+        .metadata()
+        .map_err(|e| RelumeError::io(path, e))?
+        .len();
+    let bytes_per_pixel: u64 = part
+        .channels
+        .list
+        .iter()
+        .map(|c| match c.sample_type {
+            x::SampleType::F16 => 2u64,
+            x::SampleType::F32 | x::SampleType::U32 => 4,
+        })
+        .sum();
+    let raw = crate::memory::checked_product(
+        "the stack's pixel data",
+        &[header.width as u64, header.height as u64, bytes_per_pixel],
+    )?;
+    let ratio = if part.compression == x::Compression::Uncompressed {
+        1
+    } else {
+        MAX_COMPRESSION_RATIO
+    };
+    if raw > file_len.saturating_mul(ratio) {
+        return Err(RelumeError::StackTruncated {
+            path: path.to_path_buf(),
+            message: format!(
+                "its header claims {}×{} pixels of {} channels ({}), more than a file of {} can hold at any compression ratio",
+                header.width,
+                header.height,
+                part.channels.list.len(),
+                crate::memory::human_bytes(raw),
+                crate::memory::human_bytes(file_len)
+            ),
+        });
+    }
+    crate::memory::check_budget(
+        &format!("loading the stack {}", path.display()),
+        raw.saturating_mul(2),
+        None,
+    )
 }
 
 /// Refuses a stack baked from another scene: [`RelumeError::StackStale`] when the header's

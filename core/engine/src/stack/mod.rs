@@ -2,6 +2,8 @@
 
 pub mod bases;
 pub mod exr_file;
+#[doc(hidden)]
+pub mod hostile;
 pub mod staleness;
 
 use serde::{Deserialize, Serialize};

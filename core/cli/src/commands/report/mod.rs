@@ -447,7 +447,7 @@ fn measure_preset(
         ..BakeSettings::default()
     };
     let scale = preset.apply(&mut settings);
-    let resolution = scale_resolution(scene.resolution, scale);
+    let resolution = scale_resolution(scene.resolution, scale)?;
     settings.resolution = Some(resolution);
     let stack_path = stacks_dir.join(format!("{name}.{}.relume.exr", preset.name()));
     let baked = {

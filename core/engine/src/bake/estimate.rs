@@ -1,0 +1,185 @@
+//! What a bake will cost in memory, known before it traces: the number of layers its paths
+//! will reach (found by a small probe trace), the bytes of its accumulators at their peak,
+//! and the size of the stack it will write.
+//!
+//! The bake keeps one full-frame f32 RGB accumulator per layer any path reaches (see
+//! [`crate::bake`]), so memory is ≈ 12 bytes × reached layers × pixels, and which layers are
+//! reached depends on what the camera sees: the layers *possible* (world + slots + slot
+//! pairs per light group) can overstate it several times. The probe traces one eye sample
+//! at a sparse grid of pixels with the bake's own integrator and counts the layers it
+//! reaches (and which of them carry colour). Layers only a few pixels reach can be missed
+//! by the probe; the estimate is a forecast, not a bound, and its accuracy is measured
+//! (`tests/memory_estimate.rs`, docs/measurements.md).
+
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::context::BakeContext;
+use super::integrator::{trace_eye_sample, CountingTracer, PathSink};
+use super::vertex_brdf::BasisBrdf;
+use crate::scene::Scene;
+use crate::stack::Precision;
+use crate::Rgb;
+
+/// Pixels the probe traces at most (one eye sample each, on a regular grid).
+pub const PROBE_PIXELS: u64 = 16_384;
+
+/// A bake's forecast cost, printed before it starts (CLI `--json`, Python, the add-on).
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct BakeEstimate {
+    pub width: u32,
+    pub height: u32,
+    /// Layers the slots and light groups allow.
+    pub layers_possible: usize,
+    /// Layers the probe's paths reached: the bake's accumulators.
+    pub layers_reached: usize,
+    /// Of those, layers whose probe samples carried colour (stored RGB; the rest grey).
+    pub layers_rgb: usize,
+    /// Pixels the probe traced.
+    pub probe_pixels: u64,
+    /// Bytes of the per-layer f32 RGB accumulators (the bake's largest allocation).
+    pub accumulator_bytes: u64,
+    /// Forecast peak of the bake's own allocations (accumulators, per-pixel features, tile
+    /// buffers, geometry, assembly and write copies), in bytes.
+    pub peak_bytes: u64,
+    /// Forecast size of the stack in memory (layer samples at the stored precision); the
+    /// file is smaller by its compression.
+    pub stack_bytes: u64,
+}
+
+/// Records which layers a probe path reaches and whether its values carry colour.
+struct ProbeSink<'a> {
+    reached: &'a mut [bool],
+    rgb: &'a mut [bool],
+    slots: usize,
+    per_group: usize,
+}
+
+impl ProbeSink<'_> {
+    fn add(&mut self, layer: usize, v: Rgb) {
+        if v != Rgb::ZERO {
+            self.reached[layer] = true;
+            if v.x != v.y || v.y != v.z {
+                self.rgb[layer] = true;
+            }
+        }
+    }
+}
+
+impl PathSink for ProbeSink<'_> {
+    fn world(&mut self, group: usize, v: Rgb) {
+        self.add(group * self.per_group, v);
+    }
+    fn direct(&mut self, group: usize, slot: u32, v: Rgb) {
+        self.add(group * self.per_group + 1 + slot as usize, v);
+    }
+    fn bounce(&mut self, group: usize, eye: u32, bounce: u32, v: Rgb) {
+        let s = self.slots;
+        self.add(
+            group * self.per_group + 1 + s + eye as usize * s + bounce as usize,
+            v,
+        );
+    }
+    fn eye_hit(&mut self, _region: u32, _normal: glam::Vec3, _position: glam::Vec3) {}
+}
+
+/// Bytes the scene's geometry and BVH take once prepared (positions, normals, UVs,
+/// triangles and the BVH's nodes): a per-triangle allowance.
+const BYTES_PER_TRIANGLE: u64 = 160;
+
+/// Traces the probe over `ctx` and forecasts the bake's memory for `passes` progressive
+/// passes (a progressive bake keeps its sums while it hands each pass's stack out).
+pub fn estimate(ctx: &BakeContext, scene: &Scene, passes: usize) -> BakeEstimate {
+    let res = ctx.resolution;
+    let pixels = res.width as u64 * res.height as u64;
+    let layers = ctx.layer_count();
+    let mut reached = vec![false; layers];
+    let mut rgb = vec![false; layers];
+    let stride = ((pixels as f64 / PROBE_PIXELS as f64).sqrt().ceil() as u32).max(1);
+    let brdf = BasisBrdf { ctx };
+    // Offset by half a stride so the grid samples the frame's inside, not its edge.
+    let rows: Vec<u32> = (stride / 2..res.height).step_by(stride as usize).collect();
+    let per_row: Vec<(Vec<bool>, Vec<bool>, u64)> = rows
+        .par_iter()
+        .map(|&y| {
+            let mut reached = vec![false; layers];
+            let mut rgb = vec![false; layers];
+            let mut tracer = CountingTracer::default();
+            let mut n = 0;
+            let mut sink = ProbeSink {
+                reached: &mut reached,
+                rgb: &mut rgb,
+                slots: ctx.slot_count(),
+                per_group: ctx.layers_per_group(),
+            };
+            for x in (stride / 2..res.width).step_by(stride as usize) {
+                trace_eye_sample(ctx, &brdf, &mut sink, &mut tracer, x, y, 0);
+                n += 1;
+            }
+            (reached, rgb, n)
+        })
+        .collect();
+    let mut probe_pixels = 0u64;
+    for (r, c, n) in per_row {
+        probe_pixels += n;
+        for (a, b) in reached.iter_mut().zip(r) {
+            *a |= b;
+        }
+        for (a, b) in rgb.iter_mut().zip(c) {
+            *a |= b;
+        }
+    }
+    let layers_reached = reached.iter().filter(|r| **r).count().max(1);
+    let layers_rgb = rgb.iter().filter(|r| **r).count();
+    let layers_grey = layers_reached - layers_rgb.min(layers_reached);
+    let threads = if ctx.settings.threads == 0 {
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    } else {
+        ctx.settings.threads
+    } as u64;
+
+    let px = pixels;
+    let reached_u = layers_reached as u64;
+    let accumulator_bytes = px.saturating_mul(reached_u).saturating_mul(12);
+    let features = px * super::denoise::FEATURE_STRIDE as u64 * 4;
+    let tile_px = (super::tiles::TILE * super::tiles::TILE) as u64;
+    let tile_buffers = threads * layers as u64 * tile_px * 12;
+    let geometry = scene.triangle_count() as u64 * BYTES_PER_TRIANGLE;
+    // Averaged layers: grey ones one channel, the rest three, f32.
+    let raw = px * (layers_grey as u64 * 4 + layers_rgb as u64 * 12);
+    let sample = match ctx.settings.precision {
+        Precision::F16 => 2,
+        Precision::F32 => 4,
+    };
+    let stack_bytes = px * (layers_grey as u64 + 3 * layers_rgb as u64) * sample;
+    let denoising = ctx.settings.denoise.direct_iterations + ctx.settings.denoise.bounce_iterations > 0;
+    // The denoiser's 25 weights per pixel and one output copy per worker.
+    let denoise = if denoising {
+        px * 25 * 4 + threads * px * 12
+    } else {
+        0
+    };
+    // Tracing: accumulators, features, tile buffers. Later passes of a progressive bake also
+    // keep the accumulators while the averaged layers exist.
+    let tracing = accumulator_bytes + features + tile_buffers;
+    let assembly = if passes > 1 {
+        accumulator_bytes + features + raw + denoise
+    } else {
+        // The last pass averages each accumulator in place.
+        accumulator_bytes.max(raw + denoise) + features
+    };
+    // Writing: the stack, the file's de-interleaved channels, compression buffers.
+    let write = stack_bytes * 2 + if passes > 1 { accumulator_bytes } else { 0 };
+    let peak_bytes = geometry + tracing.max(assembly).max(write);
+    BakeEstimate {
+        width: res.width,
+        height: res.height,
+        layers_possible: layers,
+        layers_reached,
+        layers_rgb,
+        probe_pixels,
+        accumulator_bytes,
+        peak_bytes,
+        stack_bytes,
+    }
+}
