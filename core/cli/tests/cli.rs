@@ -281,3 +281,136 @@ fn errors_are_specific_and_exit_nonzero() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("--resolution"));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Bakes a tiny Cornell stack into `dir` and returns (scene, stack).
+fn tiny_stack(dir: &Path) -> (PathBuf, PathBuf) {
+    let scene = root().join("assets/cornell.scene.json");
+    let stack = dir.join("tiny.exr");
+    let out = relume(&[
+        "bake",
+        s(&scene),
+        "-o",
+        s(&stack),
+        "--resolution",
+        "16x16",
+        "--spp",
+        "1",
+        "--light-samples",
+        "1",
+        "--json",
+    ]);
+    json_of(&out);
+    (scene, stack)
+}
+
+/// The command failed with exit code 1 (an error, not a signal or a panic) and said `needle`.
+fn fails_saying(out: &Output, needle: &str) {
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "expected an error exit: {stderr}");
+    assert!(stderr.contains(needle), "expected {needle:?} in: {stderr}");
+}
+
+#[test]
+fn a_hostile_stack_is_an_error_not_an_abort() {
+    let dir = scratch("hostile");
+    let (_, stack) = tiny_stack(&dir);
+    let bytes = std::fs::read(&stack).unwrap();
+    let hostile = dir.join("hostile.exr");
+    let crafted = relume_engine::stack::hostile::with_claimed_size(&bytes, 16384, 16384).unwrap();
+    std::fs::write(&hostile, crafted).unwrap();
+    let out = relume(&["relight", s(&hostile), "-o", s(&dir.join("o.exr"))]);
+    fails_saying(&out, "claims 16384×16384 pixels");
+}
+
+#[test]
+fn sizes_counts_and_threads_out_of_range_are_refused() {
+    let dir = scratch("ranges");
+    let scene = root().join("assets/cornell.scene.json");
+    let out_path = dir.join("x.exr");
+    let bake = |extra: &[&str]| {
+        let mut args = vec!["bake", s(&scene), "-o", s(&out_path)];
+        args.extend_from_slice(extra);
+        relume(&args)
+    };
+    fails_saying(&bake(&["--resolution", "100000x100000"]), "1…65536");
+    fails_saying(&bake(&["--resolution-scale", "1e10"]), "--resolution-scale");
+    fails_saying(&bake(&["--spp", "0"]), "spp: must be ≥ 1");
+    fails_saying(&bake(&["--passes", "0"]), "passes");
+    fails_saying(&bake(&["--threads", "100000"]), "threads");
+    fails_saying(&bake(&["--memory-budget-mb", "1"]), "not enough memory for this bake");
+    assert!(!out_path.exists(), "a refused bake wrote a file");
+}
+
+#[test]
+fn an_output_that_is_an_input_is_refused_and_the_input_survives() {
+    let dir = scratch("overwrite");
+    let (scene_asset, stack) = tiny_stack(&dir);
+    let scene = dir.join("scene.json");
+    std::fs::copy(&scene_asset, &scene).unwrap();
+    let stack_before = std::fs::read(&stack).unwrap();
+    let scene_before = std::fs::read(&scene).unwrap();
+    fails_saying(
+        &relume(&["relight", s(&stack), "-o", s(&stack)]),
+        "is also an input of this command (the stack)",
+    );
+    let spelled_otherwise = dir.join(".").join("tiny.exr");
+    fails_saying(
+        &relume(&["relight", s(&stack), "-o", s(&dir.join("o.exr")), "--png", s(&spelled_otherwise)]),
+        "the stack",
+    );
+    fails_saying(&relume(&["bake", s(&scene), "-o", s(&scene)]), "(the scene)");
+    assert_eq!(std::fs::read(&stack).unwrap(), stack_before);
+    assert_eq!(std::fs::read(&scene).unwrap(), scene_before);
+}
+
+/// The materials the Python bindings refuse, refused by the command line in the same words
+/// (core/py/tests/test_boundary.py checks the Python side with the same texts).
+#[test]
+fn the_command_line_refuses_the_materials_python_refuses() {
+    let dir = scratch("materials-rules");
+    let (_, stack) = tiny_stack(&dir);
+    let cases = [
+        (
+            r#"{"model": "blinn_phong", "kd": [0.75, 0.75, 0.75], "ks": [0.5, 0.5, 0.5], "ns": 10}"#,
+            r#"invalid region "Object".kd + ks: Kd + Ks = 1.25 > 1 in channel 0: the surface would reflect more light than it receives"#,
+        ),
+        (
+            r#"{"model": "blinn_phong", "kd": [0.2, 0.2, 0.2], "ks": [0.1, 0.1, 0.1], "ns": 0}"#,
+            r#"invalid region "Object".ns: the Blinn–Phong exponent must be finite and > 0, got 0"#,
+        ),
+        (
+            r#"{"model": "blinn_phong", "kd": [-0.1, 0.2, 0.2], "ks": [0.1, 0.1, 0.1], "ns": 5}"#,
+            r#"invalid region "Object".kd: channel 0 is negative (-0.1); albedos must be ≥ 0"#,
+        ),
+        (
+            r#"{"model": "blinn_phong", "kd": [3e38, 0.2, 0.2], "ks": [0.1, 0.1, 0.1], "ns": 5}"#,
+            r#"Kd + Ks = 300000000000000000000000000000000000000 > 1 in channel 0"#,
+        ),
+        (
+            r#"{"model": "principled", "base_color": [0.5, 0.5, 0.5], "roughness": 2}"#,
+            r#"invalid region "Object".roughness: must be in [0, 1], got 2"#,
+        ),
+        (
+            r#"{"model": "principled", "base_color": [0.5, 0.5, 0.5], "metallic": 5}"#,
+            r#"invalid region "Object".metallic: must be in [0, 1], got 5"#,
+        ),
+        (
+            r#"{"model": "principled", "base_color": [0.5, 0.5, 0.5], "ior": 0}"#,
+            r#"invalid region "Object".ior: must be finite and > 0, got 0"#,
+        ),
+    ];
+    for (i, (material, message)) in cases.iter().enumerate() {
+        let mats = dir.join(format!("m{i}.json"));
+        std::fs::write(
+            &mats,
+            format!(r#"{{"format": "relume-materials", "version": 1, "regions": {{"Object": {material}}}}}"#),
+        )
+        .unwrap();
+        let out_path = dir.join(format!("o{i}.exr"));
+        fails_saying(
+            &relume(&["relight", s(&stack), "--materials", s(&mats), "-o", s(&out_path)]),
+            message,
+        );
+        assert!(!out_path.exists());
+    }
+}

@@ -169,3 +169,59 @@ def test_stubs_declare_exactly_the_module():
             if node.name == "BakeSettings":
                 real |= set(relume.BakeSettings().to_dict())
             assert real <= stub_members | {"to_dict"}, (node.name, sorted(real - stub_members))
+
+
+def _hostile_module():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("hostile_stack", ROOT / "scripts" / "hostile_stack.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_a_stack_claiming_huge_pixels_raises_and_the_interpreter_lives(tmp_path, small_cornell):
+    path = tmp_path / "s.relume.exr"
+    relume.bake(small_cornell, relume.BakeSettings(spp=1, light_samples=1), str(path))
+    hostile = tmp_path / "hostile.relume.exr"
+    hostile.write_bytes(_hostile_module().with_claimed_size(path.read_bytes(), 16384, 16384))
+    with pytest.raises(relume.TruncatedStackError, match="claims 16384×16384 pixels"):
+        relume.Stack.load(str(hostile))
+    # Still alive, and the good file still loads.
+    assert relume.Stack.load(str(path)).layer_count > 0
+
+
+def test_a_bake_over_budget_is_refused_before_tracing(tmp_path, small_cornell):
+    assert issubclass(relume.OutOfMemoryError, MemoryError)
+    settings = relume.BakeSettings(spp=1, light_samples=1, memory_budget_mb=0.5)
+    with pytest.raises(relume.OutOfMemoryError, match="layers reached by a probe"):
+        relume.bake(small_cornell, settings, str(tmp_path / "s.relume.exr"))
+    assert not (tmp_path / "s.relume.exr").exists()
+    with pytest.raises(relume.RelumeError, match="each side must be 1…65536"):
+        relume.bake(small_cornell, relume.BakeSettings(resolution=(60000, 60000), resolution_scale=2.0),
+                    str(tmp_path / "t.relume.exr"))
+
+
+def test_python_refuses_materials_in_the_command_lines_words(tmp_path, small_cornell):
+    """The same texts as core/cli/tests/cli.rs::the_command_line_refuses_the_materials_python_refuses."""
+    path = tmp_path / "s.relume.exr"
+    relume.bake(small_cornell, relume.BakeSettings(spp=1, light_samples=1), str(path))
+    rel = relume.Relighter(relume.Stack.load(str(path)), "cpu")
+    cases = [
+        (lambda: rel.set_material("Object", 0.75, 0.5, 10.0),
+         'invalid region "Object".kd + ks: Kd + Ks = 1.25 > 1 in channel 0: the surface would reflect more light than it receives'),
+        (lambda: rel.set_material("Object", 0.2, 0.1, 0.0),
+         'invalid region "Object".ns: the Blinn–Phong exponent must be finite and > 0, got 0'),
+        (lambda: rel.set_material("Object", (-0.1, 0.2, 0.2), 0.1, 5.0),
+         'invalid region "Object".kd: channel 0 is negative (-0.1); albedos must be ≥ 0'),
+        (lambda: rel.set_principled("Object", (0.5, 0.5, 0.5), roughness=2.0),
+         'invalid region "Object".roughness: must be in [0, 1], got 2'),
+        (lambda: rel.set_principled("Object", (0.5, 0.5, 0.5), metallic=5.0),
+         'invalid region "Object".metallic: must be in [0, 1], got 5'),
+        (lambda: rel.set_principled("Object", (0.5, 0.5, 0.5), ior=0.0),
+         'invalid region "Object".ior: must be finite and > 0, got 0'),
+    ]
+    for call, message in cases:
+        with pytest.raises(relume.MaterialsError) as info:
+            call()
+        assert str(info.value) == message
