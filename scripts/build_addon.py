@@ -31,8 +31,8 @@ def main() -> int:
               "keep one", file=sys.stderr)
         return 1
     manifest = (ADDON / "blender_manifest.toml").read_text()
-    version = next(l.split("=", 1)[1].strip().strip('"') for l in manifest.splitlines()
-                   if l.startswith("version"))
+    version = next(line.split("=", 1)[1].strip().strip('"') for line in manifest.splitlines()
+                   if line.startswith("version"))
     # Top-level keys must precede the first [table] (here [permissions]) in TOML.
     wheels_line = f'wheels = ["./wheels/{wheels[0].name}"]\n'
     head, sep, tables = manifest.partition("\n[")
