@@ -307,10 +307,11 @@ impl Relighter {
                 subsurface.scale = scale;
             }
             let ok = |x: f32| x.is_finite() && x >= 0.0;
-            if !(ok(subsurface.weight) && subsurface.weight <= 1.0)
-                || !subsurface.radius.iter().all(|c| ok(*c))
-                || !ok(subsurface.scale)
-            {
+            let valid = ok(subsurface.weight)
+                && subsurface.weight <= 1.0
+                && subsurface.radius.iter().all(|c| ok(*c))
+                && ok(subsurface.scale);
+            if !valid {
                 return Err(new_err(
                     py,
                     "MaterialsError",
