@@ -78,7 +78,9 @@ fn shrink(w: u32, h: u32, rgb: &[u8], k: u32) -> (u32, u32, Vec<u8>) {
 
 fn main() -> Result<(), Box<dyn Error>> {
     let mut args = std::env::args().skip(1);
-    let out = PathBuf::from(args.next().ok_or("usage: contact_sheet OUT.png [--title T] [--columns N] [--tile PX] FRAME.png[=CAPTION]...")?);
+    let out = PathBuf::from(args.next().ok_or(
+        "usage: contact_sheet OUT.png [--title T] [--columns N] [--tile PX] FRAME.png[=CAPTION]...",
+    )?);
     let (mut title, mut columns, mut tile) = (String::new(), 5u32, 256u32);
     let mut frames = Vec::new();
     while let Some(a) = args.next() {
@@ -88,8 +90,7 @@ fn main() -> Result<(), Box<dyn Error>> {
             "--tile" => tile = args.next().ok_or("--tile needs a value")?.parse()?,
             _ => {
                 let (path, caption) = a.split_once('=').unwrap_or((&a, ""));
-                let (w, h, rgb) =
-                    read_png(Path::new(path)).map_err(|e| format!("{path}: {e}"))?;
+                let (w, h, rgb) = read_png(Path::new(path)).map_err(|e| format!("{path}: {e}"))?;
                 let (width, height, rgb) = shrink(w, h, &rgb, w.div_ceil(tile).max(1));
                 frames.push(Frame {
                     width,
@@ -150,6 +151,10 @@ fn main() -> Result<(), Box<dyn Error>> {
     enc.set_depth(png::BitDepth::Eight);
     enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
     enc.write_header()?.write_image_data(&pixels)?;
-    println!("{} ({width}×{height}, {} frames)", out.display(), frames.len());
+    println!(
+        "{} ({width}×{height}, {} frames)",
+        out.display(),
+        frames.len()
+    );
     Ok(())
 }

@@ -263,14 +263,7 @@ fn report_redraw_draws_the_committed_presets_json() {
     )
     .unwrap();
     let chart = dir.join("chart.png");
-    let out = relume(&[
-        "report",
-        "--redraw",
-        "--out",
-        s(&dir),
-        "--chart",
-        s(&chart),
-    ]);
+    let out = relume(&["report", "--redraw", "--out", s(&dir), "--chart", s(&chart)]);
     assert!(
         out.status.success(),
         "{}",

@@ -241,9 +241,18 @@ impl Chart {
             .map_err(drawing_error)?;
 
             let valid = |p: &&(f64, f64, String)| p.0 > 0.0 && p.1 > 0.0;
-            let points = || self.series.iter().flat_map(|s| s.points.iter()).filter(valid);
+            let points = || {
+                self.series
+                    .iter()
+                    .flat_map(|s| s.points.iter())
+                    .filter(valid)
+            };
             let xd = decades(points().map(|p| p.0));
-            let yd = decades(points().map(|p| p.1).chain(self.target.as_ref().map(|t| t.0)));
+            let yd = decades(
+                points()
+                    .map(|p| p.1)
+                    .chain(self.target.as_ref().map(|t| t.0)),
+            );
             let ((x_major, x_minor), (y_major, y_minor)) = (ticks(xd), ticks(yd));
             let x_range = (10f64.powi(xd.0)..10f64.powi(xd.1))
                 .log_scale()
