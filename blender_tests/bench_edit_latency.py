@@ -28,7 +28,6 @@ os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="relume-
 
 import bpy  # noqa: E402
 import numpy as np  # noqa: E402
-
 from conftest import ROOT, addon_zip  # noqa: E402
 from support.scenes import box_scene, clear_scene  # noqa: E402
 

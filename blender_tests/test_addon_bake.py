@@ -9,7 +9,6 @@ import time
 import bpy
 import numpy as np
 import pytest
-
 from support.scenes import box_scene, save_and_reopen
 
 ROOT = __import__("pathlib").Path(__file__).resolve().parent.parent
@@ -189,7 +188,6 @@ def test_cornell_from_the_preferences_button_cancelled_halfway_then_rerun(addon,
     the preferences and the Image Editor panel), cancelled halfway, then rerun to completion,
     leaves exactly one valid stack."""
     import relume
-
     from support.scene_import import import_scene
 
     import_scene(ROOT / "assets" / "cornell.scene.json", resolution=(128, 128))

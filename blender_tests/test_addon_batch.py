@@ -9,7 +9,6 @@ import sys
 
 import bpy
 import numpy as np
-
 from support.scenes import box_scene
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent

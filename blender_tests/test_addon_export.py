@@ -7,8 +7,7 @@ import math
 import bpy
 import numpy as np
 import pytest
-
-from support.scenes import box_scene, principled_material
+from support.scenes import box_scene
 
 
 def _world_triangles():
@@ -105,7 +104,7 @@ def test_point_spot_sun_units(addon, prefs, blend_dir):
         obj.rotation_euler = (math.radians(30), 0, 0)
         bpy.context.scene.collection.objects.link(obj)
     bpy.context.view_layer.update()
-    lights = {l["type"]: l for l in addon.api.export().scene_dict["lights"]}
+    lights = {light["type"]: light for light in addon.api.export().scene_dict["lights"]}
     assert lights["point"]["power"] == pytest.approx(100.0)
     assert lights["point"]["color"] == pytest.approx([1.0, 0.5, 0.25])
     assert lights["spot"]["spot_size"] == pytest.approx(bpy.data.lights["spot"].spot_size)

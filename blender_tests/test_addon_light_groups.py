@@ -8,7 +8,6 @@ from __future__ import annotations
 import bpy
 import numpy as np
 import pytest
-
 from support.scenes import save_and_reopen, two_light_box
 
 WHITE = (1.0, 1.0, 1.0)

@@ -22,8 +22,7 @@ def _load():
 
 
 _load()
-from relume_logic import (camera_map, light_groups, lights_map, material_map, stack_paths,  # noqa: E402
-                         throttle)
+from relume_logic import camera_map, light_groups, lights_map, material_map, stack_paths, throttle  # noqa: E402
 from relume_logic.bake_session import format_eta  # noqa: E402
 from relume_logic.export_warnings import WarningList  # noqa: E402
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import bpy
 import numpy as np
-
 from support.scenes import box_scene
 
 

@@ -30,6 +30,7 @@ Kd := Kd + Ks, the same albedo, and stays editable in Relume, so the bake keeps 
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import math
 import os
@@ -47,7 +48,7 @@ def diffuse_variant(scene_path: pathlib.Path, out_path: pathlib.Path) -> None:
         m = region["material"]
         if m["model"] != "blinn_phong":
             raise SystemExit(f"region {region['name']!r}: only Blinn–Phong regions are converted")
-        m["kd"] = [min(1.0, kd + ks) for kd, ks in zip(m["kd"], m["ks"])]
+        m["kd"] = [min(1.0, kd + ks) for kd, ks in zip(m["kd"], m["ks"], strict=True)]
         m["ks"] = [0.0, 0.0, 0.0]
         m["ns"] = 1
     out_path.write_text(json.dumps(data))
@@ -247,7 +248,7 @@ def main() -> None:
 
     def time_to(points: list[dict]) -> dict | None:
         """Time to the preview's error: log–log interpolation between the bracketing points."""
-        for a, b in zip(points, points[1:]):
+        for a, b in itertools.pairwise(points):
             if a["rel_l2"] > target >= b["rel_l2"]:
                 f = math.log(a["rel_l2"] / target) / math.log(a["rel_l2"] / b["rel_l2"])
                 return {
@@ -274,7 +275,7 @@ def main() -> None:
         "date_utc": time.strftime("%Y-%m-%d", time.gmtime()),
         "blender": bpy.app.version_string,
         "threads": args.threads,
-        "load_average": " ".join(open("/proc/loadavg").read().split()[:3]),
+        "load_average": " ".join(pathlib.Path("/proc/loadavg").read_text().split()[:3]),
         "scene": "cornell, diffuse variant (every region Lambertian, Kd := Kd + Ks)",
         "relume_preview": row,
         "reference": ref_info,

@@ -28,9 +28,15 @@ def main(out):
     frames.append(frame(bp([0.7, 0.5, 0.1], [0.1] * 3, 40), bp([0.5, 0.5, 0.8], [0.0] * 3, 1)))
     frames.append(frame({"model": "principled", "base_color": [0.9, 0.6, 0.2], "metallic": 1.0, "roughness": 0.35},
                         {"model": "principled", "base_color": [0.8, 0.8, 0.8], "roughness": 0.9}))
+    captions = [f"object ns {ns}, ks {0.15 * i:.2f}" for i, ns in enumerate([1, 5, 20, 60, 120, 200])]
+    captions += ["paper fig. 3 (a-d): ns 5", "paper fig. 3 (e-h): ns 180", "ochre object, blue walls",
+                 "gold metal, rough walls"]
     for i, f in enumerate(frames):
         with open(os.path.join(out, f"frame_{i:02d}.json"), "w") as fh:
             json.dump(f, fh, indent=1)
+    # One caption a frame, for the demo's contact sheet.
+    with open(os.path.join(out, "captions.json"), "w") as fh:
+        json.dump({f"frame_{i:02d}": c for i, c in enumerate(captions)}, fh, indent=1)
 
 
 if __name__ == "__main__":

@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
-# Every test: the asset checks, the Rust workspace (unit, integration and CLI tests), the
-# Python bindings (core/py/tests, on the built wheel) and the Blender add-on (blender_tests,
-# on the real `bpy` module with the add-on installed from its zip by Blender's extension
-# installer). Works on a fresh machine with the Rust toolchain and Python 3 ≥ 3.11 with pip:
-# it installs what else it needs (Debian's lavapipe, and bpy, pytest, maturin from PyPI).
+# Every test: the asset checks, style (cargo fmt, clippy, ruff), the Rust workspace (unit,
+# integration and CLI tests), the wheel (manylinux 2_28 at most) and the release workflow's
+# local checks, the Python bindings (core/py/tests, on the built wheel) and the Blender add-on
+# (blender_tests, on the real `bpy` module with the add-on installed from its zip by Blender's
+# extension installer). Works on a fresh machine with the Rust toolchain (with rustfmt and
+# clippy) and Python 3 ≥ 3.11 with pip: it installs what else it needs (Debian's lavapipe,
+# and bpy, pytest, maturin, ziglang, ruff, PyYAML from PyPI).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # Mesa's Vulkan drivers (probed by `--device auto`) complain on stderr without it.
@@ -24,18 +26,25 @@ elif command -v apt-get >/dev/null && [ "$(id -u)" = 0 ] \
 else
     echo "mesa-vulkan-drivers: could not be installed (no apt, not root, or no network): GPU tests will skip"
 fi
-echo "== Python packages (bpy 5.0.1, pytest, maturin)"
+echo "== Python packages (bpy 5.0.1, pytest, maturin, ziglang, ruff, PyYAML)"
 PYTHON="${PYTHON:-python3}"
-"$PYTHON" - <<'PY' || "$PYTHON" -m pip install --quiet --disable-pip-version-check "bpy==5.0.1" "pytest>=7" "maturin>=1.16,<2"
+"$PYTHON" - <<'PY' || "$PYTHON" -m pip install --quiet --disable-pip-version-check "bpy==5.0.1" "pytest>=7" \
+    "maturin>=1.16,<2" "ziglang>=0.13,<0.14" "ruff>=0.8" "PyYAML>=6"
 import importlib.util, sys
-missing = [m for m in ("bpy", "pytest", "maturin") if importlib.util.find_spec(m) is None]
+missing = [m for m in ("bpy", "pytest", "maturin", "ziglang", "ruff", "yaml") if importlib.util.find_spec(m) is None]
 sys.exit(1 if missing else 0)
 PY
 status=0
+echo "== style: cargo fmt, cargo clippy, ruff"
+cargo fmt --all --check || { echo "cargo fmt: run 'cargo fmt --all'" >&2; status=1; }
+cargo clippy --workspace --all-targets --quiet -- -D warnings || status=1
+"$PYTHON" -m ruff check addon blender_tests core/py scripts examples || status=1
 echo "== cargo test (workspace)"
 cargo test --workspace --no-fail-fast 2>&1 || status=1
 echo "== the relume wheel and the Blender extension zip"
 bash scripts/build_addon.sh
+echo "== the wheel's platform tag and the release workflow (scripts/check_release.py)"
+"$PYTHON" scripts/check_release.py --wheel "$(ls -t dist/relume-*.whl | head -n 1)" || status=1
 rm -rf build/py
 "$PYTHON" -m pip install --quiet --disable-pip-version-check --no-deps --target build/py dist/relume-*.whl
 echo "== Python bindings (core/py/tests)"

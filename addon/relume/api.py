@@ -208,9 +208,8 @@ def render(filepath: str, context=None, check_stale: bool = True) -> str:
 
     from .live import check_stale as _check
 
-    if check_stale and RUNTIME.live.stack is not None:
-        if _check(context) is not None:
-            raise BakeError(f"the Relume stack is stale: {RUNTIME.live.stale_reason}")
+    if check_stale and RUNTIME.live.stack is not None and _check(context) is not None:
+        raise BakeError(f"the Relume stack is stale: {RUNTIME.live.stale_reason}")
     image = relight(context)
     path = bpy.path.abspath(filepath)
     folder = os.path.dirname(path)

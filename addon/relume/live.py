@@ -12,6 +12,7 @@ same throttled path: their update callbacks call `request_relight`.
 
 from __future__ import annotations
 
+import contextlib
 import time
 
 import bpy
@@ -93,10 +94,9 @@ def write_image(pixels: np.ndarray) -> bpy.types.Image:
         img = None
     if img is None:
         img = bpy.data.images.new(IMAGE_NAME, width=w, height=h, alpha=True, float_buffer=True)
-        try:
+        # Older colour-management configs name it "Linear"; float images default to it.
+        with contextlib.suppress(TypeError):
             img.colorspace_settings.name = "Linear Rec.709"
-        except TypeError:
-            pass  # older colour-management configs name it "Linear"; float images default to it
     img.pixels.foreach_set(np.ascontiguousarray(pixels, dtype=np.float32).ravel())
     img.update()
     return img

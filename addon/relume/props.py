@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 import bpy
-from bpy.props import (BoolProperty, CollectionProperty, FloatProperty, FloatVectorProperty,
-                       PointerProperty)
+from bpy.props import BoolProperty, CollectionProperty, FloatProperty, FloatVectorProperty, PointerProperty
 
 
 # Changing a registered property of a material does not tag the material for the depsgraph,

@@ -40,10 +40,9 @@ def _matrix_pointing(position, direction) -> mathutils.Matrix:
 def diffuse_version(m: dict) -> dict:
     """The material made diffuse with the same total albedo: Blinn–Phong Kd + Ks (clamped to
     1), Principled its base colour; Ks = 0."""
-    if m["model"] == "blinn_phong":
-        kd = [min(1.0, a + b) for a, b in zip(m["kd"], m["ks"])]
-    else:
-        kd = list(m["base_color"])
+    if m["model"] != "blinn_phong":
+        return {"model": "blinn_phong", "kd": list(m["base_color"]), "ks": [0.0, 0.0, 0.0], "ns": 1.0}
+    kd = [min(1.0, a + b) for a, b in zip(m["kd"], m["ks"], strict=True)]
     return {"model": "blinn_phong", "kd": kd, "ks": [0.0, 0.0, 0.0], "ns": 1.0}
 
 

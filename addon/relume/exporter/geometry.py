@@ -9,8 +9,8 @@ the scene format wants them per vertex, so a vertex is split wherever its corner
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
@@ -86,10 +86,8 @@ def _to_world(local: _LocalMesh, matrix: np.ndarray) -> tuple[np.ndarray, np.nda
     t = matrix[:3, 3].astype(np.float64)
     pos = local.corner_pos.astype(np.float64) @ m3.T + t
     det = np.linalg.det(m3)
-    if abs(det) < 1e-30:
-        normal_matrix = m3  # degenerate (flattened) object: its triangles are degenerate too
-    else:
-        normal_matrix = np.linalg.inv(m3).T
+    # A degenerate (flattened) object keeps m3: its triangles are degenerate too.
+    normal_matrix = m3 if abs(det) < 1e-30 else np.linalg.inv(m3).T
     nrm = local.corner_nrm.astype(np.float64) @ normal_matrix.T
     length = np.linalg.norm(nrm, axis=1, keepdims=True)
     nrm = np.where(length > 1e-30, nrm / np.maximum(length, 1e-30), np.array([0.0, 0.0, 1.0]))

@@ -90,10 +90,7 @@ def image_rgb_linear(image) -> tuple[np.ndarray | None, str]:
     px = np.empty(w * h * image.channels, np.float32)
     image.pixels.foreach_get(px)
     px = px.reshape(h, w, image.channels)
-    if image.channels >= 3:
-        rgb = px[:, :, :3]
-    else:
-        rgb = np.repeat(px[:, :, :1], 3, axis=2)
+    rgb = px[:, :, :3] if image.channels >= 3 else np.repeat(px[:, :, :1], 3, axis=2)
     space = image.colorspace_settings.name
     if space in ("sRGB",) and not image.is_float:
         rgb = srgb_to_linear(rgb.astype(np.float64)).astype(np.float32)

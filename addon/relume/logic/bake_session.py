@@ -9,7 +9,7 @@ object. So the same code path serves the preferences' Bake button, the Image Edi
 from __future__ import annotations
 
 import time
-from typing import Callable
+from collections.abc import Callable
 
 
 def format_eta(seconds: float | None) -> str:
@@ -106,7 +106,7 @@ class BakeSession:
         return f"Baking {pass_part}{100 * frac:.0f} % · ETA {format_eta(p.get('eta_s'))}{noise_part}"
 
     def run_blocking(self, poll_interval: float = 0.1,
-                     on_progress: Callable[["BakeSession"], None] | None = None) -> str:
+                     on_progress: Callable[[BakeSession], None] | None = None) -> str:
         """Start (if needed) and poll until the end; for background mode and scripts."""
         if self.job is None:
             self.start()

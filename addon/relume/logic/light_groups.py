@@ -51,7 +51,7 @@ class Gain:
     strength: float = 1.0
     color: tuple = (1.0, 1.0, 1.0)
 
-    def checked(self, group: str) -> "Gain":
+    def checked(self, group: str) -> Gain:
         """This gain as plain floats; ValueError naming `group` when a value is negative,
         not finite, or the colour does not have three components."""
         color = tuple(float(c) for c in self.color)

@@ -72,7 +72,7 @@ def map_light(light: BlenderLight, warnings: WarningList) -> dict | None:
     power = float(light.energy) * (2.0 ** float(light.exposure))
     color = list(light.color)
     if light.temperature_rgb is not None:
-        color = [c * t for c, t in zip(color, light.temperature_rgb)]
+        color = [c * t for c, t in zip(color, light.temperature_rgb, strict=True)]
     if not all(math.isfinite(v) for v in position + color + [power]):
         raise ValueError(f"{subject}: non-finite position, colour or power")
     if power <= 0.0 or max(color) <= 0.0:
@@ -118,8 +118,8 @@ def map_light(light: BlenderLight, warnings: WarningList) -> dict | None:
         axis_u = _unit(u_col, subject)
         axis_v = _unit(v_col, subject)
         # Orthogonalise v against u (shear in the object's matrix) so the file validates.
-        d = sum(a * b for a, b in zip(axis_u, axis_v))
-        axis_v = _unit([b - d * a for a, b in zip(axis_u, axis_v)], subject)
+        d = sum(a * b for a, b in zip(axis_u, axis_v, strict=True))
+        axis_v = _unit([b - d * a for a, b in zip(axis_u, axis_v, strict=True)], subject)
         out = {"type": "area", "position": position, "axis_u": axis_u, "axis_v": axis_v,
                "shape": shape, "size_x": sx, "power": power, "color": color}
         if shape in ("rectangle", "ellipse"):

@@ -9,7 +9,7 @@ when the interval has passed, so the final slider position is always shown.
 from __future__ import annotations
 
 import time
-from typing import Callable
+from collections.abc import Callable
 
 
 class Throttle:

@@ -252,3 +252,28 @@ fn report_runs_end_to_end_at_16_squared_and_caches_its_reference() {
         assert_eq!(a["rel_l2_raw"], b["rel_l2_raw"]);
     }
 }
+
+#[test]
+fn report_redraw_draws_the_committed_presets_json() {
+    // The README's chart: `relume report --redraw` from docs/report/presets.json, no bake.
+    let dir = scratch("redraw");
+    std::fs::copy(
+        root().join("docs/report/presets.json"),
+        dir.join("presets.json"),
+    )
+    .unwrap();
+    let chart = dir.join("chart.png");
+    let out = relume(&["report", "--redraw", "--out", s(&dir), "--chart", s(&chart)]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let md = std::fs::read_to_string(dir.join("presets.md")).unwrap();
+    assert!(md.contains("| cornell | preview | 512×512 |"), "{md}");
+    let png = std::fs::read(&chart).unwrap();
+    assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    // IHDR: width and height, big-endian, at bytes 16..24.
+    let size = |i: usize| u32::from_be_bytes(png[i..i + 4].try_into().unwrap());
+    assert_eq!((size(16), size(20)), (960, 600));
+}

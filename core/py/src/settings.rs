@@ -179,7 +179,7 @@ impl BakeSettings {
             }
             "ns_min" | "ns_max" => {
                 let x = finite(field, v)?;
-                if !(x > 0.0) {
+                if x <= 0.0 {
                     return Err(bad(field, format!("{x} (must be > 0)")));
                 }
                 if field == "ns_min" {
@@ -315,7 +315,8 @@ impl BakeSettings {
     /// The ns range must be ordered; checked after all fields are set (either may come first).
     fn check_range(&self) -> PyResult<()> {
         let b = &self.engine.basis;
-        if !(b.ns_max > b.ns_min) {
+        // Not `<=`: a NaN must fail too.
+        if b.ns_max.partial_cmp(&b.ns_min) != Some(std::cmp::Ordering::Greater) {
             return Err(bad(
                 "ns_max",
                 format!("{} must be greater than ns_min = {}", b.ns_max, b.ns_min),

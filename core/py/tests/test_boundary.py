@@ -10,7 +10,6 @@ import time
 
 import numpy as np
 import pytest
-
 import relume
 
 ROOT = pathlib.Path(__file__).resolve().parents[3]

@@ -2,36 +2,33 @@
 for any material in milliseconds. The classes and functions come from the Rust core
 (``relume._core``); see core/py/README.md for the API."""
 
-from ._core import (
-    __version__,
-    # exceptions
+from ._core import (  # exceptions, scene / bake / stack / relight, images: see __all__
+    BakeJob,
+    BakeSettings,
+    BasisError,
+    CancelledError,
+    DeviceError,
+    ForeignStackError,
+    InternalError,
+    MaterialsError,
+    Relighter,
     RelumeError,
+    RelumeIOError,
+    Scene,
     SceneError,
+    Stack,
     StackError,
+    StackVersionError,
     StaleStackError,
     TruncatedStackError,
-    ForeignStackError,
-    StackVersionError,
-    CancelledError,
-    MaterialsError,
-    BasisError,
-    DeviceError,
-    RelumeIOError,
-    InternalError,
-    # scene, bake, stack, relight
-    Scene,
-    BakeSettings,
-    BakeJob,
+    __version__,
     bake,
-    Stack,
-    Relighter,
     principled_to_blinn_phong,
-    # images
+    read_exr,
     write_exr,
     write_png,
-    read_exr,
-    _debug_panic,
 )
+from ._core import _debug_panic as _debug_panic  # core/py/tests: a Rust panic arrives as InternalError
 
 __all__ = [
     "__version__",

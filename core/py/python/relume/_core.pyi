@@ -2,8 +2,9 @@
 the Rust code; `core/py/tests/test_stubs.py` checks that every public name the module has is
 declared here and the other way round."""
 
+from collections.abc import Callable, Sequence
 from os import PathLike
-from typing import Any, Callable, Literal, Sequence
+from typing import Any, Literal
 
 import numpy as np
 import numpy.typing as npt

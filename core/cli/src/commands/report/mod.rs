@@ -14,7 +14,6 @@
 //! `--chart`): error against bake time, log–log, one line per scene, points = presets.
 
 mod chart;
-mod font;
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -84,7 +83,8 @@ pub struct Args {
     /// Keep the baked stacks in OUT/stacks/ (they are deleted after measuring otherwise).
     #[arg(long)]
     pub keep_stacks: bool,
-    /// Bake nothing: redraw OUT/presets.md and the chart from an existing OUT/presets.json.
+    /// Bake nothing: redraw OUT/presets.md and the chart from an existing OUT/presets.json
+    /// (the README's: `--redraw --out docs/report --chart docs/images/presets.png`).
     #[arg(long)]
     pub redraw: bool,
     /// Print the JSON report on stdout.
@@ -220,7 +220,7 @@ fn write_outputs(args: &Args, report: &Value, write_json: bool) -> Result<(), Re
     if let Some(dir) = chart_path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| RelumeError::io(dir, e))?;
     }
-    chart_of(report).draw(900, 560).write_png(&chart_path)?;
+    chart_of(report).draw(960, 600)?.write_png(&chart_path)?;
     if args.json {
         super::print_json(report);
     } else {
