@@ -7,6 +7,7 @@
 //! layers) is stored with one channel, an all-zero layer is dropped, and the rest are RGB.
 
 pub mod bench;
+pub mod bounces;
 pub mod context;
 pub mod denoise;
 pub mod drop;
@@ -477,7 +478,7 @@ fn assemble(
         camera: scene.camera.clone(),
         spp,
         light_samples: settings.light_samples,
-        bounces: settings.bounces,
+        bounces: ctx.settings.bounces,
         sampling: settings.sampling.name().into(),
         seed: settings.seed,
         regions: scene
