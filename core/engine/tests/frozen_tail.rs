@@ -88,14 +88,26 @@ fn closed_sphere_bounces_follow_the_geometric_series() {
     let a = 0.7f32;
     let scene = closed_sphere(a, false);
     let direct = mean_red(
-        &render_reference(&scene, &settings(0), &[], ReferenceBrdf::True, &Progress::new())
-            .unwrap()
-            .rgba,
+        &render_reference(
+            &scene,
+            &settings(0),
+            &[],
+            ReferenceBrdf::True,
+            &Progress::new(),
+        )
+        .unwrap()
+        .rgba,
     );
     assert!(direct > 0.0);
     for n in [1u32, 2, 3, 6, 12] {
-        let img = render_reference(&scene, &settings(n), &[], ReferenceBrdf::True, &Progress::new())
-            .unwrap();
+        let img = render_reference(
+            &scene,
+            &settings(n),
+            &[],
+            ReferenceBrdf::True,
+            &Progress::new(),
+        )
+        .unwrap();
         let ratio = mean_red(&img.rgba) / direct;
         let expected: f64 = (0..=n).map(|k| (a as f64).powi(k as i32)).sum();
         eprintln!("closed sphere a = {a}, {n:>2} bounces: L/L₀ {ratio:.4}, Σ aᵏ {expected:.4}");
@@ -176,7 +188,10 @@ fn frozen_tail_error_under_edits_is_measured() {
         ("bake-time", [m(0.3, 0.3, 5.0), m(0.2, 0.4, 5.0)]),
         ("glossy ns 180", [m(0.3, 0.3, 180.0), m(0.2, 0.4, 180.0)]),
         ("Kd 1 / Ks 1", [m(1.0, 0.0, 1.0), m(0.0, 1.0, 1.0)]),
-        ("Ks 1 ns 200 / Kd 1", [m(0.0, 1.0, 200.0), m(1.0, 0.0, 200.0)]),
+        (
+            "Ks 1 ns 200 / Kd 1",
+            [m(0.0, 1.0, 200.0), m(1.0, 0.0, 200.0)],
+        ),
         ("Kd 0.9 walls", [m(0.9, 0.0, 1.0), m(0.2, 0.4, 5.0)]),
         ("black walls", [m(0.0, 0.0, 1.0), m(0.5, 0.5, 60.0)]),
         ("Kd .5 Ks .5 ns 60", [m(0.5, 0.5, 60.0), m(0.0, 1.0, 30.0)]),
@@ -234,6 +249,9 @@ fn frozen_tail_error_under_edits_is_measured() {
             }
         }
     }
-    eprintln!("worst frozen-tail error over the edits: {:.2} %", worst_tail * 100.0);
+    eprintln!(
+        "worst frozen-tail error over the edits: {:.2} %",
+        worst_tail * 100.0
+    );
     assert!(worst_tail.is_finite());
 }

@@ -73,6 +73,10 @@ pub struct BakeReport {
     pub sample_bytes: usize,
     /// Layers kept and left out, per region, and what leaving them out costs.
     pub layers: drop::DropReport,
+    /// Bounces baked (the header's `bounces`) and, when the settings asked for what the
+    /// scene needs, what the pre-pass measured ([`bounces`]).
+    pub bounces: u32,
+    pub bounce_estimate: Option<bounces::BounceEstimate>,
 }
 
 /// Accumulates one pixel of a tile densely: the tile buffer is pixel-major (all layers of
@@ -534,6 +538,8 @@ fn assemble(
         layers_empty: empty,
         sample_bytes: stack.sample_bytes(),
         layers: drop_report,
+        bounces: ctx.settings.bounces,
+        bounce_estimate: ctx.bounce_estimate.clone(),
     };
     Ok((stack, report, image))
 }
