@@ -51,12 +51,14 @@ def prefs(addon):
     p = bpy.context.preferences.addons["bl_ext.user_default.relume"].preferences
     saved = {k: getattr(p, k) for k in ("preset", "spp", "light_samples", "indirect_samples",
                                         "bounces", "basis_tolerance", "passes", "resolution_scale",
-                                        "device", "stack_folder", "light_groups")}
+                                        "device", "stack_folder", "light_groups",
+                                        "bounces_from_scene")}
     p.preset = "custom"
     p.spp = 2
     p.light_samples = 1
     p.indirect_samples = 1
     p.bounces = 1
+    p.bounces_from_scene = False
     p.basis_tolerance = 0.05
     p.passes = 1
     p.resolution_scale = 1.0

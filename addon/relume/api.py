@@ -19,7 +19,7 @@ import time
 
 import bpy
 
-from .exporter.scene_export import ExportOptions, ExportResult, export_scene
+from .exporter.scene_export import ExportOptions, ExportResult, cycles_bounce_cap, export_scene
 from .live import current_gains, current_params, on_stack_loaded, write_image
 from .logic.bake_session import BakeSession
 from .logic.light_groups import GROUPING_OF_PREF, Gain, unknown_group_message
@@ -70,7 +70,11 @@ def bake_settings(context=None):
     import relume
 
     prefs = get_prefs(context)
-    common = {"bounces": int(prefs.bounces), "passes": int(prefs.passes),
+    if getattr(prefs, "bounces_from_scene", False):
+        bounces = cycles_bounce_cap((context or bpy.context).scene)
+    else:
+        bounces = int(prefs.bounces)
+    common = {"bounces": bounces, "passes": int(prefs.passes),
               "light_grouping": GROUPING_OF_PREF[prefs.light_groups]}
     preset = getattr(relume.BakeSettings, "preset", None)
     if prefs.preset != "custom" and preset is not None:

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import bpy
-from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 
 ADDON_ID = __package__
 
@@ -36,8 +36,15 @@ class RelumePreferences(bpy.types.AddonPreferences):
                      description="Samples per pixel (custom preset)")
     light_samples: IntProperty(name="Light Samples", min=1, max=1024, default=4)
     indirect_samples: IntProperty(name="Indirect Samples", min=1, max=1024, default=1)
-    bounces: IntProperty(name="Bounces", min=0, max=1, default=1,
-                         description="0: direct light only; 1: one indirect bounce (the paper)")
+    bounces_from_scene: BoolProperty(
+        name="Bounces from Cycles", default=True,
+        description="Cap the bounces at the scene's Cycles light paths (Max Bounces limited by "
+                    "Diffuse/Glossy; 4 at Blender's defaults); the preset bakes as many as the "
+                    "scene needs up to that")
+    bounces: IntProperty(name="Bounces", min=0, max=128, default=12,
+                         description="Bounce cap when not taken from Cycles. 0: direct light "
+                                     "only; 1: one bounce, exact under edits; more: later "
+                                     "bounces keep their bake-time materials (frozen tail)")
     basis_tolerance: FloatProperty(name="Basis Tolerance", min=1e-4, max=0.5, default=0.03,
                                    description="Largest relative L2 error of the BRDF basis "
                                                "(sets the number of basis BRDFs)")
@@ -69,7 +76,10 @@ class RelumePreferences(bpy.types.AddonPreferences):
         sub.prop(self, "light_samples")
         sub.prop(self, "indirect_samples")
         sub.prop(self, "basis_tolerance")
-        col.prop(self, "bounces")
+        col.prop(self, "bounces_from_scene")
+        row = col.row()
+        row.enabled = not self.bounces_from_scene
+        row.prop(self, "bounces")
         col.prop(self, "passes")
         col.prop(self, "resolution_scale")
         col.prop(self, "device")

@@ -56,6 +56,8 @@ class ExportResult:
     material_of_region: dict  # region name → bpy material (None for the default region)
     triangle_count: int
     light_names: list[str] = field(default_factory=list)  # exported lights, in scene order
+    #: The bounce cap Cycles renders this scene with (see `cycles_bounce_cap`).
+    max_bounces: int = 12
 
 
 def _sanitize(name: str) -> str:
@@ -122,6 +124,21 @@ def _camera(scene, warnings: WarningList) -> dict:
         lens=c.lens, sensor_width=c.sensor_width, sensor_height=c.sensor_height,
         sensor_fit=c.sensor_fit, shift_x=c.shift_x, shift_y=c.shift_y, ortho_scale=c.ortho_scale,
         clip_start=c.clip_start, clip_end=c.clip_end, use_dof=bool(c.dof.use_dof)), warnings)
+
+
+#: Highest bounce count the core bakes (`relume_engine::bake::settings::MAX_BOUNCES`).
+MAX_BOUNCES = 128
+
+
+def cycles_bounce_cap(scene) -> int:
+    """The bounces Cycles gives this scene's surfaces: Max Bounces, limited by the larger of
+    the Diffuse and Glossy limits (Relume's Blinn–Phong vertices are both at once; Blender's
+    defaults, 12 / 4 / 4, give 4), at most `MAX_BOUNCES`. Blender's defaults when the scene
+    has no Cycles settings."""
+    c = getattr(scene, "cycles", None)
+    total = int(getattr(c, "max_bounces", 12))
+    surface = max(int(getattr(c, "diffuse_bounces", 4)), int(getattr(c, "glossy_bounces", 4)))
+    return max(0, min(total, surface, MAX_BOUNCES))
 
 
 def bake_resolution(scene, scale: float) -> tuple[int, int]:
@@ -248,7 +265,7 @@ def export_scene(context, options: ExportOptions) -> ExportResult:
         scene=rs, scene_dict=scene_dict, warnings=warnings.items(), region_names=names,
         editable=[r["name"] for r in regions if r["editable"]],
         material_of_region={n: materials[n] for n in names}, triangle_count=triangles,
-        light_names=light_names)
+        light_names=light_names, max_bounces=cycles_bounce_cap(scene))
 
 
 def _world_is_black(world: dict) -> bool:

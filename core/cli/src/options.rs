@@ -2,6 +2,7 @@
 
 use clap::{Args, ValueEnum};
 use relume_engine::bake::presets::Preset;
+use relume_engine::bake::settings::DEFAULT_BOUNCES;
 use relume_engine::bake::{BakeSettings, IndirectSampling, LightGrouping};
 use relume_engine::brdf::{BasisConfig, BasisCount};
 use relume_engine::scene::Resolution;
@@ -80,9 +81,16 @@ pub struct BakeOptions {
     /// Indirect directions per eye hit [default: 1, or the preset's].
     #[arg(long)]
     pub indirect_samples: Option<u32>,
-    /// 0: direct light only; 1: one indirect bounce (the paper).
-    #[arg(long, default_value_t = 1)]
-    pub bounces: u32,
+    /// Indirect bounces as Cycles counts them (0: direct light only; 1: one bounce, the
+    /// paper; more: bounces 2.. traced with the bake-time materials, the "frozen tail").
+    /// With a preset this is the cap and the bake measures how many the scene needs
+    /// [default: 1, or 12 (Blender's default) with a preset].
+    #[arg(long)]
+    pub bounces: Option<u32>,
+    /// Share of the image's light the bounces past the baked count may leave out (0: bake
+    /// exactly --bounces) [default: 0, or the preset's].
+    #[arg(long)]
+    pub bounce_budget: Option<f32>,
     /// Indirect sampling: uniform hemisphere (the paper), cosine + lobes mixture, or guided
     /// [default: uniform, or the preset's (mixture)].
     #[arg(long, value_enum)]
@@ -150,7 +158,11 @@ impl BakeOptions {
             spp: DEFAULT_SPP,
             light_samples: DEFAULT_LIGHT_SAMPLES,
             indirect_samples: DEFAULT_INDIRECT_SAMPLES,
-            bounces: self.bounces,
+            bounces: match (self.bounces, self.preset) {
+                (Some(n), _) => n,
+                (None, Some(_)) => DEFAULT_BOUNCES,
+                (None, None) => 1,
+            },
             sampling: IndirectSampling::Uniform,
             seed: self.seed,
             resolution: None,
@@ -180,6 +192,15 @@ impl BakeOptions {
         };
         if let Some(v) = self.spp {
             s.spp = v;
+        }
+        if let Some(v) = self.bounce_budget {
+            if !(v.is_finite() && (0.0..1.0).contains(&v)) {
+                return Err(RelumeError::invalid(
+                    "--bounce-budget",
+                    format!("{v} (a share of the light in [0, 1))"),
+                ));
+            }
+            s.bounce_budget = v;
         }
         if let Some(v) = self.light_samples {
             s.light_samples = v;
@@ -293,6 +314,25 @@ mod tests {
         assert_eq!(s.sampling, IndirectSampling::Uniform);
         assert!(matches!(s.basis.count, BasisCount::Fixed(6)));
         assert_eq!(s.resolution, None);
+        assert_eq!((s.bounces, s.bounce_budget), (1, 0.0));
+    }
+
+    #[test]
+    fn a_preset_caps_bounces_at_blenders_default_and_measures_what_the_scene_needs() {
+        let s = settings(&["--preset", "final"]).unwrap();
+        assert_eq!(s.bounces, DEFAULT_BOUNCES);
+        assert_eq!(s.bounce_budget, Preset::Final.values().bounce_budget);
+        let s = settings(&[
+            "--preset",
+            "final",
+            "--bounces",
+            "3",
+            "--bounce-budget",
+            "0",
+        ])
+        .unwrap();
+        assert_eq!((s.bounces, s.bounce_budget), (3, 0.0));
+        assert!(settings(&["--bounce-budget", "2"]).is_err());
     }
 
     #[test]

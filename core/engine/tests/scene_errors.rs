@@ -174,8 +174,10 @@ fn bad_settings_are_refused() {
             spp: 0,
             ..Default::default()
         },
+        // Past the highest count this build bakes (2 was refused before bounces beyond the
+        // first existed).
         BakeSettings {
-            bounces: 2,
+            bounces: relume_engine::bake::settings::MAX_BOUNCES + 1,
             ..Default::default()
         },
         BakeSettings {

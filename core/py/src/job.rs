@@ -117,6 +117,8 @@ impl BakeJob {
                 "noise": baked.passes.last().and_then(|p| p.estimated_rel_error),
                 "warnings": r.warnings,
                 "drop": r.layers,
+                "bounces": r.bounces,
+                "bounce_estimate": r.bounce_estimate,
                 "report": r,
             }))
         };

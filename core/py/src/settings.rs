@@ -10,7 +10,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 use relume_engine::bake::presets::Preset;
-use relume_engine::bake::settings::{MAX_BOUNCES, MAX_THREADS};
+use relume_engine::bake::settings::{DEFAULT_BOUNCES, MAX_BOUNCES, MAX_THREADS};
 use relume_engine::bake::{BakeSettings as Engine, IndirectSampling, LightGrouping};
 use relume_engine::brdf::BasisCount;
 use relume_engine::scene::Resolution;
@@ -22,6 +22,7 @@ pub const FIELDS: &[&str] = &[
     "light_samples",
     "indirect_samples",
     "bounces",
+    "bounce_budget",
     "sampling",
     "seed",
     "resolution",
@@ -209,6 +210,13 @@ impl BakeSettings {
                     e.denoise.bounce_iterations = n as u32;
                 }
             }
+            "bounce_budget" => {
+                let x = finite(field, v)?;
+                if !(0.0..1.0).contains(&x) {
+                    return Err(bad(field, format!("{x} (must be in [0, 1))")));
+                }
+                e.bounce_budget = x as f32;
+            }
             "drop_budget" => {
                 let x = finite(field, v)?;
                 if !(0.0..1.0).contains(&x) {
@@ -290,6 +298,7 @@ impl BakeSettings {
             "ns_max" => (e.basis.ns_max as f64).into_pyobject(py)?.into_any(),
             "threads" => e.threads.into_pyobject(py)?.into_any(),
             "drop_budget" => (e.drop_budget as f64).into_pyobject(py)?.into_any(),
+            "bounce_budget" => (e.bounce_budget as f64).into_pyobject(py)?.into_any(),
             "denoise_direct" => e.denoise.direct_iterations.into_pyobject(py)?.into_any(),
             "denoise_bounce" => e.denoise.bounce_iterations.into_pyobject(py)?.into_any(),
             "light_grouping" => match e.light_grouping {
@@ -362,8 +371,10 @@ impl BakeSettings {
     }
 
     /// `BakeSettings.preset("preview", bounces=0)`: a named preset (`"draft"`, `"preview"`,
-    /// `"final"`: eye, light and indirect samples, sampling, basis tolerance and resolution
-    /// scale; the README's table gives each one's measured time and error), then `overrides`.
+    /// `"final"`: eye, light and indirect samples, sampling, basis tolerance, resolution
+    /// scale and bounce budget; the README's table gives each one's measured time and
+    /// error), then `overrides`. `bounces` is 12 (Blender's default) unless overridden: the
+    /// cap of the bounce count the bake measures the scene needs.
     #[staticmethod]
     #[pyo3(signature = (name, **overrides))]
     fn preset(name: &str, overrides: Option<&Bound<'_, PyDict>>) -> PyResult<Self> {
@@ -380,6 +391,9 @@ impl BakeSettings {
             passes: 1,
         };
         s.resolution_scale = preset.apply(&mut s.engine);
+        // A preset bakes what the scene needs, up to Blender's default bounce count unless
+        // `bounces=` says otherwise.
+        s.engine.bounces = DEFAULT_BOUNCES;
         if let Some(fields) = overrides {
             for (k, v) in fields.iter() {
                 let k: String = k.extract()?;

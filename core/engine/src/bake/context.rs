@@ -41,8 +41,11 @@ pub struct PreparedRegion {
     pub first_slot: u32,
     pub slot_count: u32,
     /// The cosine-and-lobes mixture its indirect directions are drawn from (unused by
-    /// uniform sampling).
+    /// uniform sampling; always used beyond the first bounce).
     pub mixture: DirectionMixture,
+    /// Its bake-time material: what the bake evaluates at path vertices beyond the first
+    /// bounce (the "frozen tail", see [`crate::bake::integrator`]), editable regions included.
+    pub frozen: BlinnPhong,
 }
 
 /// Everything fixed for a bake.
@@ -65,6 +68,9 @@ pub struct BakeContext {
     /// Per scene region, the global slot its diffuse basis uses *at the eye*: the region's
     /// eye-diffuse slot when translucent, its first slot otherwise.
     pub eye_diffuse_slot: Vec<u32>,
+    /// What the bounce pre-pass measured when the settings asked for the bounce count the
+    /// scene needs ([`crate::bake::bounces`]); `None` when the count was taken as given.
+    pub bounce_estimate: Option<crate::bake::bounces::BounceEstimate>,
 }
 
 impl BakeContext {
@@ -83,6 +89,7 @@ impl BakeContext {
         scene: &Scene,
         progress: &crate::bake::progress::Progress,
     ) -> Result<()> {
+        // `self.settings.bounces` is the count the bounce pre-pass chose.
         if self.settings.sampling == IndirectSampling::Guided && self.settings.bounces >= 1 {
             let materials = scene
                 .regions
@@ -201,6 +208,7 @@ impl BakeContext {
                     first_slot,
                     slot_count: count as u32,
                     mixture: DirectionMixture::editable(&material, lo, hi),
+                    frozen: material,
                 });
                 editable_index += 1;
             } else {
@@ -211,6 +219,7 @@ impl BakeContext {
                     first_slot: u32::MAX,
                     slot_count: 1,
                     mixture: DirectionMixture::fixed(&material),
+                    frozen: material,
                 });
             }
         }
@@ -257,6 +266,7 @@ impl BakeContext {
             guide: None,
             translucent: Vec::new(),
             eye_diffuse_slot,
+            bounce_estimate: None,
         };
         if translucent.iter().any(|t| t.is_some()) {
             let pool = rayon::ThreadPoolBuilder::new()
@@ -270,6 +280,13 @@ impl BakeContext {
             }
         }
         ctx.translucent = translucent;
+        progress.check()?;
+        if settings.bounce_budget > 0.0 && settings.bounces > 1 {
+            let estimate =
+                crate::bake::bounces::estimate(&ctx, settings.bounces, settings.bounce_budget);
+            ctx.settings.bounces = estimate.chosen;
+            ctx.bounce_estimate = Some(estimate);
+        }
         Ok((ctx, report))
     }
 

@@ -6,6 +6,24 @@
 //! slots. What "a value" is depends on [`VertexBrdf`]: one per basis of the region for the
 //! bake, the one true BRDF for the reference. Random numbers are drawn in the same order
 //! whatever the BRDF, so a relit bake and a reference with the same seed see the same paths.
+//!
+//! **Bounces beyond the first: the frozen tail.** With `bounces = n > 1`, light reaching the
+//! secondary hit x″ after further bounces is traced too: one direction is drawn at x″ (the
+//! region's cosine-and-lobes mixture), and along the path x‴, x⁗, … each vertex gets direct
+//! light (next-event estimation, per emitter and light group, as at x″) and a continuation
+//! drawn from its region's mixture, up to bounce n, with Russian roulette from bounce
+//! [`RR_START`] on. Those later vertices are evaluated with [`VertexBrdf::tail`]: the
+//! bake-time materials in the bake (editable regions included), the given materials in the
+//! reference. The radiance that comes back is multiplied by the basis values at x″ and
+//! added to the (eye slot, bounce slot) layers, so it stays linear in the coefficients of
+//! the two keyed vertices and neither the stack's layout nor the relighter changes. It is
+//! an approximation under edits: an edited region met at the third vertex or later still
+//! reflects with its bake-time material (measured in `tests/frozen_tail.rs`). Translucent
+//! regions at later vertices reflect with their surface BRDF only, as at x″ (subsurface
+//! light is gathered at the eye only). Roulette and direction choices depend on the
+//! bake-time materials only, so the bake and a reference with other materials still trace
+//! the same paths. Emitters and the world are reached by next-event estimation only, at
+//! every vertex, as for the first bounce (a continuation ray that escapes carries nothing).
 
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
@@ -38,7 +56,41 @@ pub trait VertexBrdf: Sync {
     fn subsurface(&self) -> bool {
         false
     }
+
+    /// The one BRDF value at a vertex beyond the first bounce (the frozen tail, no cosine).
+    fn tail(&self, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3) -> Rgb;
 }
+
+/// A vertex beyond the first bounce: [`VertexBrdf::tail`] as a one-slot BRDF, so
+/// [`direct_light`] serves it too.
+struct TailBrdf<'a, B: VertexBrdf>(&'a B);
+
+impl<B: VertexBrdf> VertexBrdf for TailBrdf<'_, B> {
+    #[inline]
+    fn eval(
+        &self,
+        region: u32,
+        uv: Vec2,
+        n: Vec3,
+        wi: Vec3,
+        wo: Vec3,
+        out: &mut [Rgb; MAX_BASES],
+    ) -> (u32, usize) {
+        out[0] = self.0.tail(region, uv, n, wi, wo);
+        (0, 1)
+    }
+    #[inline]
+    fn tail(&self, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3) -> Rgb {
+        self.0.tail(region, uv, n, wi, wo)
+    }
+}
+
+/// The bounce from which the frozen tail plays Russian roulette: the path continues with
+/// probability min(1, luminance of its bake-time throughput), at least [`RR_MIN_SURVIVAL`].
+pub const RR_START: u32 = 4;
+/// Lowest survival probability of the roulette (keeps paths whose bake-time throughput is
+/// black but whose edited one is not, so the reference stays unbiased).
+pub const RR_MIN_SURVIVAL: f32 = 0.05;
 
 /// The slot of value `k` of the eye vertex whose values start at slot `first` on scene region
 /// `region`: a translucent region's diffuse basis has its own slot at the eye (weighted by
@@ -205,7 +257,7 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(
         };
         let (eye_first, eye_count) = brdf.eval(hit.region, hit.uv, n, wi, wo, &mut eye_values);
         let weight = cos_i / pdf * inv_indirect;
-        let (bounce_first, bounce_count) = direct_light(
+        let (mut bounce_first, mut bounce_count) = direct_light(
             ctx,
             brdf,
             tracer,
@@ -215,6 +267,20 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(
             &mut values,
             &mut bounce_light,
         );
+        if settings.bounces >= 2 {
+            let mut tail = stream.branch();
+            frozen_tail(
+                ctx,
+                brdf,
+                tracer,
+                &hit2,
+                -wi,
+                &mut tail,
+                &mut values,
+                &mut bounce_light,
+                (&mut bounce_first, &mut bounce_count),
+            );
+        }
         for (e, value) in eye_values.iter().enumerate().take(eye_count) {
             let fe = *value * weight;
             if fe == Rgb::ZERO {
@@ -246,7 +312,7 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(
 /// vertex's first slot and slot count (count 0 when no sample arrived). Takes one branch of
 /// `stream` per emitter, whose children are the light samples, always.
 #[allow(clippy::too_many_arguments)]
-fn direct_light<B: VertexBrdf, T: Tracer>(
+pub(crate) fn direct_light<B: VertexBrdf, T: Tracer>(
     ctx: &BakeContext,
     brdf: &B,
     tracer: &mut T,
@@ -301,6 +367,150 @@ fn direct_light<B: VertexBrdf, T: Tracer>(
         }
     }
     (first, count)
+}
+
+/// Adds to `light` (laid out as [`direct_light`]'s, whose `(first, count)` it updates when
+/// that found nothing) the light that leaves the first-bounce vertex `hit` towards `wo`
+/// after bounces 2..=n: one direction drawn from the region's mixture, the radiance coming
+/// back along it ([`tail_radiance`]) times each basis value of the vertex, cos θ over the pdf.
+#[allow(clippy::too_many_arguments)]
+fn frozen_tail<B: VertexBrdf, T: Tracer>(
+    ctx: &BakeContext,
+    brdf: &B,
+    tracer: &mut T,
+    hit: &SurfaceHit,
+    wo: Vec3,
+    stream: &mut SampleStream,
+    values: &mut [Rgb; MAX_BASES],
+    light: &mut [Rgb; MAX_GROUPS * MAX_BASES],
+    (first, count): (&mut u32, &mut usize),
+) {
+    let n = hit.shading_normal;
+    let region = &ctx.regions[hit.region as usize];
+    let Some((wi, pdf)) = sample_indirect(
+        IndirectSampling::Mixture,
+        &region.mixture,
+        None,
+        n,
+        wo,
+        stream,
+    ) else {
+        return;
+    };
+    let cos = n.dot(wi);
+    if cos <= 0.0 || hit.geometric_normal.dot(wi) <= 0.0 || !(pdf > 0.0) {
+        return;
+    }
+    let groups = ctx.lights.groups.len();
+    let mut radiance = [Rgb::ZERO; MAX_GROUPS];
+    if !tail_radiance(ctx, brdf, tracer, hit, wi, stream, &mut radiance[..groups]) {
+        return;
+    }
+    let (f, c) = brdf.eval(hit.region, hit.uv, n, wi, wo, values);
+    if *count == 0 {
+        (*first, *count) = (f, c);
+        for g in 0..groups {
+            light[g * MAX_BASES..g * MAX_BASES + c].fill(Rgb::ZERO);
+        }
+    }
+    let w = cos / pdf;
+    for (g, r) in radiance[..groups].iter().enumerate() {
+        if *r == Rgb::ZERO {
+            continue;
+        }
+        for (l, v) in light[g * MAX_BASES..].iter_mut().zip(values.iter()).take(c) {
+            *l += *v * *r * w;
+        }
+    }
+}
+
+/// The radiance, per light group, that arrives at `from` along `dir` from vertices at
+/// bounces 2..=`ctx.settings.bounces` evaluated with [`VertexBrdf::tail`] (next-event
+/// estimation at each, mixture continuation, Russian roulette from [`RR_START`] driven by
+/// the bake-time throughput). Adds into `out` (one entry per group); returns whether
+/// anything arrived.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
+    ctx: &BakeContext,
+    brdf: &B,
+    tracer: &mut T,
+    from: &SurfaceHit,
+    dir: Vec3,
+    stream: &mut SampleStream,
+    out: &mut [Rgb],
+) -> bool {
+    let tail = TailBrdf(brdf);
+    let mut values = [Rgb::ZERO; MAX_BASES];
+    let mut light = [Rgb::ZERO; MAX_GROUPS * MAX_BASES];
+    let mut throughput = Rgb::ONE;
+    let mut frozen = Rgb::ONE;
+    let mut origin = ctx.geometry.offset(from.position, from.geometric_normal);
+    let mut dir = dir;
+    let mut any = false;
+    let mut bounce = 2u32;
+    loop {
+        let Some(hit) = tracer.intersect(ctx, origin, dir, 0.0, f32::INFINITY) else {
+            break;
+        };
+        let wo = -dir;
+        let (_, c) = direct_light(
+            ctx,
+            &tail,
+            tracer,
+            &hit,
+            wo,
+            stream,
+            &mut values,
+            &mut light,
+        );
+        if c > 0 {
+            for (g, o) in out.iter_mut().enumerate() {
+                let l = light[g * MAX_BASES];
+                if l != Rgb::ZERO {
+                    *o += throughput * l;
+                    any = true;
+                }
+            }
+        }
+        if bounce >= ctx.settings.bounces {
+            break;
+        }
+        let n = hit.shading_normal;
+        let region = &ctx.regions[hit.region as usize];
+        let Some((wi, pdf)) = sample_indirect(
+            IndirectSampling::Mixture,
+            &region.mixture,
+            None,
+            n,
+            wo,
+            stream,
+        ) else {
+            break;
+        };
+        let cos = n.dot(wi);
+        if cos <= 0.0 || hit.geometric_normal.dot(wi) <= 0.0 || !(pdf > 0.0) {
+            break;
+        }
+        let w = cos / pdf;
+        throughput *= brdf.tail(hit.region, hit.uv, n, wi, wo) * w;
+        frozen *= crate::bake::vertex_brdf::frozen_value(ctx, hit.region, hit.uv, n, wi, wo) * w;
+        bounce += 1;
+        if bounce >= RR_START {
+            let q = crate::luminance(frozen).clamp(RR_MIN_SURVIVAL, 1.0);
+            let u = stream.next();
+            if u >= q {
+                break;
+            }
+            throughput /= q;
+            frozen /= q;
+        }
+        if throughput == Rgb::ZERO {
+            break;
+        }
+        origin = ctx.geometry.offset(hit.position, hit.geometric_normal);
+        dir = wi;
+    }
+    any
 }
 
 /// Draws an indirect direction at a vertex with normal `n`: uniform (the paper), the

@@ -7,6 +7,7 @@
 //! layers) is stored with one channel, an all-zero layer is dropped, and the rest are RGB.
 
 pub mod bench;
+pub mod bounces;
 pub mod context;
 pub mod denoise;
 pub mod drop;
@@ -75,6 +76,10 @@ pub struct BakeReport {
     pub layers: drop::DropReport,
     /// The memory forecast made before tracing (compare with the measured peak).
     pub estimate: Option<estimate::BakeEstimate>,
+    /// Bounces baked (the header's `bounces`) and, when the settings asked for what the
+    /// scene needs, what the pre-pass measured ([`bounces`]).
+    pub bounces: u32,
+    pub bounce_estimate: Option<bounces::BounceEstimate>,
 }
 
 /// Accumulates one pixel of a tile densely: the tile buffer is pixel-major (all layers of
@@ -567,7 +572,7 @@ fn assemble(
         camera: scene.camera.clone(),
         spp,
         light_samples: settings.light_samples,
-        bounces: settings.bounces,
+        bounces: ctx.settings.bounces,
         sampling: settings.sampling.name().into(),
         seed: settings.seed,
         regions: scene
@@ -624,6 +629,8 @@ fn assemble(
         sample_bytes: stack.sample_bytes(),
         layers: drop_report,
         estimate: None,
+        bounces: ctx.settings.bounces,
+        bounce_estimate: ctx.bounce_estimate.clone(),
     };
     Ok((stack, report, image))
 }

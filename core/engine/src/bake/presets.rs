@@ -3,6 +3,9 @@
 //! A preset fixes the settings that trade bake time against accuracy — eye samples, light
 //! samples, indirect samples, indirect sampling, basis tolerance and a resolution scale — and
 //! leaves the rest (seed, precision, ns range, light grouping, threads) as the caller set them.
+//! It also sets the error budget of bounces ("what the scene needs", measured before the
+//! bake); the bounce count itself stays the caller's, as the cap (the command line and the
+//! Python bindings give a preset Blender's default, 12, when the caller says nothing).
 //! The same table serves the command line (`relume bake --preset`), the Python bindings
 //! (`BakeSettings.preset`) and the add-on's preferences, so a preset means the same bake
 //! everywhere. What each preset costs and how close it gets is measured, not promised: see
@@ -38,6 +41,10 @@ pub struct PresetValues {
     pub resolution_scale: f64,
     /// The stack's linear denoiser ([`crate::bake::denoise`]): biased, measured.
     pub denoise: Denoise,
+    /// Share of the image's light the bounces past the baked count may leave out: the bake
+    /// measures what each bounce adds and bakes as many as that needs, up to the caller's
+    /// `bounces` ([`crate::bake::bounces`]).
+    pub bounce_budget: f32,
 }
 
 impl Preset {
@@ -85,6 +92,7 @@ impl Preset {
                     direct_iterations: 0,
                     bounce_iterations: 2,
                 },
+                bounce_budget: 0.03,
             },
             Preset::Preview => PresetValues {
                 spp: 16,
@@ -97,6 +105,7 @@ impl Preset {
                     direct_iterations: 0,
                     bounce_iterations: 3,
                 },
+                bounce_budget: 0.01,
             },
             Preset::Final => PresetValues {
                 spp: 128,
@@ -109,6 +118,7 @@ impl Preset {
                     direct_iterations: 0,
                     bounce_iterations: 2,
                 },
+                bounce_budget: 0.005,
             },
         }
     }
@@ -123,6 +133,7 @@ impl Preset {
         settings.sampling = v.sampling;
         settings.basis.count = BasisCount::Tolerance(v.basis_tolerance);
         settings.denoise = v.denoise;
+        settings.bounce_budget = v.bounce_budget;
         v.resolution_scale
     }
 }
@@ -146,6 +157,8 @@ mod tests {
         assert!(cost(Preset::Draft) < cost(Preset::Preview));
         assert!(cost(Preset::Preview) < cost(Preset::Final));
         assert!(Preset::Final.values().basis_tolerance < Preset::Preview.values().basis_tolerance);
+        assert!(Preset::Final.values().bounce_budget < Preset::Preview.values().bounce_budget);
+        assert!(Preset::Preview.values().bounce_budget < Preset::Draft.values().bounce_budget);
     }
 
     #[test]

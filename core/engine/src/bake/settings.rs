@@ -79,8 +79,16 @@ pub struct BakeSettings {
     pub light_samples: u32,
     /// Indirect directions per eye hit.
     pub indirect_samples: u32,
-    /// 0: direct light only; 1: one indirect bounce (the paper).
+    /// Indirect bounces, as Cycles' Max Bounces counts them: 0 direct light only, 1 one
+    /// indirect bounce (the paper, exact under edits), n > 1 adds bounces 2..n as a "frozen
+    /// tail" traced with the bake-time materials and folded into the one-bounce layers
+    /// ([`crate::bake::integrator`]). With `bounce_budget > 0` this is the cap, and the bake
+    /// measures how many the scene needs ([`crate::bake::bounces`]). At most [`MAX_BOUNCES`].
     pub bounces: u32,
+    /// Relative share of the image's light that bounces beyond the chosen count may leave
+    /// out (e.g. 0.005); 0 bakes exactly `bounces`. The presets set it.
+    #[serde(default)]
+    pub bounce_budget: f32,
     pub sampling: IndirectSampling,
     pub seed: u64,
     /// Overrides the scene's resolution.
@@ -131,6 +139,7 @@ impl Default for BakeSettings {
             light_samples: 4,
             indirect_samples: 1,
             bounces: 1,
+            bounce_budget: 0.0,
             sampling: IndirectSampling::Uniform,
             seed: 0,
             resolution: None,
@@ -198,6 +207,12 @@ impl BakeSettings {
                 format!("must be in [0, 1), got {}", self.drop_budget),
             );
         }
+        if !(self.bounce_budget.is_finite() && (0.0..1.0).contains(&self.bounce_budget)) {
+            return bad(
+                "bounce budget",
+                format!("must be in [0, 1), got {}", self.bounce_budget),
+            );
+        }
         if !(self.subsurface_theta.is_finite() && self.subsurface_theta > 0.0) {
             return bad(
                 "subsurface theta",
@@ -222,6 +237,10 @@ impl BakeSettings {
     }
 }
 
-/// Highest bounce count this build bakes. More bounces need longer signatures, which the
-/// layer keys already allow; the integrator stops at one.
-pub const MAX_BOUNCES: u32 = 1;
+/// Highest bounce count this build bakes (bounces beyond the first are the frozen tail, so
+/// the layer keys do not grow with it).
+pub const MAX_BOUNCES: u32 = 128;
+
+/// Blender's default Max Bounces (Cycles, `scene.cycles.max_bounces`): the cap the presets
+/// use when the caller gives none.
+pub const DEFAULT_BOUNCES: u32 = 12;

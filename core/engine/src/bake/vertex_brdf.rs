@@ -30,6 +30,16 @@ pub fn blinn_phong_value(m: &BlinnPhong, albedo: Rgb, cos_delta: f32) -> Rgb {
         + Rgb::from(m.ks) * lobe(m.ns as f64, cos_delta as f64) as f32
 }
 
+/// The bake-time BRDF value of scene region `region` (its [`PreparedRegion::frozen`]
+/// material, the diffuse part times its albedo texture): what the bake sees at vertices
+/// beyond the first bounce, and what picks Russian roulette there for bake and reference
+/// alike.
+#[inline]
+pub fn frozen_value(ctx: &BakeContext, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3) -> Rgb {
+    let r = &ctx.regions[region as usize];
+    blinn_phong_value(&r.frozen, albedo_at(r, uv), cos_half_angle(n, wi, wo))
+}
+
 /// The bake: every basis function of an editable region (the diffuse one times the albedo
 /// texture), or the whole fixed BRDF ρ̂.
 pub struct BasisBrdf<'a> {
@@ -39,6 +49,12 @@ pub struct BasisBrdf<'a> {
 impl VertexBrdf for BasisBrdf<'_> {
     fn subsurface(&self) -> bool {
         true
+    }
+
+    /// Beyond the first bounce the bake sees the bake-time materials (the frozen tail).
+    #[inline]
+    fn tail(&self, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3) -> Rgb {
+        frozen_value(self.ctx, region, uv, n, wi, wo)
     }
 
     #[inline]
@@ -115,6 +131,18 @@ impl<'a> MaterialBrdf<'a> {
 }
 
 impl VertexBrdf for MaterialBrdf<'_> {
+    /// The reference sees the given materials at every vertex, the exact Blinn–Phong even in
+    /// projected mode: the frozen tail is part of what a relight is measured against.
+    #[inline]
+    fn tail(&self, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3) -> Rgb {
+        let r = &self.ctx.regions[region as usize];
+        let material = match &r.model {
+            RegionModel::Fixed { material } => material,
+            RegionModel::Editable { index, .. } => &self.materials[*index as usize],
+        };
+        blinn_phong_value(material, albedo_at(r, uv), cos_half_angle(n, wi, wo))
+    }
+
     #[inline]
     fn eval(
         &self,

@@ -73,7 +73,8 @@ class BakeSettings:
     spp: int
     light_samples: int
     indirect_samples: int
-    bounces: int
+    bounces: int  # 0..128 as Cycles counts them; the cap when bounce_budget > 0
+    bounce_budget: float  # share of the light bounces past the baked count may leave out
     sampling: Literal["uniform", "mixture", "guided"]
     seed: int
     resolution: tuple[int, int] | None

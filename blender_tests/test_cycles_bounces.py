@@ -1,0 +1,176 @@
+"""Relume against Cycles at Blender's DEFAULT light paths (Max Bounces 12, Diffuse 4,
+Glossy 4): every bounce, not just the first.
+
+Relume bakes the first bounce exactly (layers keyed by region and basis) and the later ones
+as a "frozen tail" with the bake-time materials, folded into the one-bounce layers
+(core/engine/src/bake/integrator.rs). The add-on caps the bounce count at what Cycles gives
+the scene's surfaces (`cycles_bounce_cap`: Max Bounces limited by the larger of Diffuse and
+Glossy, 4 at the defaults) and the final preset bakes as many as the scene needs up to that
+(its 0.5 % light budget, measured by a pre-pass). Relit at the bake-time materials, the
+image must then look like the user's Cycles render:
+
+- the assets' Cornell box (diffuse version), lit by its area light;
+- a closed room lit only by a sun through a window opening (built here with bpy), where one
+  bounce holds about two thirds of the light.
+
+Pass: relative L2 over 8×8-pixel tile means ≤ 3 % and mean ratio Relume/Cycles in
+0.98–1.02 (one bounce gave 0.66–0.78). Small renders (64², Cycles 2 × 128 spp) keep the
+file at about a minute on 2 cores; the Cycles noise on tiles is printed with the figures.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import pathlib
+import time
+
+import bpy
+import numpy as np
+import pytest
+
+from support import cycles as cy
+from support.scene_import import import_scene
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+RES = 64
+CYCLES_SPP = 256
+BLOCK = 8
+TILE_TOLERANCE = 0.03
+MEAN_RATIO = (0.98, 1.02)
+
+_RESULTS: dict[str, dict] = {}
+
+
+@pytest.fixture(scope="module")
+def results_file(tmp_path_factory):
+    path = tmp_path_factory.getbasetemp() / "cycles_bounces.json"
+    yield path
+    path.write_text(json.dumps(_RESULTS, indent=2))
+    print(f"\nCycles default-bounce figures: {path}")
+
+
+def _relume(addon, prefs, tmp: pathlib.Path, name: str, preset: str = "final",
+            bounces_from_scene: bool = True, bounces: int = 1):
+    """Bake through the add-on as a user would (preferences: the preset, bounces from the
+    scene's Cycles settings) and relight the current materials."""
+    import relume
+
+    prefs.preset = preset
+    prefs.bounces_from_scene = bounces_from_scene
+    prefs.bounces = bounces
+    settings = addon.api.bake_settings(bpy.context)
+    t0 = time.perf_counter()
+    report = addon.api.bake(settings=settings)
+    seconds = time.perf_counter() - t0
+    out = addon.api.render(str(tmp / f"{name}_relume.exr"))
+    image = np.asarray(relume.read_exr(out), dtype=np.float64)[..., :3]
+    return image, seconds, report, settings
+
+
+def _check(addon, prefs, tmp: pathlib.Path, name: str) -> dict:
+    scene = bpy.context.scene
+    c1, t1 = cy.render_cycles(scene, tmp / f"{name}_c1.exr", CYCLES_SPP // 2, seed=1, bounces=None)
+    c2, t2 = cy.render_cycles(scene, tmp / f"{name}_c2.exr", CYCLES_SPP // 2, seed=2, bounces=None)
+    c = scene.cycles
+    cycles_paths = {k: getattr(c, k) for k in ("max_bounces", "diffuse_bounces", "glossy_bounces")}
+    reference = 0.5 * (c1 + c2)
+    image, bake_s, report, settings = _relume(addon, prefs, tmp, name)
+    one, _, _, _ = _relume(addon, prefs, tmp, name + "_one_bounce", bounces_from_scene=False,
+                           bounces=1)
+    assert image.shape == reference.shape and np.isfinite(image).all()
+    tiles = cy.rel_l2(cy.block_mean(image, BLOCK), cy.block_mean(reference, BLOCK))
+    tiles_one = cy.rel_l2(cy.block_mean(one, BLOCK), cy.block_mean(reference, BLOCK))
+    figures = {
+        "resolution": RES,
+        "cycles_spp": CYCLES_SPP,
+        "cycles_light_paths": cycles_paths,
+        "relume_cap": settings.bounces,
+        "relume_bounces_baked": report.get("bounces"),
+        "bounce_estimate": report.get("bounce_estimate"),
+        f"block{BLOCK}_rel_l2": tiles,
+        f"block{BLOCK}_cycles_noise": cy.noise_of_mean(cy.block_mean(c1, BLOCK), cy.block_mean(c2, BLOCK)),
+        "pixel_rel_l2": cy.rel_l2(image, reference),
+        "mean_ratio": float(image.sum() / reference.sum()),
+        "one_bounce_mean_ratio": float(one.sum() / reference.sum()),
+        f"one_bounce_block{BLOCK}_rel_l2": tiles_one,
+        "cycles_s": t1 + t2,
+        "relume_bake_s": bake_s,
+    }
+    _RESULTS[name] = figures
+    print(f"\n[cycles bounces] {name}: " + ", ".join(
+        f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in figures.items()
+        if k != "bounce_estimate"))
+    est = figures["bounce_estimate"] or {}
+    if est:
+        print(f"  pre-pass energy per bounce: {[round(e, 5) for e in est.get('energy', [])]}, "
+              f"left out {est.get('left_out', 0):.4%}")
+    assert figures["relume_cap"] == cy_cap(scene)
+    lo, hi = MEAN_RATIO
+    assert lo <= figures["mean_ratio"] <= hi, figures
+    assert tiles <= TILE_TOLERANCE, figures
+    # Teeth: the one-bounce image (what Relume gave before) fails the same check.
+    assert not (lo <= figures["one_bounce_mean_ratio"] <= hi), figures
+    return figures
+
+
+def cy_cap(scene) -> int:
+    c = scene.cycles
+    return min(c.max_bounces, max(c.diffuse_bounces, c.glossy_bounces))
+
+
+def test_cornell_box_at_default_bounces(addon, prefs, blend_dir, results_file):
+    import_scene(ROOT / "assets" / "cornell.scene.json", resolution=(RES, RES), diffuse_only=True)
+    _check(addon, prefs, blend_dir, "cornell_default_bounces")
+
+
+def _room_with_window(resolution: int):
+    """A closed 4 × 4 × 2.5 m room (grey diffuse, albedo 0.7) with a 1.6 × 1.2 m window
+    opening in its +Y wall, a 5 W/m² sun shining in through it at 40° elevation, black world;
+    the camera inside, looking at the sunlit floor patch and the window wall."""
+    scene = bpy.context.scene
+    grey = cy.diffuse_material("Room", (0.7, 0.7, 0.7))
+    floor_mat = cy.diffuse_material("RoomFloor", (0.5, 0.45, 0.4))
+    w, h = 2.0, 2.5
+    quads = {
+        "Floor": ([(-w, -w, 0), (w, -w, 0), (w, w, 0), (-w, w, 0)], floor_mat),
+        "Ceiling": ([(-w, -w, h), (-w, w, h), (w, w, h), (w, -w, h)], grey),
+        "WallS": ([(-w, -w, 0), (-w, -w, h), (w, -w, h), (w, -w, 0)], grey),
+        "WallW": ([(-w, -w, 0), (-w, w, 0), (-w, w, h), (-w, -w, h)], grey),
+        "WallE": ([(w, -w, 0), (w, -w, h), (w, w, h), (w, w, 0)], grey),
+        # The +Y wall around a window: x ∈ [−0.8, 0.8], z ∈ [0.8, 2.0].
+        "WallN_below": ([(-w, w, 0), (w, w, 0), (w, w, 0.8), (-w, w, 0.8)], grey),
+        "WallN_above": ([(-w, w, 2.0), (w, w, 2.0), (w, w, h), (-w, w, h)], grey),
+        "WallN_left": ([(-w, w, 0.8), (-0.8, w, 0.8), (-0.8, w, 2.0), (-w, w, 2.0)], grey),
+        "WallN_right": ([(0.8, w, 0.8), (w, w, 0.8), (w, w, 2.0), (0.8, w, 2.0)], grey),
+    }
+    for name, (verts, mat) in quads.items():
+        cy._mesh_object(name, verts, [(0, 1, 2, 3)], mat)
+    sun = bpy.data.lights.new("Sun", "SUN")
+    sun.energy = 5.0
+    sun.angle = math.radians(1.0)
+    sun_obj = bpy.data.objects.new("Sun", sun)
+    sun_obj.location = (0.0, 4.0, 4.0)
+    # Local −Z → (0, −0.766, −0.643): into the room through the window, down at 40°.
+    sun_obj.rotation_euler = (math.radians(-50.0), 0.0, 0.0)
+    scene.collection.objects.link(sun_obj)
+    cam_data = bpy.data.cameras.new("Cam")
+    cam_data.lens = 18
+    cam = bpy.data.objects.new("Cam", cam_data)
+    cam.location = (0.3, -1.8, 1.4)
+    cam.rotation_euler = (math.radians(78), 0.0, math.radians(8))
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    scene.render.resolution_x = resolution
+    scene.render.resolution_y = resolution
+    scene.render.resolution_percentage = 100
+    world = bpy.data.worlds.new("World")
+    world.use_nodes = True
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    scene.world = world
+    bpy.context.view_layer.update()
+
+
+def test_room_lit_by_a_sun_through_a_window_at_default_bounces(addon, prefs, blend_dir, results_file):
+    _room_with_window(RES)
+    _check(addon, prefs, blend_dir, "window_room_default_bounces")

@@ -1,0 +1,219 @@
+//! How many bounces a scene needs: a cheap pre-pass that measures the light each bounce adds.
+//!
+//! A bake whose settings carry a `bounce_budget` > 0 treats `bounces` as a cap. Before the
+//! bake, [`estimate`] traces a few thousand paths (a grid of [`GRID`]² pixels, [`PATHS`]
+//! each) with the bake-time materials at every vertex, next-event estimation at each vertex
+//! and no roulette, up to the cap, and sums the luminance each bounce brings to the image
+//! (bounce 0 is direct light at the eye). The count baked is the smallest n ≥ 1 whose
+//! left-out bounces n+1..=cap hold at most `budget` of the measured light. The first bounce
+//! is always kept: it is exact under edits and the one-bounce layers carry the tail.
+//!
+//! The pre-pass is an estimate from few paths (its noise is reported with it), and it
+//! measures the bake-time materials: an edit that raises albedos makes later bounces count
+//! for more than it says.
+
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::bake::context::{BakeContext, MAX_BASES};
+use crate::bake::integrator::Tracer;
+use crate::bake::integrator::{direct_light, sample_indirect, CountingTracer, MAX_GROUPS};
+use crate::bake::settings::IndirectSampling;
+use crate::bake::vertex_brdf::{frozen_value, BasisBrdf};
+use crate::geometry::sampling::SampleStream;
+use crate::Rgb;
+
+/// Pixels per side of the pre-pass grid (fewer when the image is smaller).
+pub const GRID: u32 = 48;
+/// Paths per grid pixel.
+pub const PATHS: u32 = 4;
+
+/// What the pre-pass measured.
+#[derive(Clone, Debug, Serialize)]
+pub struct BounceEstimate {
+    /// The caller's cap (`BakeSettings::bounces`).
+    pub cap: u32,
+    /// Share of the light bounces past the chosen count may leave out.
+    pub budget: f32,
+    /// Bounces baked.
+    pub chosen: u32,
+    /// Mean image luminance brought by bounce 0 (direct), 1, …, cap.
+    pub energy: Vec<f64>,
+    /// Share of the measured light (bounces 0..=cap) in bounces chosen+1..=cap.
+    pub left_out: f64,
+    /// Paths traced.
+    pub paths: u64,
+}
+
+/// Runs the pre-pass for `ctx` (its own settings' seed, light samples and threads) and picks
+/// the bounce count for `cap` and `budget`.
+pub fn estimate(ctx: &BakeContext, cap: u32, budget: f32) -> BounceEstimate {
+    let res = ctx.resolution;
+    let (gx, gy) = (GRID.min(res.width), GRID.min(res.height));
+    let rows: Vec<Vec<f64>> = match rayon::ThreadPoolBuilder::new()
+        .num_threads(ctx.settings.threads)
+        .build()
+    {
+        Ok(pool) => pool.install(|| {
+            (0..gy)
+                .into_par_iter()
+                .map(|y| row(ctx, cap, gx, gy, y))
+                .collect()
+        }),
+        Err(_) => (0..gy).map(|y| row(ctx, cap, gx, gy, y)).collect(),
+    };
+    let paths = gx as u64 * gy as u64 * PATHS as u64;
+    let mut energy = vec![0.0f64; cap as usize + 1];
+    for r in &rows {
+        for (e, v) in energy.iter_mut().zip(r) {
+            *e += v / paths as f64;
+        }
+    }
+    let (chosen, left_out) = choose(&energy, budget);
+    BounceEstimate {
+        cap,
+        budget,
+        chosen,
+        energy,
+        left_out,
+        paths,
+    }
+}
+
+/// The smallest n ≥ 1 (at most the cap, `energy.len() − 1`) whose bounces past n hold at most
+/// `budget` of the total, and that share.
+pub fn choose(energy: &[f64], budget: f32) -> (u32, f64) {
+    let cap = energy.len().saturating_sub(1);
+    let total: f64 = energy.iter().sum();
+    let mut n = cap.min(1);
+    loop {
+        let rest: f64 = energy[n + 1..].iter().sum();
+        let share = if total > 0.0 { rest / total } else { 0.0 };
+        if n >= cap || share <= budget as f64 {
+            return (n as u32, share);
+        }
+        n += 1;
+    }
+}
+
+/// One grid row: per bounce, the summed luminance of its paths.
+fn row(ctx: &BakeContext, cap: u32, gx: u32, gy: u32, y: u32) -> Vec<f64> {
+    let res = ctx.resolution;
+    let brdf = BasisBrdf { ctx };
+    let mut tracer = CountingTracer::default();
+    let mut energy = vec![0.0f64; cap as usize + 1];
+    let mut values = [Rgb::ZERO; MAX_BASES];
+    let mut light = [Rgb::ZERO; MAX_GROUPS * MAX_BASES];
+    let tints: Vec<Rgb> = ctx.lights.groups.iter().map(|g| g.tint).collect();
+    let seed = ctx.settings.seed ^ 0xB0C7_CE5E_57A1_u64;
+    for x in 0..gx {
+        let px = ((x as f32 + 0.5) * res.width as f32 / gx as f32) as u32;
+        let py = ((y as f32 + 0.5) * res.height as f32 / gy as f32) as u32;
+        let pixel = py as u64 * res.width as u64 + px as u64;
+        for s in 0..PATHS {
+            let mut stream = SampleStream::new(seed, pixel, s);
+            let (jx, jy) = stream.next2();
+            let (mut origin, mut dir) = ctx.camera.ray(px as f32 + jx, py as f32 + jy);
+            let mut throughput = Rgb::ONE;
+            let mut tmax = ctx.clip_end;
+            for bounce in 0..=cap as usize {
+                let Some(hit) = tracer.intersect(ctx, origin, dir, 0.0, tmax) else {
+                    break;
+                };
+                tmax = f32::INFINITY;
+                let wo = -dir;
+                // Bake-time materials at every vertex: the bake's tail BRDF.
+                let tail = FrozenOnly(&brdf);
+                let (_, c) = direct_light(
+                    ctx,
+                    &tail,
+                    &mut tracer,
+                    &hit,
+                    wo,
+                    &mut stream,
+                    &mut values,
+                    &mut light,
+                );
+                if c > 0 {
+                    let mut sum = Rgb::ZERO;
+                    for (g, t) in tints.iter().enumerate() {
+                        sum += light[g * MAX_BASES] * *t;
+                    }
+                    energy[bounce] += crate::luminance(throughput * sum) as f64;
+                }
+                if bounce == cap as usize {
+                    break;
+                }
+                let n = hit.shading_normal;
+                let region = &ctx.regions[hit.region as usize];
+                let Some((wi, pdf)) = sample_indirect(
+                    IndirectSampling::Mixture,
+                    &region.mixture,
+                    None,
+                    n,
+                    wo,
+                    &mut stream,
+                ) else {
+                    break;
+                };
+                let cos = n.dot(wi);
+                if cos <= 0.0 || hit.geometric_normal.dot(wi) <= 0.0 || !(pdf > 0.0) {
+                    break;
+                }
+                throughput *= frozen_value(ctx, hit.region, hit.uv, n, wi, wo) * (cos / pdf);
+                if throughput == Rgb::ZERO {
+                    break;
+                }
+                origin = ctx.geometry.offset(hit.position, hit.geometric_normal);
+                dir = wi;
+            }
+        }
+    }
+    energy
+}
+
+/// The bake-time BRDF as a one-slot vertex BRDF (for [`direct_light`]).
+struct FrozenOnly<'a>(&'a BasisBrdf<'a>);
+
+impl crate::bake::integrator::VertexBrdf for FrozenOnly<'_> {
+    fn eval(
+        &self,
+        region: u32,
+        uv: glam::Vec2,
+        n: glam::Vec3,
+        wi: glam::Vec3,
+        wo: glam::Vec3,
+        out: &mut [Rgb; MAX_BASES],
+    ) -> (u32, usize) {
+        out[0] = frozen_value(self.0.ctx, region, uv, n, wi, wo);
+        (0, 1)
+    }
+    fn tail(
+        &self,
+        region: u32,
+        uv: glam::Vec2,
+        n: glam::Vec3,
+        wi: glam::Vec3,
+        wo: glam::Vec3,
+    ) -> Rgb {
+        frozen_value(self.0.ctx, region, uv, n, wi, wo)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::choose;
+
+    #[test]
+    fn choose_keeps_the_first_bounce_and_stops_within_budget() {
+        // A geometric series of ratio ½: bounces past n hold ≈ 2^-n of ≈ 2, a share 2^-(n+1).
+        let energy: Vec<f64> = (0..=12).map(|k| 0.5f64.powi(k)).collect();
+        let (n, share) = choose(&energy, 0.01);
+        assert_eq!(n, 6, "share {share}");
+        assert!(share <= 0.01);
+        assert_eq!(choose(&energy, 0.9).0, 1, "never below one bounce");
+        assert_eq!(choose(&energy, 0.0).0, 12, "a zero budget takes the cap");
+        assert_eq!(choose(&[1.0, 0.0], 0.01).0, 1);
+        assert_eq!(choose(&[1.0], 0.01).0, 0, "cap 0 stays 0");
+    }
+}
