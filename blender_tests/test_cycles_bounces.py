@@ -28,7 +28,6 @@ import time
 import bpy
 import numpy as np
 import pytest
-
 from support import cycles as cy
 from support.scene_import import import_scene
 

@@ -38,7 +38,6 @@ import time
 import bpy
 import numpy as np
 
-
 #: Light-path limits `configure_cycles(bounces=None)` leaves at Blender's defaults.
 BOUNCE_SETTINGS = ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces",
                    "volume_bounces", "transparent_max_bounces")

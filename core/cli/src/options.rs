@@ -242,7 +242,13 @@ impl BakeOptions {
         let scale = match (self.resolution_scale, explicit) {
             (Some(f), _) => {
                 // Checked even at 1, so "--resolution-scale nan" never passes silently.
-                scale_resolution(Resolution { width: 1, height: 1 }, f)?;
+                scale_resolution(
+                    Resolution {
+                        width: 1,
+                        height: 1,
+                    },
+                    f,
+                )?;
                 f
             }
             (None, Some(_)) => 1.0,
@@ -351,8 +357,8 @@ mod tests {
                 "{}",
                 preset.name()
             );
-            let expected =
-                (v.resolution_scale != 1.0).then(|| scale_resolution(SCENE, v.resolution_scale).unwrap());
+            let expected = (v.resolution_scale != 1.0)
+                .then(|| scale_resolution(SCENE, v.resolution_scale).unwrap());
             assert_eq!(s.resolution, expected, "{}", preset.name());
         }
         assert_eq!(

@@ -306,7 +306,11 @@ fn tiny_stack(dir: &Path) -> (PathBuf, PathBuf) {
 /// The command failed with exit code 1 (an error, not a signal or a panic) and said `needle`.
 fn fails_saying(out: &Output, needle: &str) {
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "expected an error exit: {stderr}");
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "expected an error exit: {stderr}"
+    );
     assert!(stderr.contains(needle), "expected {needle:?} in: {stderr}");
 }
 
@@ -337,7 +341,10 @@ fn sizes_counts_and_threads_out_of_range_are_refused() {
     fails_saying(&bake(&["--spp", "0"]), "spp: must be ≥ 1");
     fails_saying(&bake(&["--passes", "0"]), "passes");
     fails_saying(&bake(&["--threads", "100000"]), "threads");
-    fails_saying(&bake(&["--memory-budget-mb", "1"]), "not enough memory for this bake");
+    fails_saying(
+        &bake(&["--memory-budget-mb", "1"]),
+        "not enough memory for this bake",
+    );
     assert!(!out_path.exists(), "a refused bake wrote a file");
 }
 
@@ -355,10 +362,20 @@ fn an_output_that_is_an_input_is_refused_and_the_input_survives() {
     );
     let spelled_otherwise = dir.join(".").join("tiny.exr");
     fails_saying(
-        &relume(&["relight", s(&stack), "-o", s(&dir.join("o.exr")), "--png", s(&spelled_otherwise)]),
+        &relume(&[
+            "relight",
+            s(&stack),
+            "-o",
+            s(&dir.join("o.exr")),
+            "--png",
+            s(&spelled_otherwise),
+        ]),
         "the stack",
     );
-    fails_saying(&relume(&["bake", s(&scene), "-o", s(&scene)]), "(the scene)");
+    fails_saying(
+        &relume(&["bake", s(&scene), "-o", s(&scene)]),
+        "(the scene)",
+    );
     assert_eq!(std::fs::read(&stack).unwrap(), stack_before);
     assert_eq!(std::fs::read(&scene).unwrap(), scene_before);
 }
@@ -408,7 +425,14 @@ fn the_command_line_refuses_the_materials_python_refuses() {
         .unwrap();
         let out_path = dir.join(format!("o{i}.exr"));
         fails_saying(
-            &relume(&["relight", s(&stack), "--materials", s(&mats), "-o", s(&out_path)]),
+            &relume(&[
+                "relight",
+                s(&stack),
+                "--materials",
+                s(&mats),
+                "-o",
+                s(&out_path),
+            ]),
             message,
         );
         assert!(!out_path.exists());

@@ -78,7 +78,8 @@ pub fn remove_stale_temp_files(path: &Path) -> usize {
         let Some(pid) = rest.split('-').next().and_then(|p| p.parse::<u32>().ok()) else {
             continue;
         };
-        if pid != std::process::id() && !process_alive(pid) && fs::remove_file(entry.path()).is_ok() {
+        if pid != std::process::id() && !process_alive(pid) && fs::remove_file(entry.path()).is_ok()
+        {
             removed += 1;
         }
     }

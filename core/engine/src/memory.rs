@@ -105,12 +105,13 @@ fn overflow(what: &str) -> RelumeError {
 /// allocator refuses (instead of aborting the process).
 pub fn try_with_capacity<T>(len: usize, what: &str) -> Result<Vec<T>> {
     let mut v = Vec::new();
-    v.try_reserve_exact(len).map_err(|_| RelumeError::OutOfMemory {
-        what: what.to_string(),
-        needed: (len as u64).saturating_mul(std::mem::size_of::<T>() as u64),
-        available: available_bytes().unwrap_or(0),
-        budget: false,
-    })?;
+    v.try_reserve_exact(len)
+        .map_err(|_| RelumeError::OutOfMemory {
+            what: what.to_string(),
+            needed: (len as u64).saturating_mul(std::mem::size_of::<T>() as u64),
+            available: available_bytes().unwrap_or(0),
+            budget: false,
+        })?;
     Ok(v)
 }
 
@@ -137,10 +138,7 @@ mod tests {
     #[test]
     fn an_impossible_allocation_is_an_error_not_an_abort() {
         let e = try_zeroed::<f32>(usize::MAX / 8, "a test buffer").unwrap_err();
-        assert!(
-            matches!(e, RelumeError::OutOfMemory { .. }),
-            "got {e}"
-        );
+        assert!(matches!(e, RelumeError::OutOfMemory { .. }), "got {e}");
         assert!(e.to_string().contains("a test buffer"), "{e}");
     }
 
@@ -155,7 +153,10 @@ mod tests {
     fn a_budget_refuses_what_exceeds_it_and_names_both_sizes() {
         let e = check_budget("the bake", 3 << 30, Some(1 << 30)).unwrap_err();
         let text = e.to_string();
-        assert!(text.contains("3.0 GiB") && text.contains("1.0 GiB"), "{text}");
+        assert!(
+            text.contains("3.0 GiB") && text.contains("1.0 GiB"),
+            "{text}"
+        );
         assert!(check_budget("the bake", 1 << 20, Some(1 << 30)).is_ok());
     }
 

@@ -51,11 +51,19 @@ fn a_stack_claiming_more_pixels_than_its_file_holds_is_refused_before_allocating
             "{w}×{h}: {e}"
         );
         assert!(e.to_string().contains("claims"), "{e}");
-        assert!(t.elapsed() < Duration::from_secs(1), "{w}×{h} took {:?}", t.elapsed());
+        assert!(
+            t.elapsed() < Duration::from_secs(1),
+            "{w}×{h} took {:?}",
+            t.elapsed()
+        );
     }
     // Beyond the largest side any stack may have: refused by the size rule itself.
     let hostile = dir.path().join("claims-huge.exr");
-    std::fs::write(&hostile, with_claimed_size(&bytes, 100_000, 100_000).unwrap()).unwrap();
+    std::fs::write(
+        &hostile,
+        with_claimed_size(&bytes, 100_000, 100_000).unwrap(),
+    )
+    .unwrap();
     let e = read_stack(&hostile).unwrap_err();
     assert!(e.to_string().contains("1…65536"), "{e}");
     // The untouched file still reads.
@@ -78,8 +86,14 @@ fn a_bake_over_its_memory_budget_is_refused_before_tracing_with_the_estimate() {
     )
     .unwrap_err();
     let text = e.to_string();
-    assert!(matches!(e, RelumeError::OutOfMemory { budget: true, .. }), "{text}");
-    assert!(text.contains("64×64") && text.contains("layers reached"), "{text}");
+    assert!(
+        matches!(e, RelumeError::OutOfMemory { budget: true, .. }),
+        "{text}"
+    );
+    assert!(
+        text.contains("64×64") && text.contains("layers reached"),
+        "{text}"
+    );
     assert!(text.contains("1.0 MiB"), "{text}");
     assert!(!progress.is_started(), "tracing started before the refusal");
     assert!(t.elapsed() < Duration::from_secs(5), "{:?}", t.elapsed());
@@ -105,14 +119,17 @@ fn the_estimate_counts_the_layers_the_bake_reaches() {
     );
     let stack_bytes = stack.sample_bytes() as f64;
     let ratio = est.stack_bytes as f64 / stack_bytes;
-    assert!((0.75..=1.25).contains(&ratio), "stack estimate / actual = {ratio}");
+    assert!(
+        (0.75..=1.25).contains(&ratio),
+        "stack estimate / actual = {ratio}"
+    );
 }
 
 #[test]
 fn the_translucent_header_round_trips_for_every_sample_count() {
     let mut scene = cornell(8);
-    scene.regions[1].material = relume_engine::brdf::MaterialSpec::Principled(
-        relume_engine::brdf::PrincipledMaterial {
+    scene.regions[1].material =
+        relume_engine::brdf::MaterialSpec::Principled(relume_engine::brdf::PrincipledMaterial {
             bsdf: relume_engine::brdf::Principled {
                 base_color: [0.8, 0.6, 0.5],
                 metallic: 0.0,
@@ -125,19 +142,14 @@ fn the_translucent_header_round_trips_for_every_sample_count() {
                 radius: [1.0, 0.5, 0.25],
                 scale: 0.05,
             },
-        },
-    );
+        });
     let mut settings = BakeSettings::default();
     let mut failures = Vec::new();
     for samples in 1_000..=4_194_304u32 {
         settings.subsurface_samples = samples;
-        let (cfg, _) = relume_engine::bake::subsurface::basis_config(
-            &scene,
-            1,
-            &scene.regions[1],
-            &settings,
-        )
-        .unwrap();
+        let (cfg, _) =
+            relume_engine::bake::subsurface::basis_config(&scene, 1, &scene.regions[1], &settings)
+                .unwrap();
         let json = serde_json::to_string(&cfg).unwrap();
         let back: relume_engine::bssrdf::basis::SssBasisConfig =
             serde_json::from_str(&json).unwrap();
@@ -145,7 +157,10 @@ fn the_translucent_header_round_trips_for_every_sample_count() {
             failures.push(samples);
         }
     }
-    assert!(failures.is_empty(), "no exact round trip for samples {failures:?}");
+    assert!(
+        failures.is_empty(),
+        "no exact round trip for samples {failures:?}"
+    );
 }
 
 /// A bake long enough that each stage lasts a noticeable time in a debug build.
@@ -184,9 +199,15 @@ fn a_cancel_holds_at_every_stage_and_leaves_the_previous_stack_intact() {
     ] {
         let progress = Arc::new(Progress::new());
         let job = {
-            let (scene, settings, path, progress) =
-                (scene.clone(), settings.clone(), path.clone(), progress.clone());
-            std::thread::spawn(move || bake_to_file(&scene, &settings, 1, &path, &progress, |_, _| {}))
+            let (scene, settings, path, progress) = (
+                scene.clone(),
+                settings.clone(),
+                path.clone(),
+                progress.clone(),
+            );
+            std::thread::spawn(move || {
+                bake_to_file(&scene, &settings, 1, &path, &progress, |_, _| {})
+            })
         };
         // Cancel as soon as the bake reaches the stage.
         let deadline = Instant::now() + Duration::from_secs(300);
@@ -204,9 +225,20 @@ fn a_cancel_holds_at_every_stage_and_leaves_the_previous_stack_intact() {
             Err(e) => panic!("{stage:?}: cancel gave another error: {e}"),
             Ok(_) => panic!("{stage:?}: a cancel during the stage returned a success"),
         }
-        assert!(took < Duration::from_secs(1), "{stage:?}: the cancel took {took:?}");
-        assert_eq!(std::fs::read(&path).unwrap(), before, "{stage:?}: the stack changed");
-        eprintln!("cancel at {}: returned after {:.0} ms", stage.name(), took.as_secs_f64() * 1e3);
+        assert!(
+            took < Duration::from_secs(1),
+            "{stage:?}: the cancel took {took:?}"
+        );
+        assert_eq!(
+            std::fs::read(&path).unwrap(),
+            before,
+            "{stage:?}: the stack changed"
+        );
+        eprintln!(
+            "cancel at {}: returned after {:.0} ms",
+            stage.name(),
+            took.as_secs_f64() * 1e3
+        );
     }
     let leftovers: Vec<_> = std::fs::read_dir(dir.path())
         .unwrap()
@@ -241,16 +273,37 @@ fn temp_files_of_dead_writers_are_removed_by_the_next_write() {
 fn bad_settings_are_refused_with_the_field_named() {
     let scene = cornell(8);
     let cases: [(BakeSettings, &str); 4] = [
-        (BakeSettings { spp: 0, ..BakeSettings::default() }, "spp"),
-        (BakeSettings { threads: 100_000, ..BakeSettings::default() }, "threads"),
         (
             BakeSettings {
-                resolution: Some(relume_engine::scene::Resolution { width: 100_000, height: 100_000 }),
+                spp: 0,
+                ..BakeSettings::default()
+            },
+            "spp",
+        ),
+        (
+            BakeSettings {
+                threads: 100_000,
+                ..BakeSettings::default()
+            },
+            "threads",
+        ),
+        (
+            BakeSettings {
+                resolution: Some(relume_engine::scene::Resolution {
+                    width: 100_000,
+                    height: 100_000,
+                }),
                 ..BakeSettings::default()
             },
             "resolution",
         ),
-        (BakeSettings { drop_budget: f32::NAN, ..BakeSettings::default() }, "drop budget"),
+        (
+            BakeSettings {
+                drop_budget: f32::NAN,
+                ..BakeSettings::default()
+            },
+            "drop budget",
+        ),
     ];
     for (settings, field) in cases {
         let e = bake(&scene, &settings, &Progress::new()).unwrap_err();

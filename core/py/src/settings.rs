@@ -243,8 +243,11 @@ impl BakeSettings {
                     None
                 } else {
                     let x = finite(field, v)?;
-                    if !(x > 0.0) {
-                        return Err(bad(field, format!("{x} (MiB, must be > 0; None: 80 % of the available memory)")));
+                    if x <= 0.0 {
+                        return Err(bad(
+                            field,
+                            format!("{x} (MiB, must be > 0; None: 80 % of the available memory)"),
+                        ));
                     }
                     Some((x * 1024.0 * 1024.0) as u64)
                 }

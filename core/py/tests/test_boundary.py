@@ -208,7 +208,8 @@ def test_python_refuses_materials_in_the_command_lines_words(tmp_path, small_cor
     rel = relume.Relighter(relume.Stack.load(str(path)), "cpu")
     cases = [
         (lambda: rel.set_material("Object", 0.75, 0.5, 10.0),
-         'invalid region "Object".kd + ks: Kd + Ks = 1.25 > 1 in channel 0: the surface would reflect more light than it receives'),
+         'invalid region "Object".kd + ks: Kd + Ks = 1.25 > 1 in channel 0: '
+         'the surface would reflect more light than it receives'),
         (lambda: rel.set_material("Object", 0.2, 0.1, 0.0),
          'invalid region "Object".ns: the Blinn–Phong exponent must be finite and > 0, got 0'),
         (lambda: rel.set_material("Object", (-0.1, 0.2, 0.2), 0.1, 5.0),

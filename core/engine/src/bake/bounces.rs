@@ -116,6 +116,7 @@ fn row(ctx: &BakeContext, cap: u32, gx: u32, gy: u32, y: u32) -> Vec<f64> {
             let (mut origin, mut dir) = ctx.camera.ray(px as f32 + jx, py as f32 + jy);
             let mut throughput = Rgb::ONE;
             let mut tmax = ctx.clip_end;
+            #[allow(clippy::needless_range_loop)] // `bounce` also counts the path's length
             for bounce in 0..=cap as usize {
                 let Some(hit) = tracer.intersect(ctx, origin, dir, 0.0, tmax) else {
                     break;

@@ -152,7 +152,8 @@ pub fn estimate(ctx: &BakeContext, scene: &Scene, passes: usize) -> BakeEstimate
         Precision::F32 => 4,
     };
     let stack_bytes = px * (layers_grey as u64 + 3 * layers_rgb as u64) * sample;
-    let denoising = ctx.settings.denoise.direct_iterations + ctx.settings.denoise.bounce_iterations > 0;
+    let denoising =
+        ctx.settings.denoise.direct_iterations + ctx.settings.denoise.bounce_iterations > 0;
     // The denoiser's 25 weights per pixel and one output copy per worker.
     let denoise = if denoising {
         px * 25 * 4 + threads * px * 12

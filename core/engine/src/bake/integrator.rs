@@ -448,10 +448,7 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
     let mut dir = dir;
     let mut any = false;
     let mut bounce = 2u32;
-    loop {
-        let Some(hit) = tracer.intersect(ctx, origin, dir, 0.0, f32::INFINITY) else {
-            break;
-        };
+    while let Some(hit) = tracer.intersect(ctx, origin, dir, 0.0, f32::INFINITY) {
         let wo = -dir;
         let (_, c) = direct_light(
             ctx,

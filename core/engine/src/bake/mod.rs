@@ -236,7 +236,8 @@ pub fn bake_progressive(
         "the denoiser's per-pixel features",
         &[width as u64, height as u64, denoise::FEATURE_STRIDE as u64],
     )? as usize;
-    let mut feature_store = crate::memory::try_with_capacity(feature_len, "the denoiser's per-pixel features")?;
+    let mut feature_store =
+        crate::memory::try_with_capacity(feature_len, "the denoiser's per-pixel features")?;
     for _ in 0..width * height {
         feature_store.extend_from_slice(&denoise::EyeFeatures::EMPTY);
     }
@@ -290,7 +291,11 @@ pub fn bake_progressive(
                 }
             },
         )?;
-        if let Some(e) = alloc_failure.lock().unwrap_or_else(|e| e.into_inner()).take() {
+        if let Some(e) = alloc_failure
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .take()
+        {
             return Err(e);
         }
         done = upto;
@@ -541,18 +546,24 @@ fn assemble(
         settings.drop_budget as f64,
     );
     progress.check()?;
-    let mut layers: Vec<Layer> = pool.install(|| {
-        kept.into_par_iter()
-            .map(|l| {
-                if progress.is_cancelled() {
-                    None
-                } else {
-                    Some(Layer::from_f32(l.key, l.channels, &l.data, settings.precision))
-                }
-            })
-            .collect::<Option<Vec<Layer>>>()
-    })
-    .ok_or(crate::RelumeError::Cancelled)?;
+    let mut layers: Vec<Layer> = pool
+        .install(|| {
+            kept.into_par_iter()
+                .map(|l| {
+                    if progress.is_cancelled() {
+                        None
+                    } else {
+                        Some(Layer::from_f32(
+                            l.key,
+                            l.channels,
+                            &l.data,
+                            settings.precision,
+                        ))
+                    }
+                })
+                .collect::<Option<Vec<Layer>>>()
+        })
+        .ok_or(crate::RelumeError::Cancelled)?;
     let grey = layers.iter().filter(|l| l.channels == 1).count();
     let rgb = layers.len() - grey;
     if layers.is_empty() {

@@ -224,10 +224,7 @@ impl BakeSettings {
             ("denoise bounce iterations", self.denoise.bounce_iterations),
         ] {
             if n > MAX_DENOISE_ITERATIONS {
-                return bad(
-                    what,
-                    format!("{n} asked; at most {MAX_DENOISE_ITERATIONS}"),
-                );
+                return bad(what, format!("{n} asked; at most {MAX_DENOISE_ITERATIONS}"));
             }
         }
         if self.memory_budget == Some(0) {

@@ -223,7 +223,10 @@ struct CancellableWriter<'a, W> {
 impl<W> CancellableWriter<'_, W> {
     fn check(&self) -> std::io::Result<()> {
         if self.progress.is_cancelled() {
-            Err(std::io::Error::new(std::io::ErrorKind::Interrupted, CANCELLED_WRITE))
+            Err(std::io::Error::new(
+                std::io::ErrorKind::Interrupted,
+                CANCELLED_WRITE,
+            ))
         } else {
             Ok(())
         }
@@ -332,10 +335,7 @@ pub fn write_stack_cancellable(
     write_atomic_checked(
         path,
         |w| {
-            let writer = CancellableWriter {
-                inner: w,
-                progress,
-            };
+            let writer = CancellableWriter { inner: w, progress };
             image.write().to_buffered(writer).map_err(|e| match e {
                 _ if progress.is_cancelled() => RelumeError::Cancelled,
                 x::Error::Io(io) => RelumeError::io(path, io),
@@ -593,7 +593,8 @@ pub fn read_stack(path: &Path) -> Result<TransferStack> {
         .ok_or_else(|| format_err(path, "the file has no part"))?;
 
     let pixels = header.width as usize * header.height as usize;
-    let mut layers: Vec<Layer> = crate::memory::try_with_capacity(entries.len(), "the stack's layers")?;
+    let mut layers: Vec<Layer> =
+        crate::memory::try_with_capacity(entries.len(), "the stack's layers")?;
     for (e, key) in entries.iter().zip(keys) {
         let n = pixels * e.channels as usize;
         let what = "a layer of the stack";
