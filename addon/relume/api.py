@@ -76,6 +76,9 @@ def bake_settings(context=None):
         bounces = int(prefs.bounces)
     common = {"bounces": bounces, "passes": int(prefs.passes),
               "light_grouping": GROUPING_OF_PREF[prefs.light_groups]}
+    budget = float(getattr(prefs, "memory_budget_mb", 0.0))
+    if budget > 0.0:
+        common["memory_budget_mb"] = budget
     preset = getattr(relume.BakeSettings, "preset", None)
     if prefs.preset != "custom" and preset is not None:
         return preset(prefs.preset, **common)

@@ -48,6 +48,10 @@ class RelumePreferences(bpy.types.AddonPreferences):
     basis_tolerance: FloatProperty(name="Basis Tolerance", min=1e-4, max=0.5, default=0.03,
                                    description="Largest relative L2 error of the BRDF basis "
                                                "(sets the number of basis BRDFs)")
+    memory_budget_mb: FloatProperty(
+        name="Memory Budget (MiB)", min=0.0, default=0.0,
+        description="Memory a bake may plan to use at its peak; a bake whose estimate exceeds it is refused "
+                    "before it starts. 0: 80 % of the memory available when the bake starts")
     passes: IntProperty(name="Passes", min=1, max=16, default=1,
                         description="Progressive passes: a complete stack after each, so the "
                                     "image appears early and cleans up")
@@ -81,6 +85,7 @@ class RelumePreferences(bpy.types.AddonPreferences):
         row.enabled = not self.bounces_from_scene
         row.prop(self, "bounces")
         col.prop(self, "passes")
+        col.prop(self, "memory_budget_mb")
         col.prop(self, "resolution_scale")
         col.prop(self, "device")
         col.prop(self, "light_groups")

@@ -303,3 +303,38 @@ pub fn bake<'py>(
     }
     job.result(py)
 }
+
+/// The memory forecast of a bake with these settings, without baking (validation, bases,
+/// BVH and a probe trace: about a second): a dict with the layers possible and reached, the
+/// forecast peak and stack bytes, and `budget_bytes` (what a bake may use here; None when
+/// unknown). A bake whose `peak_bytes` exceeds `budget_bytes` is refused with
+/// `OutOfMemoryError`.
+#[pyfunction]
+pub fn estimate_bake<'py>(
+    py: Python<'py>,
+    scene: PyRef<'_, Scene>,
+    settings: PyRef<'_, BakeSettings>,
+) -> PyResult<Bound<'py, PyAny>> {
+    guard(py, "estimate_bake", || {
+        let scene = scene.snapshot();
+        let engine_settings = settings
+            .for_scene(scene.resolution)
+            .map_err(|e| engine_err(py, &e))?;
+        let passes = settings.passes as usize;
+        let estimate = py
+            .detach(|| {
+                relume_engine::bake::estimate::estimate_bake(
+                    &scene,
+                    &engine_settings,
+                    passes,
+                    &Progress::new(),
+                )
+            })
+            .map_err(|e| engine_err(py, &e))?;
+        let mut value = serde_json::to_value(&estimate)
+            .map_err(|e| new_err(py, "InternalError", e.to_string()))?;
+        value["budget_bytes"] =
+            json!(relume_engine::memory::budget_bytes(engine_settings.memory_budget));
+        crate::json::to_py(py, &value)
+    })
+}

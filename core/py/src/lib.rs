@@ -68,6 +68,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<stack::Stack>()?;
     m.add_class::<relighter::Relighter>()?;
     m.add_function(wrap_pyfunction!(job::bake, m)?)?;
+    m.add_function(wrap_pyfunction!(job::estimate_bake, m)?)?;
     m.add_function(wrap_pyfunction!(materials::principled_to_blinn_phong, m)?)?;
     m.add_function(wrap_pyfunction!(images::write_exr, m)?)?;
     m.add_function(wrap_pyfunction!(images::write_png, m)?)?;

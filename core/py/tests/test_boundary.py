@@ -225,3 +225,10 @@ def test_python_refuses_materials_in_the_command_lines_words(tmp_path, small_cor
         with pytest.raises(relume.MaterialsError) as info:
             call()
         assert str(info.value) == message
+
+
+def test_the_estimate_is_available_before_baking(small_cornell):
+    est = relume.estimate_bake(small_cornell, relume.BakeSettings(spp=1, light_samples=1))
+    assert 0 < est["layers_reached"] <= est["layers_possible"]
+    assert est["peak_bytes"] > est["stack_bytes"] > 0
+    assert est["width"] == 32 and est["height"] == 32

@@ -26,6 +26,10 @@ pub struct Args {
     /// Print one JSON summary on stdout.
     #[arg(long)]
     pub json: bool,
+    /// Print the bake's memory forecast (layers reached by a probe trace, peak and stack
+    /// bytes, the budget) and exit without baking.
+    #[arg(long)]
+    pub estimate_only: bool,
 }
 
 pub fn run(args: Args) -> Result<(), RelumeError> {
@@ -34,7 +38,24 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
         &[(&args.scene, "the scene")],
     )?;
     let scene = load_scene(&args.scene)?;
+    let rss_before_bake = relume_engine::memory::current_rss_bytes();
     let settings = args.options.settings(scene.resolution)?;
+    if args.estimate_only {
+        let estimate = relume_engine::bake::estimate::estimate_bake(
+            &scene,
+            &settings,
+            args.passes as usize,
+            &relume_engine::bake::progress::Progress::new(),
+        )?;
+        let budget = relume_engine::memory::budget_bytes(settings.memory_budget);
+        super::print_json(&json!({
+            "command": "bake --estimate-only",
+            "estimate": estimate,
+            "budget_bytes": budget,
+            "fits": budget.is_none_or(|b| estimate.peak_bytes <= b),
+        }));
+        return Ok(());
+    }
     let output = args.output.clone();
     let quiet = args.json;
     let passes = args.passes;
@@ -69,10 +90,21 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
             "layers": stack.layers.len(),
             "passes": pass_reports,
             "report": report,
+            "rss_before_bake_bytes": rss_before_bake,
+            "peak_rss_bytes": relume_engine::memory::peak_rss_bytes(),
         }));
     } else {
         for w in &report.warnings {
             eprintln!("warning: {w}");
+        }
+        if let Some(e) = &report.estimate {
+            eprintln!(
+                "estimate before the bake: {} of {} possible layers, peak {}, stack {}",
+                e.layers_reached,
+                e.layers_possible,
+                relume_engine::memory::human_bytes(e.peak_bytes),
+                relume_engine::memory::human_bytes(e.stack_bytes)
+            );
         }
         println!(
             "baked {}×{} in {:.2} s ({:.2} Mrays/s): {} layers ({} grey, {} RGB, {} empty dropped), {:.1} MB → {}",

@@ -184,3 +184,18 @@ pub fn estimate(ctx: &BakeContext, scene: &Scene, passes: usize) -> BakeEstimate
         stack_bytes,
     }
 }
+
+/// The forecast of a bake of `scene` with `settings` in `passes` passes, without baking:
+/// validation, bases, BVH, subsurface samples and the probe (a second or so), for a
+/// front end to show before the user commits to a bake. The budget is not applied here;
+/// compare `peak_bytes` with [`crate::memory::budget_bytes`].
+pub fn estimate_bake(
+    scene: &Scene,
+    settings: &crate::bake::BakeSettings,
+    passes: usize,
+    progress: &crate::bake::progress::Progress,
+) -> crate::Result<BakeEstimate> {
+    settings.validate()?;
+    let (ctx, _) = BakeContext::prepare(scene, settings, progress)?;
+    Ok(estimate(&ctx, scene, passes.max(1)))
+}
