@@ -333,8 +333,9 @@ pub fn estimate_bake<'py>(
             .map_err(|e| engine_err(py, &e))?;
         let mut value = serde_json::to_value(&estimate)
             .map_err(|e| new_err(py, "InternalError", e.to_string()))?;
-        value["budget_bytes"] =
-            json!(relume_engine::memory::budget_bytes(engine_settings.memory_budget));
+        value["budget_bytes"] = json!(relume_engine::memory::budget_bytes(
+            engine_settings.memory_budget
+        ));
         crate::json::to_py(py, &value)
     })
 }
