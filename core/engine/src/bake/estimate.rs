@@ -17,12 +17,21 @@ use serde::Serialize;
 use super::context::BakeContext;
 use super::integrator::{trace_eye_sample, CountingTracer, PathSink};
 use super::vertex_brdf::BasisBrdf;
-use crate::scene::Scene;
+use crate::scene::{validate::ValidationReport, Scene};
 use crate::stack::Precision;
 use crate::Rgb;
 
-/// Pixels the probe traces at most (one eye sample each, on a regular grid).
+/// Pixels the probe traces at most (on a regular grid).
 pub const PROBE_PIXELS: u64 = 16_384;
+
+/// Eye samples the probe traces per pixel: fewer missed layers that only a few strata of
+/// the stratified numbers reach (on the assets scenes 8 saw every layer the bake reached,
+/// 1 missed up to a fifth of them; docs/reliability.md).
+const PROBE_SAMPLES: u32 = 8;
+
+/// The probe's pixels spread their samples over this many first samples of the sequence.
+const PROBE_SAMPLE_SPAN: u64 = 64;
+
 
 /// A bake's forecast cost, printed before it starts (CLI `--json`, Python, the add-on).
 #[derive(Clone, Debug, Serialize, PartialEq)]
@@ -31,7 +40,13 @@ pub struct BakeEstimate {
     pub height: u32,
     /// Layers the slots and light groups allow.
     pub layers_possible: usize,
-    /// Layers the probe's paths reached: the bake's accumulators.
+    /// Layers the probe's paths reached.
+    pub layers_seen: usize,
+    /// Layers the bake is expected to reach (its accumulators): those the probe saw. A layer
+    /// that only rare paths reach can be missed (the bake then needs more than forecast);
+    /// an extrapolation of unseen layers from the rarely seen ones (Chao's estimator) was
+    /// tried and overshot, because layers come in correlated blocks (every basis pair of a
+    /// region pair at once).
     pub layers_reached: usize,
     /// Of those, layers whose probe samples carried colour (stored RGB; the rest grey).
     pub layers_rgb: usize,
@@ -39,6 +54,8 @@ pub struct BakeEstimate {
     pub probe_pixels: u64,
     /// Bytes of the per-layer f32 RGB accumulators (the bake's largest allocation).
     pub accumulator_bytes: u64,
+    /// Bytes the prepared scene holds (geometry, BVH, textures, environment, subsurface).
+    pub prepared_bytes: u64,
     /// Forecast peak of the bake's own allocations (accumulators, per-pixel features, tile
     /// buffers, geometry, assembly and write copies), in bytes.
     pub peak_bytes: u64,
@@ -47,7 +64,7 @@ pub struct BakeEstimate {
     pub stack_bytes: u64,
 }
 
-/// Records which layers a probe path reaches and whether its values carry colour.
+/// Records which layers a probe pixel's paths reach and whether their values carry colour.
 struct ProbeSink<'a> {
     reached: &'a mut [bool],
     rgb: &'a mut [bool],
@@ -65,6 +82,7 @@ impl ProbeSink<'_> {
         }
     }
 }
+
 
 impl PathSink for ProbeSink<'_> {
     fn world(&mut self, group: usize, v: Rgb) {
@@ -89,48 +107,70 @@ const BYTES_PER_TRIANGLE: u64 = 160;
 
 /// Traces the probe over `ctx` and forecasts the bake's memory for `passes` progressive
 /// passes (a progressive bake keeps its sums while it hands each pass's stack out).
-pub fn estimate(ctx: &BakeContext, scene: &Scene, passes: usize) -> BakeEstimate {
+/// `prepared_bytes`: what preparing `ctx` took (geometry, BVH, textures, environment,
+/// subsurface samples), measured by the caller where the OS tells ([`prepare_measured`]);
+/// `None` falls back to a per-triangle allowance.
+pub fn estimate(
+    ctx: &BakeContext,
+    scene: &Scene,
+    passes: usize,
+    prepared_bytes: Option<u64>,
+) -> BakeEstimate {
     let res = ctx.resolution;
     let pixels = res.width as u64 * res.height as u64;
     let layers = ctx.layer_count();
-    let mut reached = vec![false; layers];
+    let mut counts = vec![0u32; layers];
     let mut rgb = vec![false; layers];
     let stride = ((pixels as f64 / PROBE_PIXELS as f64).sqrt().ceil() as u32).max(1);
     let brdf = BasisBrdf { ctx };
     // Offset by half a stride so the grid samples the frame's inside, not its edge.
     let rows: Vec<u32> = (stride / 2..res.height).step_by(stride as usize).collect();
-    let per_row: Vec<(Vec<bool>, Vec<bool>, u64)> = rows
+    let per_row: Vec<(Vec<u32>, Vec<bool>, u64)> = rows
         .par_iter()
         .map(|&y| {
+            let mut counts = vec![0u32; layers];
             let mut reached = vec![false; layers];
             let mut rgb = vec![false; layers];
             let mut tracer = CountingTracer::default();
             let mut n = 0;
-            let mut sink = ProbeSink {
-                reached: &mut reached,
-                rgb: &mut rgb,
-                slots: ctx.slot_count(),
-                per_group: ctx.layers_per_group(),
-            };
             for x in (stride / 2..res.width).step_by(stride as usize) {
-                trace_eye_sample(ctx, &brdf, &mut sink, &mut tracer, x, y, 0);
+                reached.fill(false);
+                let mut sink = ProbeSink {
+                    reached: &mut reached,
+                    rgb: &mut rgb,
+                    slots: ctx.slot_count(),
+                    per_group: ctx.layers_per_group(),
+                };
+                // Pixels take turns through the first samples of the sequence: a layer that
+                // only some strata of the stratified numbers reach is still seen.
+                let cell = (x / stride) as u64 + 7919 * (y / stride) as u64;
+                for k in 0..PROBE_SAMPLES {
+                    let sample = ((cell * PROBE_SAMPLES as u64 + k as u64) % PROBE_SAMPLE_SPAN) as u32;
+                    trace_eye_sample(ctx, &brdf, &mut sink, &mut tracer, x, y, sample);
+                }
+                for (c, r) in counts.iter_mut().zip(&reached) {
+                    *c += u32::from(*r);
+                }
                 n += 1;
             }
-            (reached, rgb, n)
+            (counts, rgb, n)
         })
         .collect();
     let mut probe_pixels = 0u64;
-    for (r, c, n) in per_row {
+    for (k, c, n) in per_row {
         probe_pixels += n;
-        for (a, b) in reached.iter_mut().zip(r) {
-            *a |= b;
+        for (a, b) in counts.iter_mut().zip(k) {
+            *a += b;
         }
         for (a, b) in rgb.iter_mut().zip(c) {
             *a |= b;
         }
     }
-    let layers_reached = reached.iter().filter(|r| **r).count().max(1);
-    let layers_rgb = rgb.iter().filter(|r| **r).count();
+    let layers_seen = counts.iter().filter(|c| **c > 0).count().max(1);
+    let layers_reached = layers_seen;
+    // Layers the probe did not see take the seen layers' share of colour.
+    let rgb_seen = rgb.iter().filter(|r| **r).count();
+    let layers_rgb = ((rgb_seen as f64 / layers_seen as f64) * layers_reached as f64).round() as usize;
     let layers_grey = layers_reached - layers_rgb.min(layers_reached);
     let threads = if ctx.settings.threads == 0 {
         std::thread::available_parallelism().map_or(1, |n| n.get())
@@ -144,7 +184,7 @@ pub fn estimate(ctx: &BakeContext, scene: &Scene, passes: usize) -> BakeEstimate
     let features = px * super::denoise::FEATURE_STRIDE as u64 * 4;
     let tile_px = (super::tiles::TILE * super::tiles::TILE) as u64;
     let tile_buffers = threads * layers as u64 * tile_px * 12;
-    let geometry = scene.triangle_count() as u64 * BYTES_PER_TRIANGLE;
+    let geometry = (scene.triangle_count() as u64 * BYTES_PER_TRIANGLE).max(prepared_bytes.unwrap_or(0));
     // Averaged layers: grey ones one channel, the rest three, f32.
     let raw = px * (layers_grey as u64 * 4 + layers_rgb as u64 * 12);
     let sample = match ctx.settings.precision {
@@ -160,26 +200,33 @@ pub fn estimate(ctx: &BakeContext, scene: &Scene, passes: usize) -> BakeEstimate
     } else {
         0
     };
-    // Tracing: accumulators, features, tile buffers. Later passes of a progressive bake also
-    // keep the accumulators while the averaged layers exist.
+    // Tracing: accumulators, features, tile buffers.
     let tracing = accumulator_bytes + features + tile_buffers;
-    let assembly = if passes > 1 {
-        accumulator_bytes + features + raw + denoise
+    // Assembly and finishing: the last pass averages each accumulator in place (a
+    // progressive bake's earlier passes copy them), then the stored-precision layers are made
+    // while the averaged ones still hold their memory: the allocator keeps layer-sized blocks
+    // it has freed for reuse rather than giving them back, so the resident peak is close to
+    // their sum.
+    let averaged = if passes > 1 {
+        accumulator_bytes + raw
     } else {
-        // The last pass averages each accumulator in place.
-        accumulator_bytes.max(raw + denoise) + features
+        accumulator_bytes.max(raw + stack_bytes)
     };
-    // Writing: the stack, the file's de-interleaved channels, compression buffers.
+    let assembly = averaged + features + denoise;
+    // Writing: the stack and the file's de-interleaved channels (reusing freed blocks when
+    // the averaged layers were larger).
     let write = stack_bytes * 2 + if passes > 1 { accumulator_bytes } else { 0 };
     let peak_bytes = geometry + tracing.max(assembly).max(write);
     BakeEstimate {
         width: res.width,
         height: res.height,
         layers_possible: layers,
+        layers_seen,
         layers_reached,
         layers_rgb,
         probe_pixels,
         accumulator_bytes,
+        prepared_bytes: geometry,
         peak_bytes,
         stack_bytes,
     }
@@ -196,6 +243,23 @@ pub fn estimate_bake(
     progress: &crate::bake::progress::Progress,
 ) -> crate::Result<BakeEstimate> {
     settings.validate()?;
-    let (ctx, _) = BakeContext::prepare(scene, settings, progress)?;
-    Ok(estimate(&ctx, scene, passes.max(1)))
+    let (ctx, _, prepared) = prepare_measured(scene, settings, progress)?;
+    Ok(estimate(&ctx, scene, passes.max(1), prepared))
+}
+
+/// [`BakeContext::prepare`], and the growth of this process's resident memory while it ran
+/// (`None` where the OS does not tell, or when other threads freed more than it took).
+pub fn prepare_measured(
+    scene: &Scene,
+    settings: &crate::bake::BakeSettings,
+    progress: &crate::bake::progress::Progress,
+) -> crate::Result<(BakeContext, ValidationReport, Option<u64>)> {
+    let before = crate::memory::current_rss_bytes();
+    let (ctx, report) = BakeContext::prepare(scene, settings, progress)?;
+    let after = crate::memory::current_rss_bytes();
+    let grown = match (before, after) {
+        (Some(b), Some(a)) if a > b => Some(a - b),
+        _ => None,
+    };
+    Ok((ctx, report, grown))
 }

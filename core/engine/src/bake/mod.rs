@@ -209,10 +209,10 @@ pub fn bake_progressive(
     progress.set_stage(Stage::Setup);
     let mut settings = settings.clone();
     settings.spp = *passes.last().unwrap_or(&1);
-    let (mut ctx, validation) = BakeContext::prepare(scene, &settings, progress)?;
+    let (mut ctx, validation, prepared) = estimate::prepare_measured(scene, &settings, progress)?;
     // The forecast and the budget come before the guide pass and the trace, so a bake that
     // cannot fit is refused in a second, not after minutes of tracing.
-    let forecast = estimate::estimate(&ctx, scene, passes.len());
+    let forecast = estimate::estimate(&ctx, scene, passes.len(), prepared);
     crate::memory::check_budget(
         &format!(
             "this bake ({}×{}, {} of {} possible layers reached by a probe; stack ≈ {})",
