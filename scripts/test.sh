@@ -24,11 +24,11 @@ elif command -v apt-get >/dev/null && [ "$(id -u)" = 0 ] \
 else
     echo "mesa-vulkan-drivers: could not be installed (no apt, not root, or no network): GPU tests will skip"
 fi
-echo "== Python packages (bpy 5.0.1, pytest, maturin)"
+echo "== Python packages (bpy 5.0.1, pytest, maturin, openjd-cli)"
 PYTHON="${PYTHON:-python3}"
-"$PYTHON" - <<'PY' || "$PYTHON" -m pip install --quiet --disable-pip-version-check "bpy==5.0.1" "pytest>=7" "maturin>=1.16,<2"
+"$PYTHON" - <<'PY' || "$PYTHON" -m pip install --quiet --disable-pip-version-check "bpy==5.0.1" "pytest>=7" "maturin>=1.16,<2" "openjd-cli>=0.8"
 import importlib.util, sys
-missing = [m for m in ("bpy", "pytest", "maturin") if importlib.util.find_spec(m) is None]
+missing = [m for m in ("bpy", "pytest", "maturin", "openjd") if importlib.util.find_spec(m) is None]
 sys.exit(1 if missing else 0)
 PY
 status=0

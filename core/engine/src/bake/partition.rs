@@ -260,7 +260,11 @@ pub fn check_parts(parts: &[(PathBuf, PartialHeader)]) -> Result<Vec<usize>> {
             })
             .map(|i| format!("{i}/{n}"))
             .collect();
-        format!("partition {} of a split in {n}", list.join(", "))
+        if list.len() == 1 {
+            format!("partition {}", list[0])
+        } else {
+            format!("partitions {}", list.join(", "))
+        }
     };
     let mut next = 0u32;
     let mut prev: Option<usize> = None;
