@@ -28,7 +28,7 @@ echo "== Python packages (bpy 5.0.1, pytest, maturin, openjd-cli)"
 PYTHON="${PYTHON:-python3}"
 "$PYTHON" - <<'PY' || "$PYTHON" -m pip install --quiet --disable-pip-version-check "bpy==5.0.1" "pytest>=7" "maturin>=1.16,<2" "openjd-cli>=0.8"
 import importlib.util, sys
-missing = [m for m in ("bpy", "pytest", "maturin", "openjd") if importlib.util.find_spec(m) is None]
+missing = [m for m in ("bpy", "pytest", "maturin", "openjd.cli") if importlib.util.find_spec(m) is None]
 sys.exit(1 if missing else 0)
 PY
 status=0

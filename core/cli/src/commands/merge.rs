@@ -5,10 +5,10 @@
 
 use std::path::PathBuf;
 
-use relume_engine::bake::partition::merge;
+use relume_engine::bake::partition::merge_files;
 use relume_engine::scene::file::load_scene;
 use relume_engine::stack::exr_file::write_stack_cancellable;
-use relume_engine::stack::partial::read_partial;
+use relume_engine::stack::partial::read_partial_header;
 use relume_engine::RelumeError;
 use serde_json::json;
 
@@ -38,13 +38,10 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
     let inputs: Vec<(&std::path::Path, &str)> =
         args.parts.iter().map(|p| (p.as_path(), "a partial stack")).collect();
     relume_engine::output_path::refuse_output_over_inputs(&args.output, &inputs)?;
-    let mut parts = Vec::with_capacity(args.parts.len());
-    for p in &args.parts {
-        parts.push((p.clone(), read_partial(p)?));
-    }
-    let scene_path = match (&args.scene, parts.first()) {
+    let first = args.parts.first().map(|p| read_partial_header(p)).transpose()?;
+    let scene_path = match (&args.scene, first) {
         (Some(s), _) => s.clone(),
-        (None, Some((_, part))) => part.header.scene_path.clone().ok_or_else(|| {
+        (None, Some(header)) => header.scene_path.clone().ok_or_else(|| {
             RelumeError::invalid("--scene", "the parts record no scene file: give --scene")
         })?,
         (None, None) => return Err(RelumeError::invalid("partial stacks", "none given")),
@@ -52,9 +49,10 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
     let scene = load_scene(&scene_path)?;
     let output = args.output.clone();
     let threads = args.threads;
-    let count = parts.len();
+    let count = args.parts.len();
+    let paths = args.parts.clone();
     let (stack, report, bytes) = with_progress("merging", move |p| {
-        let (stack, report) = merge(&scene, parts, threads, &p)?;
+        let (stack, report) = merge_files(&scene, &paths, threads, &p)?;
         let bytes = write_stack_cancellable(&output, &stack, &p)?;
         Ok::<_, RelumeError>((stack, report, bytes))
     })?;

@@ -305,16 +305,50 @@ pub fn check_parts(parts: &[(PathBuf, PartialHeader)]) -> Result<Vec<usize>> {
 /// Merges the partial stacks of one bake of `scene` (read from the paths beside them) into
 /// the stack a one-machine bake with the same settings makes, bit for bit: checks
 /// ([`check_parts`], and the scene's hash), sums in the canonical tree, finalises.
-/// `threads` (0: all cores) and `memory_budget` are the merge machine's.
+/// `threads` (0: all cores) are the merge machine's. All parts in memory: see
+/// [`merge_files`] for the streaming form.
 pub fn merge(
     scene: &Scene,
     parts: Vec<(PathBuf, PartialStack)>,
     threads: usize,
     progress: &Progress,
 ) -> Result<(TransferStack, BakeReport)> {
-    let start = Instant::now();
     let headers: Vec<(PathBuf, PartialHeader)> =
         parts.iter().map(|(p, s)| (p.clone(), s.header.clone())).collect();
+    let mut slots: Vec<Option<PartialStack>> = parts.into_iter().map(|(_, s)| Some(s)).collect();
+    merge_with(scene, headers, |i| Ok(slots[i].take().expect("each part once")), threads, progress)
+}
+
+/// [`merge`] of partial stack files: every header is checked first, then the parts are read
+/// one at a time in sample order and folded in as they come, so the merge holds at most
+/// ≈ log2(parts) + 1 blocks of sums (one, two… full-frame stacks of f32), not every part.
+pub fn merge_files(
+    scene: &Scene,
+    paths: &[PathBuf],
+    threads: usize,
+    progress: &Progress,
+) -> Result<(TransferStack, BakeReport)> {
+    let headers = paths
+        .iter()
+        .map(|p| Ok((p.clone(), crate::stack::partial::read_partial_header(p)?)))
+        .collect::<Result<Vec<_>>>()?;
+    merge_with(
+        scene,
+        headers,
+        |i| crate::stack::partial::read_partial(&paths[i]),
+        threads,
+        progress,
+    )
+}
+
+fn merge_with(
+    scene: &Scene,
+    headers: Vec<(PathBuf, PartialHeader)>,
+    mut load: impl FnMut(usize) -> Result<PartialStack>,
+    threads: usize,
+    progress: &Progress,
+) -> Result<(TransferStack, BakeReport)> {
+    let start = Instant::now();
     let order = check_parts(&headers)?;
     let h0 = &headers[0].1;
     let hash = scene_hash(scene);
@@ -349,10 +383,19 @@ pub fn merge(
     }
     let rays: u64 = headers.iter().map(|(_, h)| h.rays).sum();
     let trace_seconds: f64 = headers.iter().map(|(_, h)| h.seconds).sum();
-    let mut slots: Vec<Option<PartialStack>> = parts.into_iter().map(|(_, s)| Some(s)).collect();
     let mut store = BlockStore::default();
     for i in order {
-        for block in slots[i].take().expect("each part once").blocks {
+        progress.check()?;
+        let part = load(i)?;
+        if part.header.samples != headers[i].1.samples
+            || part.header.settings_hash != h0.settings_hash
+        {
+            return Err(RelumeError::invalid(
+                "partial stacks",
+                format!("{} changed while the merge read it", headers[i].0.display()),
+            ));
+        }
+        for block in part.blocks {
             store.push(block);
         }
     }

@@ -92,6 +92,13 @@ pub fn write_partial(path: &Path, part: &PartialStack) -> Result<u64> {
     })
 }
 
+/// Reads only the header of a partial stack (the merge checks every part's header before it
+/// reads any sums, and then reads the parts one at a time).
+pub fn read_partial_header(path: &Path) -> Result<PartialHeader> {
+    let (header, _): (PartialHeader, _) = farm_file::read(path, MAGIC, "Relume partial stack")?;
+    Ok(header)
+}
+
 /// Reads a partial stack, checking its layout against its header and its checksum.
 pub fn read_partial(path: &Path) -> Result<PartialStack> {
     let (header, mut r): (PartialHeader, _) =
