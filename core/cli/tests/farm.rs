@@ -172,3 +172,29 @@ fn the_open_job_description_template_runs_under_openjd() {
     assert_same_stack(&single, &output);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn the_flamenco_job_type_compiles_and_its_tasks_bake_the_same_stack() {
+    // Flamenco cannot run here; node runs the job type's compileJob with stand-ins for
+    // Flamenco's author/path API and executes the tasks in dependency order.
+    if Command::new("node").arg("--version").output().is_err() {
+        eprintln!("SKIPPED: node not found: the Flamenco job type (JavaScript) is not checked");
+        return;
+    }
+    let dir = scratch("flamenco");
+    let scene = root().join("assets/cornell.scene.json");
+    let single = single_bake(&dir, &scene);
+    let output = dir.join("merged.exr");
+    let out = Command::new("node")
+        .arg(root().join("farm/flamenco/run_locally.js"))
+        .args([s(&scene), s(&output), s(&dir.join("work")), "4", &OPTIONS.join(" ")])
+        .arg(env!("CARGO_BIN_EXE_relume"))
+        .arg("--run")
+        .output()
+        .unwrap();
+    let log = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{log}\n{}", String::from_utf8_lossy(&out.stderr));
+    assert!(log.contains("6 tasks (guide, 4 partitions, merge)"), "{log}");
+    assert_same_stack(&single, &output);
+    let _ = std::fs::remove_dir_all(&dir);
+}
