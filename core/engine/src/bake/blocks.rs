@@ -52,7 +52,7 @@ fn siblings(left: &Range<u32>, right: &Range<u32>) -> bool {
     let len = left.end - left.start;
     left.end == right.start
         && right.end - right.start == len
-        && (left.start as u64) % (2 * len as u64) == 0
+        && (left.start as u64).is_multiple_of(2 * len as u64)
 }
 
 /// The maximal aligned dyadic ranges inside `[from, to)`, in order: what a sample range
@@ -228,6 +228,9 @@ impl Block {
     }
 }
 
+/// Per layer its RGB sums (empty: not reached), and the per-pixel features.
+pub type Sums = (Vec<Mutex<Vec<f32>>>, Vec<f32>);
+
 /// The blocks of the samples traced so far, siblings merged as they meet.
 #[derive(Default)]
 pub struct BlockStore {
@@ -260,7 +263,7 @@ impl BlockStore {
     /// The canonical sums of everything stored (the right fold `b₀ + (b₁ + (…))`): per
     /// layer its RGB sums (empty: not reached) and the per-pixel features. Consumes the
     /// store (the last pass of a bake, or a merge).
-    pub fn fold(mut self) -> (Vec<Mutex<Vec<f32>>>, Vec<f32>) {
+    pub fn fold(mut self) -> Sums {
         while self.blocks.len() >= 2 {
             let right = self.blocks.pop().expect("two blocks");
             self.blocks.last_mut().expect("one block").absorb(right);
@@ -279,7 +282,7 @@ impl BlockStore {
 
     /// [`Self::fold`] of a copy, keeping the store for more samples (between the passes of a
     /// progressive bake).
-    pub fn fold_copy(&self) -> Result<(Vec<Mutex<Vec<f32>>>, Vec<f32>)> {
+    pub fn fold_copy(&self) -> Result<Sums> {
         let mut copy = BlockStore::default();
         for b in &self.blocks {
             let layers = b

@@ -427,6 +427,7 @@ pub(crate) fn trace_range(
     let res = ctx.resolution;
     let (width, height) = (res.width as usize, res.height as usize);
     let layer_count = ctx.layer_count();
+    #[allow(clippy::single_range_in_vec_init)]
     let ranges = if fold {
         vec![from..to]
     } else {

@@ -167,7 +167,7 @@ pub fn bake_partition(
                 .layers
                 .iter()
                 .enumerate()
-                .filter(|(_, l)| l.lock().map_or(false, |l| l.is_some()))
+                .filter(|(_, l)| l.lock().is_ok_and(|l| l.is_some()))
                 .map(|(i, _)| i as u32)
                 .collect(),
         })
