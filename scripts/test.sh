@@ -26,12 +26,12 @@ elif command -v apt-get >/dev/null && [ "$(id -u)" = 0 ] \
 else
     echo "mesa-vulkan-drivers: could not be installed (no apt, not root, or no network): GPU tests will skip"
 fi
-echo "== Python packages (bpy 5.0.1, pytest, maturin, ziglang, ruff, PyYAML)"
+echo "== Python packages (bpy 5.0.1, pytest, maturin, ziglang, ruff, PyYAML, openjd-cli)"
 PYTHON="${PYTHON:-python3}"
 "$PYTHON" - <<'PY' || "$PYTHON" -m pip install --quiet --disable-pip-version-check "bpy==5.0.1" "pytest>=7" \
-    "maturin>=1.16,<2" "ziglang>=0.13,<0.14" "ruff>=0.8" "PyYAML>=6"
+    "maturin>=1.16,<2" "ziglang>=0.13,<0.14" "ruff>=0.8" "PyYAML>=6" "openjd-cli>=0.8"
 import importlib.util, sys
-missing = [m for m in ("bpy", "pytest", "maturin", "ziglang", "ruff", "yaml") if importlib.util.find_spec(m) is None]
+missing = [m for m in ("bpy", "pytest", "maturin", "ziglang", "ruff", "yaml", "openjd.cli") if importlib.util.find_spec(m) is None]
 sys.exit(1 if missing else 0)
 PY
 status=0

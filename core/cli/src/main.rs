@@ -26,6 +26,9 @@ struct Cli {
 enum Command {
     /// Bake a scene file into a transfer stack (one OpenEXR file).
     Bake(commands::bake::Args),
+    /// Merge the partial stacks of a farm bake (`bake --partition i/N`) into one stack,
+    /// bit-identical to a one-machine bake.
+    Merge(commands::merge::Args),
     /// Relight a stack with materials from a JSON file.
     Relight(commands::relight::Args),
     /// Render the same paths as a bake with given materials (true or projected BRDF).
@@ -45,6 +48,7 @@ fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Bake(a) => commands::bake::run(a),
+        Command::Merge(a) => commands::merge::run(a),
         Command::Relight(a) => commands::relight::run(a),
         Command::Reference(a) => commands::reference::run(a),
         Command::Compare(a) => commands::compare::run(a),

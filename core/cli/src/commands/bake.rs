@@ -30,6 +30,16 @@ pub struct Args {
     /// bytes, the budget) and exit without baking.
     #[arg(long)]
     pub estimate_only: bool,
+    /// Farm: bake only eye samples [i·spp/N, (i+1)·spp/N) and write a partial stack (sums,
+    /// not averages) for `relume merge` (docs/farm.md).
+    #[arg(long, value_name = "i/N", conflicts_with_all = ["guide_only", "passes"])]
+    pub partition: Option<String>,
+    /// Farm: run only the guide pass and write it (the task the partitions depend on).
+    #[arg(long, conflicts_with = "passes")]
+    pub guide_only: bool,
+    /// Farm: the guide file of `--guide-only` for a `--partition` of a guided bake.
+    #[arg(long, requires = "partition")]
+    pub guide: Option<PathBuf>,
 }
 
 pub fn run(args: Args) -> Result<(), RelumeError> {
@@ -55,6 +65,21 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
             "fits": budget.is_none_or(|b| estimate.peak_bytes <= b),
         }));
         return Ok(());
+    }
+    if args.guide_only {
+        return super::farm::guide_only(scene, settings, &args.output, args.json);
+    }
+    if let Some(p) = &args.partition {
+        let guide = args.guide.clone();
+        return super::farm::partition(
+            scene,
+            args.scene.clone(),
+            settings,
+            p,
+            guide,
+            &args.output,
+            args.json,
+        );
     }
     let output = args.output.clone();
     let quiet = args.json;

@@ -4,6 +4,8 @@ pub mod bake;
 pub mod basis;
 pub mod bench;
 pub mod compare;
+pub mod farm;
+pub mod merge;
 pub mod reference;
 pub mod relight;
 pub mod report;

@@ -32,7 +32,6 @@ const PROBE_SAMPLES: u32 = 8;
 /// The probe's pixels spread their samples over this many first samples of the sequence.
 const PROBE_SAMPLE_SPAN: u64 = 64;
 
-
 /// A bake's forecast cost, printed before it starts (CLI `--json`, Python, the add-on).
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct BakeEstimate {
@@ -82,7 +81,6 @@ impl ProbeSink<'_> {
         }
     }
 }
-
 
 impl PathSink for ProbeSink<'_> {
     fn world(&mut self, group: usize, v: Rgb) {
@@ -145,7 +143,8 @@ pub fn estimate(
                 // only some strata of the stratified numbers reach is still seen.
                 let cell = (x / stride) as u64 + 7919 * (y / stride) as u64;
                 for k in 0..PROBE_SAMPLES {
-                    let sample = ((cell * PROBE_SAMPLES as u64 + k as u64) % PROBE_SAMPLE_SPAN) as u32;
+                    let sample =
+                        ((cell * PROBE_SAMPLES as u64 + k as u64) % PROBE_SAMPLE_SPAN) as u32;
                     trace_eye_sample(ctx, &brdf, &mut sink, &mut tracer, x, y, sample);
                 }
                 for (c, r) in counts.iter_mut().zip(&reached) {
@@ -170,7 +169,8 @@ pub fn estimate(
     let layers_reached = layers_seen;
     // Layers the probe did not see take the seen layers' share of colour.
     let rgb_seen = rgb.iter().filter(|r| **r).count();
-    let layers_rgb = ((rgb_seen as f64 / layers_seen as f64) * layers_reached as f64).round() as usize;
+    let layers_rgb =
+        ((rgb_seen as f64 / layers_seen as f64) * layers_reached as f64).round() as usize;
     let layers_grey = layers_reached - layers_rgb.min(layers_reached);
     let threads = if ctx.settings.threads == 0 {
         std::thread::available_parallelism().map_or(1, |n| n.get())
@@ -184,7 +184,8 @@ pub fn estimate(
     let features = px * super::denoise::FEATURE_STRIDE as u64 * 4;
     let tile_px = (super::tiles::TILE * super::tiles::TILE) as u64;
     let tile_buffers = threads * layers as u64 * tile_px * 12;
-    let geometry = (scene.triangle_count() as u64 * BYTES_PER_TRIANGLE).max(prepared_bytes.unwrap_or(0));
+    let geometry =
+        (scene.triangle_count() as u64 * BYTES_PER_TRIANGLE).max(prepared_bytes.unwrap_or(0));
     // Averaged layers: grey ones one channel, the rest three, f32.
     let raw = px * (layers_grey as u64 * 4 + layers_rgb as u64 * 12);
     let sample = match ctx.settings.precision {

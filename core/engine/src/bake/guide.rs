@@ -146,6 +146,32 @@ impl GuideField {
         self.trees[(ty * self.tiles_x + tx) as usize].as_ref()
     }
 
+    /// Tile side, tiles across and down, and the trees (row-major): what a guide file
+    /// stores ([`crate::bake::guide_file`]).
+    pub fn parts(&self) -> (u32, u32, u32, &[Option<DirectionTree>]) {
+        (self.side, self.tiles_x, self.tiles_y, &self.trees)
+    }
+
+    /// A field from [`Self::parts`] (read back from a guide file); `None` when the tree count
+    /// is not tiles across × down.
+    pub fn from_parts(
+        side: u32,
+        tiles_x: u32,
+        tiles_y: u32,
+        trees: Vec<Option<DirectionTree>>,
+        rays: u64,
+        seconds: f64,
+    ) -> Option<GuideField> {
+        (side > 0 && trees.len() as u64 == tiles_x as u64 * tiles_y as u64).then_some(GuideField {
+            side,
+            tiles_x,
+            tiles_y,
+            trees,
+            rays,
+            seconds,
+        })
+    }
+
     /// Tile side, pixels.
     pub fn tile_side(&self) -> u32 {
         self.side

@@ -136,6 +136,34 @@ impl DirectionTree {
         }
     }
 
+    /// The nodes as (energy, first child) pairs, pre-order: what a guide file stores
+    /// ([`crate::bake::guide_file`]).
+    pub fn to_nodes(&self) -> Vec<(f64, u32)> {
+        self.nodes.iter().map(|n| (n.energy, n.children)).collect()
+    }
+
+    /// The tree of [`Self::to_nodes`]' output; `None` unless it is a tree sampling can walk
+    /// (children after their parent and inside the list, energies finite and ≥ 0).
+    pub fn from_nodes(nodes: &[(f64, u32)]) -> Option<DirectionTree> {
+        if nodes.is_empty() {
+            return None;
+        }
+        for (i, (energy, children)) in nodes.iter().enumerate() {
+            let c = *children as usize;
+            if !(energy.is_finite() && *energy >= 0.0)
+                || (c != 0 && (c <= i || c + 3 >= nodes.len()))
+            {
+                return None;
+            }
+        }
+        Some(DirectionTree {
+            nodes: nodes
+                .iter()
+                .map(|&(energy, children)| Node { energy, children })
+                .collect(),
+        })
+    }
+
     /// Leaves of the tree (for reports and tests).
     pub fn leaf_count(&self) -> usize {
         self.nodes.iter().filter(|n| n.children == 0).count()

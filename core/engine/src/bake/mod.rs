@@ -7,15 +7,19 @@
 //! layers) is stored with one channel, an all-zero layer is dropped, and the rest are RGB.
 
 pub mod bench;
+pub mod blocks;
 pub mod bounces;
 pub mod context;
 pub mod denoise;
 pub mod drop;
 pub mod estimate;
+pub mod farm_file;
 pub mod guide;
+pub mod guide_file;
 pub mod guide_tree;
 pub mod integrator;
 pub mod mixture;
+pub mod partition;
 pub mod presets;
 pub mod progress;
 pub mod reference;
@@ -229,22 +233,8 @@ pub fn bake_progressive(
     let setup_seconds = start.elapsed().as_secs_f64();
     let res = ctx.resolution;
     let (width, height) = (res.width as usize, res.height as usize);
-    let layer_count = ctx.layer_count();
-    let slots = ctx.slot_count();
-    let store: Vec<Mutex<Vec<f32>>> = (0..layer_count).map(|_| Mutex::new(Vec::new())).collect();
-    let feature_len = crate::memory::checked_product(
-        "the denoiser's per-pixel features",
-        &[width as u64, height as u64, denoise::FEATURE_STRIDE as u64],
-    )? as usize;
-    let mut feature_store =
-        crate::memory::try_with_capacity(feature_len, "the denoiser's per-pixel features")?;
-    for _ in 0..width * height {
-        feature_store.extend_from_slice(&denoise::EyeFeatures::EMPTY);
-    }
-    let features = Mutex::new(feature_store);
-    let alloc_failure: Mutex<Option<crate::RelumeError>> = Mutex::new(None);
+    let mut store = blocks::BlockStore::default();
     let rays = std::sync::atomic::AtomicU64::new(0);
-    let brdf = BasisBrdf { ctx: &ctx };
     let tile_count = tiles::tiles(res).len() as u64;
     progress.set_stage(Stage::Tracing);
     progress.start(tile_count * settings.spp as u64);
@@ -260,63 +250,39 @@ pub fn bake_progressive(
         let trace_start = Instant::now();
         let (from, to) = (done, upto);
         progress.set_stage(Stage::Tracing);
-        tiles::run_tiles(
-            res,
-            settings.threads,
-            progress,
-            (to - from) as u64,
-            |tile| {
-                if alloc_failure.lock().map_or(true, |f| f.is_some()) {
-                    return false;
-                }
-                match trace_tile(
-                    &ctx,
-                    &brdf,
-                    &store,
-                    &features,
-                    tile,
-                    from..to,
-                    slots,
-                    width,
-                    progress,
-                    &rays,
-                ) {
-                    Ok(done) => done,
-                    Err(e) => {
-                        if let Ok(mut slot) = alloc_failure.lock() {
-                            slot.get_or_insert(e);
-                        }
-                        false
-                    }
-                }
-            },
-        )?;
-        if let Some(e) = alloc_failure
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .take()
-        {
-            return Err(e);
-        }
-        done = upto;
         let last_pass = pass + 1 == passes.len();
-        let eye_features = {
-            let f = features.lock().unwrap_or_else(|e| e.into_inner());
-            denoise::EyeFeatures::from_sums(&ctx, &f, done)
+        // A one-pass bake keeps only its tree's root per pixel (one image per layer).
+        trace_range(
+            &ctx,
+            &mut store,
+            from,
+            to,
+            last_pass && from == 0,
+            progress,
+            &rays,
+        )?;
+        done = upto;
+        let (sums, feature_sums) = if last_pass {
+            std::mem::take(&mut store).fold()
+        } else {
+            store.fold_copy()?
         };
+        let eye_features = denoise::EyeFeatures::from_sums(&ctx, &feature_sums, done);
+        drop(feature_sums);
         let (stack, mut report, image) = assemble(
             &ctx,
             scene,
             &settings,
-            &store,
+            &sums,
             &eye_features,
             done,
             &pool,
             width,
             height,
             progress,
-            last_pass,
+            true,
         )?;
+        drop(sums);
         let norm = image.iter().map(|v| v * v).sum::<f64>().sqrt();
         let estimated_rel_error = previous_image.as_ref().map(|prev| {
             let diff = prev
@@ -357,13 +323,16 @@ pub fn bake_progressive(
     Ok((stack, report, pass_reports))
 }
 
-/// Traces eye samples `samples` of every pixel of `tile` and adds them to the store.
+/// Traces eye samples `samples` of every pixel of `tile` into the pass's `blocks` (the
+/// [`blocks::dyadic_blocks`] of `samples`, or one block when `fold`: the range is a whole
+/// bake `[0, spp)` and its tree's root is all that is kept). Every pixel adds its samples in
+/// the canonical tree of [`blocks`], so any split of the samples gives the same bits.
 #[allow(clippy::too_many_arguments)]
 fn trace_tile(
     ctx: &BakeContext,
     brdf: &BasisBrdf,
-    store: &[Mutex<Vec<f32>>],
-    features: &Mutex<Vec<f32>>,
+    blocks: &[blocks::Block],
+    fold: bool,
     tile: &tiles::Tile,
     samples: std::ops::Range<u32>,
     slots: usize,
@@ -371,12 +340,14 @@ fn trace_tile(
     progress: &Progress,
     rays: &std::sync::atomic::AtomicU64,
 ) -> Result<bool> {
-    let layer_count = store.len();
+    let layer_count = ctx.layer_count();
     let height = ctx.resolution.height as usize;
     let tp = tile.pixels();
-    let mut buf: Vec<f32> = crate::memory::try_zeroed(layer_count * tp * 3, "a tile's layer sums")?;
     let fs = denoise::FEATURE_STRIDE;
-    let mut tile_features = denoise::EyeFeatures::EMPTY.repeat(tp);
+    let record = layer_count * 3 + fs;
+    let mut buf: Vec<f32> =
+        crate::memory::try_zeroed(blocks.len() * tp * record, "a tile's layer sums")?;
+    let mut tree = blocks::PixelTree::new(layer_count)?;
     let mut tracer = CountingTracer::default();
     for ty in 0..tile.height {
         if progress.is_cancelled() {
@@ -384,13 +355,15 @@ fn trace_tile(
         }
         for tx in 0..tile.width {
             let pixel = (ty * tile.width + tx) as usize;
-            let mut sink = TileSink {
-                buf: &mut buf[pixel * layer_count * 3..(pixel + 1) * layer_count * 3],
-                slots,
-                per_group: ctx.layers_per_group(),
-                features: &mut tile_features[pixel * fs..(pixel + 1) * fs],
-            };
+            tree.clear();
             for s in samples.clone() {
+                let (layers, features) = tree.push_leaf(s);
+                let mut sink = TileSink {
+                    buf: layers,
+                    slots,
+                    per_group: ctx.layers_per_group(),
+                    features,
+                };
                 trace_eye_sample(
                     ctx,
                     brdf,
@@ -400,38 +373,48 @@ fn trace_tile(
                     tile.y0 + ty,
                     s,
                 );
+                tree.close_leaf();
+            }
+            if fold {
+                tree.fold();
+            }
+            debug_assert_eq!(tree.blocks().len(), blocks.len());
+            for b in 0..blocks.len() {
+                let dst = (b * tp + pixel) * record;
+                buf[dst..dst + record].copy_from_slice(tree.record(b));
             }
         }
     }
     rays.fetch_add(tracer.rays, std::sync::atomic::Ordering::Relaxed);
-    {
-        let mut all = features.lock().unwrap_or_else(|e| e.into_inner());
-        for ty in 0..tile.height as usize {
-            for tx in 0..tile.width as usize {
-                let src = (ty * tile.width as usize + tx) * fs;
-                let dst = ((tile.y0 as usize + ty) * width + tile.x0 as usize + tx) * fs;
-                denoise::EyeFeatures::merge(&mut all[dst..dst + fs], &tile_features[src..src + fs]);
+    for (b, block) in blocks.iter().enumerate() {
+        let records = &buf[b * tp * record..(b + 1) * tp * record];
+        {
+            let mut all = block.features.lock().unwrap_or_else(|e| e.into_inner());
+            for ty in 0..tile.height as usize {
+                for tx in 0..tile.width as usize {
+                    let src = (ty * tile.width as usize + tx) * record + layer_count * 3;
+                    let dst = ((tile.y0 as usize + ty) * width + tile.x0 as usize + tx) * fs;
+                    all[dst..dst + fs].copy_from_slice(&records[src..src + fs]);
+                }
             }
         }
-    }
-    let stride = layer_count * 3;
-    for (layer, slot) in store.iter().enumerate() {
-        let texel = |p: usize| &buf[p * stride + layer * 3..p * stride + layer * 3 + 3];
-        if (0..tp).all(|p| texel(p) == [0.0; 3]) {
-            continue;
-        }
-        let mut image = slot.lock().unwrap_or_else(|e| e.into_inner());
-        if image.is_empty() {
-            *image = crate::memory::try_zeroed(width * height * 3, "a layer's full-frame sums")?;
-        }
-        for ty in 0..tile.height as usize {
-            for tx in 0..tile.width as usize {
-                let dst = ((tile.y0 as usize + ty) * width + tile.x0 as usize + tx) * 3;
-                for (d, v) in image[dst..dst + 3]
-                    .iter_mut()
-                    .zip(texel(ty * tile.width as usize + tx))
-                {
-                    *d += v;
+        for (layer, slot) in block.layers.iter().enumerate() {
+            let texel = |p: usize| &records[p * record + layer * 3..p * record + layer * 3 + 3];
+            if (0..tp).all(|p| texel(p) == [0.0; 3]) {
+                continue;
+            }
+            let mut image = slot.lock().unwrap_or_else(|e| e.into_inner());
+            let image = match &mut *image {
+                Some(image) => image,
+                empty => empty.insert(crate::memory::try_zeroed(
+                    width * height * 3,
+                    "a layer's full-frame sums",
+                )?),
+            };
+            for ty in 0..tile.height as usize {
+                for tx in 0..tile.width as usize {
+                    let dst = ((tile.y0 as usize + ty) * width + tile.x0 as usize + tx) * 3;
+                    image[dst..dst + 3].copy_from_slice(texel(ty * tile.width as usize + tx));
                 }
             }
         }
@@ -439,10 +422,83 @@ fn trace_tile(
     Ok(true)
 }
 
+/// Traces eye samples `from..to` of every pixel into `store` (see [`blocks`]); `fold` when
+/// the range is a whole one-pass bake. Shared by the bake and a farm's partitions
+/// ([`partition`]). Progress advances by `to − from` per tile.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn trace_range(
+    ctx: &BakeContext,
+    store: &mut blocks::BlockStore,
+    from: u32,
+    to: u32,
+    fold: bool,
+    progress: &Progress,
+    rays: &std::sync::atomic::AtomicU64,
+) -> Result<()> {
+    let res = ctx.resolution;
+    let (width, height) = (res.width as usize, res.height as usize);
+    let layer_count = ctx.layer_count();
+    #[allow(clippy::single_range_in_vec_init)]
+    let ranges = if fold {
+        vec![from..to]
+    } else {
+        blocks::dyadic_blocks(from, to)
+    };
+    let pass_blocks = ranges
+        .into_iter()
+        .map(|r| blocks::Block::new(r, layer_count, width * height))
+        .collect::<Result<Vec<_>>>()?;
+    let alloc_failure: Mutex<Option<crate::RelumeError>> = Mutex::new(None);
+    let brdf = BasisBrdf { ctx };
+    let slots = ctx.slot_count();
+    tiles::run_tiles(
+        res,
+        ctx.settings.threads,
+        progress,
+        (to - from) as u64,
+        |tile| {
+            if alloc_failure.lock().map_or(true, |f| f.is_some()) {
+                return false;
+            }
+            match trace_tile(
+                ctx,
+                &brdf,
+                &pass_blocks,
+                fold,
+                tile,
+                from..to,
+                slots,
+                width,
+                progress,
+                rays,
+            ) {
+                Ok(done) => done,
+                Err(e) => {
+                    if let Ok(mut slot) = alloc_failure.lock() {
+                        slot.get_or_insert(e);
+                    }
+                    false
+                }
+            }
+        },
+    )?;
+    if let Some(e) = alloc_failure
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .take()
+    {
+        return Err(e);
+    }
+    for b in pass_blocks {
+        store.push(b);
+    }
+    Ok(())
+}
+
 /// Turns the store (sums over `spp` eye samples) into a stack, the report of its layers, and
 /// the image at the bake-time materials (for the progressive error estimate).
 #[allow(clippy::too_many_arguments)]
-fn assemble(
+pub(crate) fn assemble(
     ctx: &BakeContext,
     scene: &Scene,
     settings: &BakeSettings,

@@ -4,6 +4,7 @@ pub mod bases;
 pub mod exr_file;
 #[doc(hidden)]
 pub mod hostile;
+pub mod partial;
 pub mod staleness;
 
 use serde::{Deserialize, Serialize};

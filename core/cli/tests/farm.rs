@@ -1,0 +1,270 @@
+//! The farm routes end to end through the `relume` binary: `bake --guide-only`,
+//! `bake --partition i/N`, `merge`, and the Open Job Description template run by `openjd`
+//! (from PyPI's openjd-cli) — each gives the stack of a one-machine bake, bit for bit.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use relume_engine::stack::exr_file::read_stack;
+use relume_engine::stack::{LayerSamples, TransferStack};
+
+fn relume(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_relume"))
+        .args(args)
+        .output()
+        .expect("run relume")
+}
+
+fn ok(out: Output) -> Output {
+    assert!(
+        out.status.success(),
+        "failed: {}\n{}",
+        String::from_utf8_lossy(&out.stderr),
+        String::from_utf8_lossy(&out.stdout)
+    );
+    out
+}
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("relume-farm-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// Guided, denoised preview with a light group per light, tiny.
+const OPTIONS: &[&str] = &[
+    "--preset",
+    "preview",
+    "--resolution",
+    "24x20",
+    "--light-groups",
+    "per-light",
+    "--seed",
+    "5",
+];
+
+fn bits(stack: &TransferStack) -> Vec<(String, u32, Vec<u32>)> {
+    stack
+        .layers
+        .iter()
+        .map(|l| {
+            let v = match &l.samples {
+                LayerSamples::F16(v) => v.iter().map(|h| h.to_bits() as u32).collect(),
+                LayerSamples::F32(v) => v.iter().map(|f| f.to_bits()).collect(),
+            };
+            (l.key.layer_name(), l.scale.to_bits(), v)
+        })
+        .collect()
+}
+
+fn assert_same_stack(a: &Path, b: &Path) {
+    let (a, b) = (read_stack(a).unwrap(), read_stack(b).unwrap());
+    assert_eq!(a.header, b.header);
+    assert!(bits(&a) == bits(&b), "the stacks' samples differ");
+}
+
+fn single_bake(dir: &Path, scene: &Path) -> PathBuf {
+    let single = dir.join("single.exr");
+    let mut args = vec!["bake", s(scene), "-o", s(&single)];
+    args.extend_from_slice(OPTIONS);
+    ok(relume(&args));
+    single
+}
+
+#[test]
+fn guide_partitions_and_merge_on_the_command_line() {
+    let dir = scratch("cli");
+    let scene = root().join("assets/cornell.scene.json");
+    let single = single_bake(&dir, &scene);
+    let guide = dir.join("guide.rguide");
+    let mut args = vec!["bake", s(&scene), "--guide-only", "-o", s(&guide)];
+    args.extend_from_slice(OPTIONS);
+    ok(relume(&args));
+    let parts: Vec<PathBuf> = (0..3)
+        .map(|i| dir.join(format!("part_{i}.rpart")))
+        .collect();
+    for (i, part) in parts.iter().enumerate() {
+        let p = format!("{i}/3");
+        let mut args = vec![
+            "bake",
+            s(&scene),
+            "--partition",
+            &p,
+            "--guide",
+            s(&guide),
+            "-o",
+            s(part),
+            "--json",
+        ];
+        args.extend_from_slice(OPTIONS);
+        let out = ok(relume(&args));
+        let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(json["partition"], serde_json::json!([i, 3]));
+    }
+    // Any order; the scene comes from the parts.
+    let merged = dir.join("merged.exr");
+    ok(relume(&[
+        "merge",
+        s(&parts[2]),
+        s(&parts[0]),
+        s(&parts[1]),
+        "-o",
+        s(&merged),
+    ]));
+    assert_same_stack(&single, &merged);
+
+    let refused = |args: &[&str]| {
+        let out = relume(args);
+        assert!(!out.status.success());
+        String::from_utf8_lossy(&out.stderr).into_owned()
+    };
+    let bad = dir.join("bad.exr");
+    let e = refused(&["merge", s(&parts[0]), s(&parts[2]), "-o", s(&bad)]);
+    assert!(e.contains("missing") && e.contains("partition 1/3"), "{e}");
+    let e = refused(&[
+        "merge",
+        s(&parts[0]),
+        s(&parts[1]),
+        s(&parts[1]),
+        s(&parts[2]),
+        "-o",
+        s(&bad),
+    ]);
+    assert!(
+        e.contains("duplicated") && e.contains("part_1.rpart"),
+        "{e}"
+    );
+    // A partition of another seed is foreign.
+    let foreign = dir.join("foreign.rpart");
+    let mut args = vec!["bake", s(&scene), "--partition", "1/3", "-o", s(&foreign)];
+    args.extend_from_slice(&OPTIONS[..OPTIONS.len() - 2]);
+    args.extend_from_slice(&["--seed", "6"]);
+    ok(relume(&args));
+    let e = refused(&[
+        "merge",
+        s(&parts[0]),
+        s(&foreign),
+        s(&parts[2]),
+        "-o",
+        s(&bad),
+    ]);
+    assert!(e.contains("foreign") && e.contains("foreign.rpart"), "{e}");
+    // A guide made with other options is refused by the partition.
+    let mut args = vec![
+        "bake",
+        s(&scene),
+        "--partition",
+        "0/3",
+        "--guide",
+        s(&guide),
+        "-o",
+        s(&bad),
+    ];
+    args.extend_from_slice(&OPTIONS[..OPTIONS.len() - 2]);
+    args.extend_from_slice(&["--seed", "6"]);
+    let e = refused(&args);
+    assert!(e.contains("other bake settings"), "{e}");
+    assert!(!bad.exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn the_open_job_description_template_runs_under_openjd() {
+    let openjd = std::env::var("RELUME_OPENJD").unwrap_or_else(|_| "openjd".into());
+    if Command::new(&openjd).arg("--version").output().is_err() {
+        eprintln!(
+            "SKIPPED: `{openjd}` not found: install the Open Job Description CLI with \
+             `pip install openjd-cli` (scripts/test.sh does) to run the farm template"
+        );
+        return;
+    }
+    let dir = scratch("openjd");
+    let scene = root().join("assets/cornell.scene.json");
+    let single = single_bake(&dir, &scene);
+    let template = root().join("farm/openjd/relume-bake.template.yaml");
+    let check = Command::new(&openjd)
+        .args(["check", s(&template)])
+        .output()
+        .unwrap();
+    assert!(
+        check.status.success(),
+        "{}",
+        String::from_utf8_lossy(&check.stderr)
+    );
+    let output = dir.join("merged.exr");
+    let work = dir.join("work");
+    let run = Command::new(&openjd)
+        .args(["run", s(&template), "--step", "Merge", "--run-dependencies"])
+        .arg("-p")
+        .arg(format!("Scene={}", s(&scene.canonicalize().unwrap())))
+        .arg("-p")
+        .arg(format!("WorkDir={}", s(&work)))
+        .arg("-p")
+        .arg(format!("Output={}", s(&output)))
+        .args(["-p", "Partitions=3"])
+        .arg("-p")
+        .arg(format!("BakeOptions={}", OPTIONS.join(" ")))
+        .arg("-p")
+        .arg(format!("Relume={}", env!("CARGO_BIN_EXE_relume")))
+        .output()
+        .unwrap();
+    let log = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success() && log.contains("Session ended successfully"),
+        "{log}"
+    );
+    assert!(
+        log.contains("Chunks run: 5"),
+        "guide + 3 partitions + merge: {log}"
+    );
+    assert_same_stack(&single, &output);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn the_flamenco_job_type_compiles_and_its_tasks_bake_the_same_stack() {
+    // Flamenco cannot run here; node runs the job type's compileJob with stand-ins for
+    // Flamenco's author/path API and executes the tasks in dependency order.
+    if Command::new("node").arg("--version").output().is_err() {
+        eprintln!("SKIPPED: node not found: the Flamenco job type (JavaScript) is not checked");
+        return;
+    }
+    let dir = scratch("flamenco");
+    let scene = root().join("assets/cornell.scene.json");
+    let single = single_bake(&dir, &scene);
+    let output = dir.join("merged.exr");
+    let out = Command::new("node")
+        .arg(root().join("farm/flamenco/run_locally.js"))
+        .args([
+            s(&scene),
+            s(&output),
+            s(&dir.join("work")),
+            "4",
+            &OPTIONS.join(" "),
+        ])
+        .arg(env!("CARGO_BIN_EXE_relume"))
+        .arg("--run")
+        .output()
+        .unwrap();
+    let log = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{log}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        log.contains("6 tasks (guide, 4 partitions, merge)"),
+        "{log}"
+    );
+    assert_same_stack(&single, &output);
+    let _ = std::fs::remove_dir_all(&dir);
+}

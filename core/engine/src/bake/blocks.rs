@@ -1,0 +1,394 @@
+//! The one order in which a bake adds its eye samples, so that a bake split into sample
+//! ranges (a farm's partitions, a progressive bake's passes) adds up to the same bits as
+//! one bake.
+//!
+//! f32 addition is not associative: `(a + b) + c` and `a + (b + c)` differ in the last bits,
+//! and a pixel summed sample by sample on one machine would differ from the same samples
+//! summed per partition and then across partitions. Three ways out were weighed:
+//!
+//! - *An exactly associative accumulator* (fixed point in i64/i128, or a "superaccumulator"
+//!   wide enough for the whole f32 exponent range). Radiance is HDR and unbounded: a fixed
+//!   point scale that is exact for a 1e-9 contribution of a dim bounce layer and does not
+//!   overflow on a 1e5 highlight needs ≈ 280 bits per channel — 10× the memory of the sums.
+//! - *f64 sums of f32 values.* Exact only while every value and partial sum fits in 53 bits
+//!   relative to the smallest one: 24 bits of mantissa + log2(samples) + the dynamic range
+//!   of the contributions, which for HDR light is not bounded. Not provable: not used.
+//! - *A fixed binary tree over sample indices* (used here). Every pixel's per-sample values
+//!   (one [`leaf`](PixelTree::push_leaf) per eye sample: that sample's contributions summed in
+//!   the integrator's own order, the same on every machine) are combined pairwise in the
+//!   tree whose nodes are the aligned dyadic ranges `[k·2^j, (k+1)·2^j)`: a node's value is
+//!   `left + right`, its children's values. Above the last sample the tree has no nodes, so
+//!   for a bake of `spp` samples the root is the right fold `b₀ + (b₁ + (… + b_m))` of the
+//!   maximal aligned blocks of `[0, spp)` (the binary digits of `spp`, largest first).
+//!
+//! A sample range `[a, b)` holds every complete node inside it; it delivers the maximal ones
+//! — at most 2·log2(b − a) + 2 blocks ([`dyadic_blocks`]) — and the combination of the
+//! ranges' blocks, merging siblings as they meet ([`BlockStore::push`]), computes the
+//! same nodes from the same children, hence the same bits, whatever the split. (Pushing an
+//! aligned block is the same as pushing its samples one by one: none of its inner nodes has
+//! a sibling outside it.) The combination is pure pairwise addition, which is commutative
+//! in IEEE arithmetic, so only the grouping matters, and the grouping is the tree's.
+//!
+//! Absent values are zeros that are never added. That is exact too: every accumulator starts
+//! at +0.0, and an f32 sum is −0.0 only when both operands are −0.0, so no sum is ever −0.0,
+//! and `x + (+0.0) == x` bit for bit for every other `x`.
+//!
+//! The cost: a pixel keeps a stack of up to ≈ log2(spp) partial records while its samples
+//! are traced (one record per level, [`PixelTree`]), and each sample adds one record's worth
+//! of additions (amortised: the tree has one inner node per sample). The store keeps one
+//! full-frame image per block: one block for a one-pass bake (folded in the tile), and
+//! popcount(samples so far) blocks between the passes of a progressive bake
+//! ([`super::doubling_passes`] of a power-of-two `spp` keeps one).
+
+use std::ops::Range;
+use std::sync::Mutex;
+
+use crate::bake::denoise::{EyeFeatures, FEATURE_STRIDE};
+use crate::Result;
+
+/// Whether the aligned dyadic ranges `left` and `right` are the two children of one node.
+#[inline]
+fn siblings(left: &Range<u32>, right: &Range<u32>) -> bool {
+    let len = left.end - left.start;
+    left.end == right.start
+        && right.end - right.start == len
+        && (left.start as u64).is_multiple_of(2 * len as u64)
+}
+
+/// The maximal aligned dyadic ranges inside `[from, to)`, in order: what a sample range
+/// delivers ([`PixelTree`] leaves them on its stack).
+pub fn dyadic_blocks(from: u32, to: u32) -> Vec<Range<u32>> {
+    let mut out: Vec<Range<u32>> = Vec::new();
+    for s in from..to {
+        out.push(s..s + 1);
+        while out.len() >= 2 && siblings(&out[out.len() - 2], &out[out.len() - 1]) {
+            let right = out.pop().expect("two blocks");
+            let left = out.last_mut().expect("two blocks");
+            left.end = right.end;
+        }
+    }
+    out
+}
+
+/// One pixel's record: `layers × 3` sums, then the denoiser's [`FEATURE_STRIDE`] features.
+#[inline]
+pub fn combine(into: &mut [f32], from: &[f32], layer_floats: usize) {
+    let (a, fa) = into.split_at_mut(layer_floats);
+    let (b, fb) = from.split_at(layer_floats);
+    for (x, y) in a.iter_mut().zip(b) {
+        *x += *y;
+    }
+    EyeFeatures::merge(fa, fb);
+}
+
+/// The per-pixel stack of partial records while a pixel's samples are traced: push a leaf
+/// per sample, fill it, [`PixelTree::close_leaf`]; the stack then holds the blocks of
+/// [`dyadic_blocks`] for the samples pushed.
+pub struct PixelTree {
+    record: usize,
+    layer_floats: usize,
+    buf: Vec<f32>,
+    nodes: Vec<Range<u32>>,
+}
+
+impl PixelTree {
+    /// For records of `layers` layers.
+    pub fn new(layers: usize) -> Result<PixelTree> {
+        let record = layers * 3 + FEATURE_STRIDE;
+        Ok(PixelTree {
+            record,
+            layer_floats: layers * 3,
+            buf: crate::memory::try_zeroed(record * 8, "a pixel's sample tree")?,
+            nodes: Vec::with_capacity(64),
+        })
+    }
+
+    /// Empties the stack for the next pixel.
+    pub fn clear(&mut self) {
+        self.nodes.clear();
+    }
+
+    /// Starts the leaf of eye sample `sample` and returns its (zeroed) layer sums and
+    /// features for the integrator's sink.
+    pub fn push_leaf(&mut self, sample: u32) -> (&mut [f32], &mut [f32]) {
+        let k = self.nodes.len();
+        if self.buf.len() < (k + 1) * self.record {
+            self.buf.resize((k + 2) * self.record, 0.0);
+        }
+        self.nodes.push(sample..sample + 1);
+        let rec = &mut self.buf[k * self.record..(k + 1) * self.record];
+        let (layers, features) = rec.split_at_mut(self.layer_floats);
+        layers.fill(0.0);
+        features.copy_from_slice(&EyeFeatures::EMPTY);
+        (layers, features)
+    }
+
+    /// Ends the current leaf: merges it with its completed siblings up the tree.
+    pub fn close_leaf(&mut self) {
+        while self.nodes.len() >= 2 {
+            let k = self.nodes.len() - 1;
+            if !siblings(&self.nodes[k - 1], &self.nodes[k]) {
+                break;
+            }
+            let (head, tail) = self.buf.split_at_mut(k * self.record);
+            combine(
+                &mut head[(k - 1) * self.record..],
+                &tail[..self.record],
+                self.layer_floats,
+            );
+            let right = self.nodes.pop().expect("two nodes");
+            self.nodes[k - 1].end = right.end;
+        }
+    }
+
+    /// The blocks on the stack, in sample order.
+    pub fn blocks(&self) -> &[Range<u32>] {
+        &self.nodes
+    }
+
+    /// Record of block `k` of [`Self::blocks`].
+    pub fn record(&self, k: usize) -> &[f32] {
+        &self.buf[k * self.record..(k + 1) * self.record]
+    }
+
+    /// Folds the stack from the right into block 0 (`b₀ + (b₁ + (…))`): the tree's root when
+    /// the samples pushed are `[0, spp)`. Returns the record.
+    pub fn fold(&mut self) -> &[f32] {
+        for k in (1..self.nodes.len()).rev() {
+            let (head, tail) = self.buf.split_at_mut(k * self.record);
+            combine(
+                &mut head[(k - 1) * self.record..],
+                &tail[..self.record],
+                self.layer_floats,
+            );
+        }
+        if let Some(last) = self.nodes.last().map(|r| r.end) {
+            self.nodes.truncate(1);
+            self.nodes[0].end = last;
+        }
+        self.record(0)
+    }
+}
+
+/// Full-frame images of one block of samples: per layer its RGB sums (`None`: no sample of
+/// the block reached the layer anywhere, i.e. zeros) and the denoiser's per-pixel features.
+pub struct Block {
+    pub range: Range<u32>,
+    pub layers: Vec<Mutex<Option<Vec<f32>>>>,
+    pub features: Mutex<Vec<f32>>,
+}
+
+impl Block {
+    /// An empty block (no layer reached, empty features) of `pixels` pixels.
+    pub fn new(range: Range<u32>, layers: usize, pixels: usize) -> Result<Block> {
+        let len = crate::memory::checked_product(
+            "the denoiser's per-pixel features",
+            &[pixels as u64, FEATURE_STRIDE as u64],
+        )? as usize;
+        let mut features =
+            crate::memory::try_with_capacity(len, "the denoiser's per-pixel features")?;
+        for _ in 0..pixels {
+            features.extend_from_slice(&EyeFeatures::EMPTY);
+        }
+        Ok(Block {
+            range,
+            layers: (0..layers).map(|_| Mutex::new(None)).collect(),
+            features: Mutex::new(features),
+        })
+    }
+
+    /// Adds `other` (the next block, its sibling or the rest of a fold) into this one.
+    fn absorb(&mut self, other: Block) {
+        use rayon::prelude::*;
+        self.layers
+            .par_iter_mut()
+            .zip(other.layers.into_par_iter())
+            .for_each(|(mine, theirs)| {
+                let mine = mine.get_mut().unwrap_or_else(|e| e.into_inner());
+                if let Some(theirs) = theirs.into_inner().unwrap_or_else(|e| e.into_inner()) {
+                    match mine {
+                        None => *mine = Some(theirs),
+                        Some(m) => {
+                            for (x, y) in m.iter_mut().zip(&theirs) {
+                                *x += *y;
+                            }
+                        }
+                    }
+                }
+            });
+        let mine = self.features.get_mut().unwrap_or_else(|e| e.into_inner());
+        let theirs = other
+            .features
+            .into_inner()
+            .unwrap_or_else(|e| e.into_inner());
+        for (a, b) in mine
+            .chunks_exact_mut(FEATURE_STRIDE)
+            .zip(theirs.chunks_exact(FEATURE_STRIDE))
+        {
+            EyeFeatures::merge(a, b);
+        }
+        self.range.end = other.range.end;
+    }
+}
+
+/// Per layer its RGB sums (empty: not reached), and the per-pixel features.
+pub type Sums = (Vec<Mutex<Vec<f32>>>, Vec<f32>);
+
+/// The blocks of the samples traced so far, siblings merged as they meet.
+#[derive(Default)]
+pub struct BlockStore {
+    pub blocks: Vec<Block>,
+}
+
+impl BlockStore {
+    /// Appends `block` (the next samples in order, an aligned dyadic range or a folded
+    /// `[0, spp)`) and merges siblings.
+    pub fn push(&mut self, block: Block) {
+        self.blocks.push(block);
+        while self.blocks.len() >= 2 {
+            let k = self.blocks.len() - 1;
+            if !siblings(&self.blocks[k - 1].range, &self.blocks[k].range) {
+                break;
+            }
+            let right = self.blocks.pop().expect("two blocks");
+            self.blocks[k - 1].absorb(right);
+        }
+    }
+
+    /// The samples covered: `[first start, last end)` (empty when there is no block).
+    pub fn range(&self) -> Range<u32> {
+        match (self.blocks.first(), self.blocks.last()) {
+            (Some(a), Some(b)) => a.range.start..b.range.end,
+            _ => 0..0,
+        }
+    }
+
+    /// The canonical sums of everything stored (the right fold `b₀ + (b₁ + (…))`): per
+    /// layer its RGB sums (empty: not reached) and the per-pixel features. Consumes the
+    /// store (the last pass of a bake, or a merge).
+    pub fn fold(mut self) -> Sums {
+        while self.blocks.len() >= 2 {
+            let right = self.blocks.pop().expect("two blocks");
+            self.blocks.last_mut().expect("one block").absorb(right);
+        }
+        match self.blocks.pop() {
+            None => (Vec::new(), Vec::new()),
+            Some(b) => (
+                b.layers
+                    .into_iter()
+                    .map(|l| {
+                        Mutex::new(
+                            l.into_inner()
+                                .unwrap_or_else(|e| e.into_inner())
+                                .unwrap_or_default(),
+                        )
+                    })
+                    .collect(),
+                b.features.into_inner().unwrap_or_else(|e| e.into_inner()),
+            ),
+        }
+    }
+
+    /// [`Self::fold`] of a copy, keeping the store for more samples (between the passes of a
+    /// progressive bake).
+    pub fn fold_copy(&self) -> Result<Sums> {
+        let mut copy = BlockStore::default();
+        for b in &self.blocks {
+            let layers = b
+                .layers
+                .iter()
+                .map(|l| -> Result<Mutex<Option<Vec<f32>>>> {
+                    let l = l.lock().unwrap_or_else(|e| e.into_inner());
+                    Ok(Mutex::new(match &*l {
+                        None => None,
+                        Some(v) => {
+                            let mut c =
+                                crate::memory::try_with_capacity(v.len(), "a layer's sums")?;
+                            c.extend_from_slice(v);
+                            Some(c)
+                        }
+                    }))
+                })
+                .collect::<Result<Vec<_>>>()?;
+            let features = b.features.lock().unwrap_or_else(|e| e.into_inner()).clone();
+            copy.blocks.push(Block {
+                range: b.range.clone(),
+                layers,
+                features: Mutex::new(features),
+            });
+        }
+        // Copies are pushed as they stand: they are already merged.
+        Ok(copy.fold())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn blocks_are_the_maximal_aligned_ranges() {
+        assert_eq!(dyadic_blocks(0, 16), vec![0..16]);
+        assert_eq!(dyadic_blocks(0, 21), vec![0..16, 16..20, 20..21]);
+        assert_eq!(dyadic_blocks(5, 10), vec![5..6, 6..8, 8..10]);
+        assert_eq!(dyadic_blocks(3, 3), Vec::<Range<u32>>::new());
+        for (a, b) in [(0u32, 1u32), (1, 2), (2, 9), (9, 16), (7, 100)] {
+            let blocks = dyadic_blocks(a, b);
+            assert_eq!(blocks.first().unwrap().start, a);
+            assert_eq!(blocks.last().unwrap().end, b);
+            for r in &blocks {
+                let len = r.end - r.start;
+                assert!(len.is_power_of_two() && r.start % len == 0, "{r:?}");
+            }
+            assert!(blocks.len() <= 2 * (32 - (b - a).leading_zeros()) as usize + 2);
+        }
+    }
+
+    /// Per-sample values whose sums round differently in every grouping.
+    fn value(s: u32) -> f32 {
+        let h = s.wrapping_mul(2_654_435_761) >> 8;
+        (h % 9973) as f32 * 1.0e-3 * 10f32.powi((h % 7) as i32 - 3)
+    }
+
+    fn tree_sum(from: u32, to: u32, fold: bool) -> (Vec<Range<u32>>, Vec<f32>) {
+        let mut t = PixelTree::new(1).unwrap();
+        for s in from..to {
+            let (layers, _) = t.push_leaf(s);
+            layers[0] = value(s);
+            t.close_leaf();
+        }
+        if fold {
+            t.fold();
+        }
+        (
+            t.blocks().to_vec(),
+            (0..t.blocks().len()).map(|k| t.record(k)[0]).collect(),
+        )
+    }
+
+    #[test]
+    fn any_split_folds_to_the_same_bits() {
+        let spp = 37;
+        let (_, whole) = tree_sum(0, spp, true);
+        let sequential: f32 = (0..spp).map(value).sum();
+        for parts in [1u32, 2, 3, 5, 7, 37] {
+            let mut store = BlockStore::default();
+            for i in 0..parts {
+                let (a, b) = (i * spp / parts, (i + 1) * spp / parts);
+                let (ranges, values) = tree_sum(a, b, false);
+                assert_eq!(ranges, dyadic_blocks(a, b));
+                for (r, v) in ranges.into_iter().zip(values) {
+                    let block = Block::new(r, 1, 1).unwrap();
+                    *block.layers[0].lock().unwrap() = Some(vec![v, 0.0, 0.0]);
+                    store.push(block);
+                }
+            }
+            assert_eq!(store.range(), 0..spp);
+            let (layers, _) = store.fold();
+            let merged = layers[0].lock().unwrap()[0];
+            assert_eq!(merged.to_bits(), whole[0].to_bits(), "{parts} parts");
+        }
+        // The point of it all: another grouping gives other bits for these values.
+        assert_ne!(sequential.to_bits(), whole[0].to_bits());
+    }
+}

@@ -1,0 +1,262 @@
+//! A bake split into sample-range partitions and merged is bit-identical to one bake with the
+//! same settings (every sample of every layer, the header, the file read back); parts that are
+//! missing, duplicated or foreign are refused by name.
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use relume_engine::bake::guide_file::{build_guide, read_guide, write_guide};
+use relume_engine::bake::partition::{bake_partition, merge, Partition};
+use relume_engine::bake::presets::Preset;
+use relume_engine::bake::{
+    bake, bake_progressive, progress::Progress, BakeSettings, LightGrouping,
+};
+use relume_engine::scene::{Light, Scene, World};
+use relume_engine::stack::exr_file::{read_stack, write_stack};
+use relume_engine::stack::partial::{read_partial, write_partial, PartialStack};
+use relume_engine::stack::{LayerSamples, TransferStack};
+
+/// The Cornell box with a second (coloured point) light and a dim world, at `size`² — not a
+/// multiple of the 16-px bake tiles or the 8-px guide tiles.
+fn two_lights(size: u32) -> Scene {
+    let mut scene = common::cornell(size);
+    if let Light::Area { color, .. } = &mut scene.lights[0] {
+        *color = [1.0, 0.9, 0.7];
+    }
+    scene.lights.push(Light::Point {
+        position: [0.5, -0.5, 0.3],
+        power: 8.0,
+        color: [0.3, 0.5, 1.0],
+        radius: 0.05,
+    });
+    scene.world = World::Color {
+        color: [0.02, 0.02, 0.03],
+        strength: 1.0,
+    };
+    scene
+}
+
+/// The preview preset (guided sampling, denoised bounce layers) with one group per light.
+fn preview_per_light() -> BakeSettings {
+    let mut s = BakeSettings {
+        seed: 7,
+        light_grouping: LightGrouping::PerLight,
+        ..BakeSettings::default()
+    };
+    Preset::Preview.apply(&mut s);
+    s
+}
+
+fn assert_identical(a: &TransferStack, b: &TransferStack, what: &str) {
+    assert_eq!(a.header, b.header, "{what}: headers differ");
+    assert_eq!(
+        a.layers.len(),
+        b.layers.len(),
+        "{what}: layer counts differ"
+    );
+    for (x, y) in a.layers.iter().zip(&b.layers) {
+        let name = x.key.layer_name();
+        assert_eq!(x.key, y.key, "{what}: layer keys differ");
+        assert_eq!(x.channels, y.channels, "{what}: {name}");
+        assert_eq!(x.scale.to_bits(), y.scale.to_bits(), "{what}: {name} scale");
+        let bits = |l: &LayerSamples| -> Vec<u32> {
+            match l {
+                LayerSamples::F16(v) => v.iter().map(|h| h.to_bits() as u32).collect(),
+                LayerSamples::F32(v) => v.iter().map(|f| f.to_bits()).collect(),
+            }
+        };
+        let (bx, by) = (bits(&x.samples), bits(&y.samples));
+        let differing = bx.iter().zip(&by).filter(|(p, q)| p != q).count();
+        assert_eq!(
+            differing,
+            0,
+            "{what}: {name}: {differing} of {} samples differ",
+            bx.len()
+        );
+    }
+}
+
+/// Bakes every partition of a split in `n` (through the files a farm would copy) and
+/// returns the parts read back, with their paths.
+fn bake_parts(
+    scene: &Scene,
+    settings: &BakeSettings,
+    n: u32,
+    guide: Option<&Path>,
+    dir: &Path,
+) -> Vec<(PathBuf, PartialStack)> {
+    (0..n)
+        .map(|i| {
+            // Thread counts differ between machines: the result must not care.
+            let settings = BakeSettings {
+                threads: 1 + (i as usize % 2),
+                ..settings.clone()
+            };
+            let g = guide.map(|g| read_guide(g).unwrap());
+            let (part, _) = bake_partition(
+                scene,
+                None,
+                &settings,
+                Partition { index: i, count: n },
+                g,
+                &Progress::new(),
+            )
+            .unwrap();
+            let path = dir.join(format!("part_{n}_{i}.rpart"));
+            write_partial(&path, &part).unwrap();
+            (path.clone(), read_partial(&path).unwrap())
+        })
+        .collect()
+}
+
+#[test]
+fn split_in_1_2_3_and_7_partitions_merges_to_the_bits_of_one_bake() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = two_lights(20);
+    let settings = preview_per_light();
+    let (single, _) = bake(&scene, &settings, &Progress::new()).unwrap();
+    assert!(single.header.denoise.bounce_iterations > 0 && single.header.sampling == "guided");
+    assert_eq!(
+        single.header.light_groups.len(),
+        3,
+        "two lights and the world"
+    );
+    let single_file = dir.path().join("single.exr");
+    write_stack(&single_file, &single).unwrap();
+
+    let guide = dir.path().join("guide.rguide");
+    let field = build_guide(&scene, &settings, &Progress::new()).unwrap();
+    assert!(field.is_some());
+    write_guide(&guide, &scene, &settings, field.as_ref()).unwrap();
+
+    for n in [1u32, 2, 3, 7] {
+        // One split lets the partitions run the guide pass themselves: the same trees.
+        let g = (n != 2).then_some(guide.as_path());
+        let parts = bake_parts(&scene, &settings, n, g, dir.path());
+        let (merged, _) = merge(&scene, parts, 0, &Progress::new()).unwrap();
+        assert_identical(&single, &merged, &format!("{n} partitions"));
+        // The files too (their bytes are not compared: the OpenEXR encoder writes chunks in
+        // the order its threads finish them, so two writes of one stack differ in layout).
+        let merged_file = dir.path().join(format!("merged_{n}.exr"));
+        write_stack(&merged_file, &merged).unwrap();
+        assert_identical(
+            &read_stack(&single_file).unwrap(),
+            &read_stack(&merged_file).unwrap(),
+            &format!("{n} partitions, read back"),
+        );
+    }
+}
+
+#[test]
+fn a_progressive_bake_ends_on_the_bits_of_a_one_shot_bake() {
+    // Passes 3 and 6 are not aligned to the summation tree's blocks; the result still is.
+    let scene = common::cornell(20);
+    let settings = BakeSettings {
+        spp: 6,
+        ..BakeSettings::default()
+    };
+    let (one, _) = bake(&scene, &settings, &Progress::new()).unwrap();
+    let (last, _, _) = bake_progressive(
+        &scene,
+        &settings,
+        &[1, 3, 6],
+        &Progress::new(),
+        |_, _, _| Ok(()),
+    )
+    .unwrap();
+    assert_identical(&one, &last, "passes 1, 3, 6");
+}
+
+#[test]
+fn missing_duplicated_and_foreign_parts_are_refused_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = common::cornell(16);
+    let settings = BakeSettings {
+        spp: 6,
+        ..BakeSettings::default()
+    };
+    let parts = |seed: u64| {
+        bake_parts(
+            &scene,
+            &BakeSettings {
+                seed,
+                ..settings.clone()
+            },
+            3,
+            None,
+            &dir.path().join(format!("seed{seed}")),
+        )
+    };
+    std::fs::create_dir_all(dir.path().join("seed0")).unwrap();
+    std::fs::create_dir_all(dir.path().join("seed1")).unwrap();
+    let reread = |p: &Path| (p.to_path_buf(), read_partial(p).unwrap());
+    let good: Vec<PathBuf> = parts(0).into_iter().map(|(p, _)| p).collect();
+    let foreign: Vec<PathBuf> = parts(1).into_iter().map(|(p, _)| p).collect();
+    let err = |list: Vec<&PathBuf>| {
+        merge(
+            &scene,
+            list.into_iter().map(|p| reread(p)).collect(),
+            0,
+            &Progress::new(),
+        )
+        .unwrap_err()
+        .to_string()
+    };
+
+    let e = err(vec![&good[0], &good[2]]);
+    assert!(
+        e.contains("samples [2, 4) of 6 are missing") && e.contains("1/3"),
+        "{e}"
+    );
+    let e = err(vec![&good[0], &good[1]]);
+    assert!(
+        e.contains("samples [4, 6) of 6 are missing") && e.contains("2/3"),
+        "{e}"
+    );
+    let e = err(vec![&good[0], &good[1], &good[1], &good[2]]);
+    assert!(
+        e.contains("duplicated") && e.contains("part_3_1.rpart"),
+        "{e}"
+    );
+    let e = err(vec![&good[0], &foreign[1], &good[2]]);
+    assert!(
+        e.contains("foreign") && e.contains("seed1") && e.contains("seed 1 (the first part: 0)"),
+        "{e}"
+    );
+    // A scene other than the parts'.
+    let mut other = scene.clone();
+    other.lights.clear();
+    other.world = World::Color {
+        color: [1.0; 3],
+        strength: 1.0,
+    };
+    let e = merge(
+        &other,
+        good.iter().map(|p| reread(p)).collect(),
+        0,
+        &Progress::new(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("another scene"), "{e}");
+    // A part damaged in a copy.
+    let mut bytes = std::fs::read(&good[1]).unwrap();
+    let k = bytes.len() / 2;
+    bytes[k] ^= 1;
+    let damaged = dir.path().join("damaged.rpart");
+    std::fs::write(&damaged, &bytes).unwrap();
+    let e = read_partial(&damaged).err().unwrap().to_string();
+    assert!(e.contains("checksum"), "{e}");
+    std::fs::write(&damaged, &bytes[..k]).unwrap();
+    let e = read_partial(&damaged).err().unwrap().to_string();
+    assert!(e.contains("truncated"), "{e}");
+    // And the good parts, in any order, merge.
+    let list = vec![&good[2], &good[0], &good[1]];
+    merge(
+        &scene,
+        list.into_iter().map(|p| reread(p)).collect(),
+        0,
+        &Progress::new(),
+    )
+    .unwrap();
+}
