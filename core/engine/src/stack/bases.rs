@@ -264,7 +264,10 @@ mod tests {
 
         let wide = bases(roughness_to_ns(1.0), roughness_to_ns(0.1));
         for r in [0.1, 0.15, 0.25, 0.5, 1.0] {
-            assert!(wide.ns_out_of_range(0, &principled(r, 0.5)).is_none(), "{r}");
+            assert!(
+                wide.ns_out_of_range(0, &principled(r, 0.5)).is_none(),
+                "{r}"
+            );
         }
         assert!(wide.ns_out_of_range(0, &principled(0.05, 0.5)).is_some());
         assert_eq!(wide.out_of_range(&[principled(0.05, 1.0)]).len(), 1);
