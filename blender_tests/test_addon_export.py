@@ -131,7 +131,13 @@ def test_unsupported_nodes_warn_by_name(addon, prefs, blend_dir):
     text = [str(w) for w in result.warnings]
     assert any("Material 'GlassThing'" in t and "ShaderNodeBsdfGlass" in t and "grey" in t for t in text), text
     assert any("Material 'Walls'" in t and "Transmission Weight" in t for t in text), text
-    assert any("Material 'Walls'" in t and "emission" in t for t in text), text
+    # Emission is exported as a light of the region (scene format 3), not dropped.
+    assert not any("Material 'Walls'" in t and "emission" in t.lower() for t in text), text
+    walls = result.region_names.index("Walls")
+    emissive = [li for li in result.scene_dict["lights"] if li["type"] == "emissive"]
+    assert emissive == [{"type": "emissive", "region": walls, "strength": 2.0, "color": [1.0, 1.0, 1.0],
+                         "visible_camera": True}], emissive
+    assert result.scene_dict["version"] == 3
     # The fallback is what the warning says: Blender's default grey Principled.
     region = next(r for r in result.scene_dict["regions"] if r["name"] == "GlassThing")
     assert region["material"]["base_color"] == [0.8, 0.8, 0.8]

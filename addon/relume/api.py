@@ -36,6 +36,20 @@ class BakeCancelled(BakeError):
     """The bake was cancelled (Esc, the Cancel button, `cancel_bake()`); nothing was lost."""
 
 
+#: The roughness range an editable material is baked for unless it sets its own: the Principled
+#: slider's range down to 0.1 (ns ≈ 20 000; below, lobes narrower than 0.4° need ns > 10⁴·…).
+DEFAULT_ROUGHNESS_RANGE = (0.1, 1.0)
+
+
+def roughness_range(material) -> tuple[float, float]:
+    """The roughness range `material`'s basis is baked for: its own when it sets one, else
+    `DEFAULT_ROUGHNESS_RANGE`."""
+    p = material.relume
+    if p.use_roughness_range:
+        return (min(p.roughness_min, p.roughness_max), max(p.roughness_min, p.roughness_max))
+    return DEFAULT_ROUGHNESS_RANGE
+
+
 def _ns_range(roughness_min: float, roughness_max: float) -> list[float]:
     import relume
 
@@ -53,8 +67,8 @@ def export(context=None, scene_file: str | None = None) -> ExportResult:
     ns_ranges = {}
     for mat in bpy.data.materials:
         p = getattr(mat, "relume", None)
-        if p is not None and p.editable and p.use_roughness_range:
-            ns_ranges[mat.name] = _ns_range(p.roughness_min, p.roughness_max)
+        if p is not None and p.editable:
+            ns_ranges[mat.name] = _ns_range(*roughness_range(mat))
     options = ExportOptions(resolution_scale=float(prefs.resolution_scale), texture_dir=texture_dir,
                             ns_ranges=ns_ranges)
     result = export_scene(context, options)
@@ -85,6 +99,34 @@ def bake_settings(context=None):
     return relume.BakeSettings(spp=int(prefs.spp), light_samples=int(prefs.light_samples),
                                indirect_samples=int(prefs.indirect_samples),
                                basis_tolerance=float(prefs.basis_tolerance), **common)
+
+
+def estimate(context=None, settings=None) -> dict:
+    """What a bake with the preferences (or `settings`) will cost, without baking (about a
+    second): the core's estimate — layers reached, peak and stack bytes, the memory budget —
+    and, per editable region, its roughness range and the basis count it needs. Kept in
+    `status()["estimate"]` and shown in the panel."""
+    import relume
+
+    context = context or bpy.context
+    result = export(context)
+    est = dict(relume.estimate_bake(result.scene, settings or bake_settings(context)))
+    RUNTIME.estimate = est
+    return est
+
+
+def estimate_lines(est: dict | None) -> list[str]:
+    """The estimate as the panel shows it, one short line each."""
+    if not est:
+        return []
+    mb = 1e6
+    lines = [f"Estimate: {est['layers_reached']} of {est['layers_possible']} layers, "
+             f"peak {est['peak_bytes'] / mb:.0f} MB, stack {est['stack_bytes'] / mb:.0f} MB"]
+    for r in est.get("editable", []):
+        lo, hi = r["roughness_range"]
+        lines.append(f"{r['region']}: roughness {lo:.2f}–{hi:.2f} (ns ≤ {r['ns_range'][1]:.0f}) → "
+                     f"{r['bases']} bases, {r['slots']} slots")
+    return lines
 
 
 def start_bake(context=None, settings=None) -> BakeSession:
@@ -247,6 +289,10 @@ def status(context=None) -> dict:
         "bake_message": session.message if session else "",
         "last_latency_ms": live.last_latency_ms,
         "relight_error": live.relight_error,
+        # Editable materials outside their baked roughness range (relit at the range's edge).
+        "range_warnings": live.range_warnings,
+        # The last estimate (`estimate()`): layers, memory, bases per editable region.
+        "estimate": RUNTIME.estimate,
         "warnings": [str(w) for w in RUNTIME.warnings],
         "light_groups": _light_group_status(context),
     }

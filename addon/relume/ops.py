@@ -170,5 +170,23 @@ class RELUME_OT_check_stale(bpy.types.Operator):
         return {"FINISHED"}
 
 
-CLASSES = (RELUME_OT_bake, RELUME_OT_cancel_bake, RELUME_OT_render, RELUME_OT_export_scene,
+class RELUME_OT_estimate(bpy.types.Operator):
+    """Forecast the bake's cost (layers, memory, bases per editable material) without baking"""
+
+    bl_idname = "relume.estimate"
+    bl_label = "Estimate Bake"
+    bl_options = {"REGISTER"}
+
+    def execute(self, context):
+        try:
+            est = api.estimate(context)
+        except _relume_error_types() as e:
+            self.report({"ERROR"}, str(e))
+            return {"CANCELLED"}
+        for line in api.estimate_lines(est):
+            self.report({"INFO"}, f"Relume: {line}")
+        return {"FINISHED"}
+
+
+CLASSES = (RELUME_OT_bake, RELUME_OT_estimate, RELUME_OT_cancel_bake, RELUME_OT_render, RELUME_OT_export_scene,
            RELUME_OT_reload, RELUME_OT_check_stale)

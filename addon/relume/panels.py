@@ -30,7 +30,13 @@ def draw_bake_controls(layout, context) -> None:
     else:
         box.label(text=f"Stack: {live.stack.width}×{live.stack.height}, {live.stack.layer_count} layers, "
                        f"{live.stack.bytes / 1e6:.0f} MB", icon="CHECKMARK")
-    box.operator("relume.bake", icon="RENDER_STILL")
+    from .api import estimate_lines
+
+    for line in estimate_lines(RUNTIME.estimate):
+        box.label(text=line[:140])
+    row = box.row()
+    row.operator("relume.estimate", icon="INFO")
+    row.operator("relume.bake", icon="RENDER_STILL")
 
 
 class RELUME_PT_image(bpy.types.Panel):
@@ -46,6 +52,10 @@ class RELUME_PT_image(bpy.types.Panel):
         layout.label(text=f"Device: {live.device_text}")
         if live.relight_error:
             layout.label(text=live.relight_error[:140], icon="ERROR")
+        for w in live.range_warnings:
+            box = layout.box()
+            for i in range(0, min(len(w), 360), 120):
+                box.label(text=w[i:i + 120], icon="ERROR" if i == 0 else "BLANK1")
         if live.last_latency_ms is not None:
             layout.label(text=f"Last relight: {live.last_latency_ms:.1f} ms")
         if RUNTIME.warnings:
@@ -155,6 +165,11 @@ class RELUME_PT_material(bpy.types.Panel):
             sub.enabled = props.use_roughness_range
             sub.prop(props, "roughness_min")
             sub.prop(props, "roughness_max")
+            from .api import roughness_range
+
+            lo, hi = roughness_range(context.material)
+            layout.label(text=f"Basis baked for roughness {lo:.2f}–{hi:.2f}; outside it the relight "
+                              f"uses the range's edge and the Relume tab says so", icon="INFO")
             layout.prop(props, "override")
             if props.override:
                 layout.prop(props, "kd")

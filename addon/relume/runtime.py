@@ -20,6 +20,7 @@ class Runtime:
         self.stale_check_pending = False
         self.relight_timer_registered = False
         self.last_status = ""
+        self.estimate: dict | None = None  # the last `api.estimate()`: cost before a bake
 
 
 RUNTIME = Runtime()

@@ -32,5 +32,6 @@ def read_light(obj, matrix_world) -> BlenderLight:
         normalize=bool(getattr(data, "normalize", True)),
         cast_shadow=bool(getattr(cycles, "cast_shadow", True)) if cycles is not None else True,
         light_linked=linked,
+        visible_camera=bool(getattr(obj, "visible_camera", True)),
         lightgroup=str(getattr(obj, "lightgroup", "")),
     )

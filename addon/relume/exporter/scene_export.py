@@ -24,7 +24,7 @@ from ..logic.camera_map import BlenderCamera, CameraError, map_camera
 from ..logic.export_warnings import ExportWarning, WarningList
 from ..logic.light_groups import scene_light_groups
 from ..logic.lights_map import map_light
-from ..logic.material_map import FALLBACK_PRINCIPLED, map_material
+from ..logic.material_map import FALLBACK_PRINCIPLED, emission_of, map_material
 from .geometry import collect_meshes
 from .lights import read_light
 from .nodes import active_output, image_rgb_linear, read_surface
@@ -182,6 +182,7 @@ def export_scene(context, options: ExportOptions) -> ExportResult:
 
     regions = []
     textured_regions = set()
+    emissive = []  # (region index, material name, (colour, strength))
     for n in names:
         mat = materials[n]
         if mat is None:
@@ -211,6 +212,9 @@ def export_scene(context, options: ExportOptions) -> ExportResult:
                 region["material"].pop(k, None)
         if editable and n in options.ns_ranges:
             region["ns_range"] = list(options.ns_ranges[n])
+        emission = emission_of(surface, warnings)
+        if emission is not None:
+            emissive.append((index[n], n, emission))
         regions.append(region)
 
     meshes = collect_meshes(depsgraph, region_of, warnings)
@@ -227,6 +231,14 @@ def export_scene(context, options: ExportOptions) -> ExportResult:
                 lights.append(mapped)
                 light_names.append(blender_light.name)
                 light_groups.append(blender_light.lightgroup)
+    # Emissive materials are lights of their region's triangles, seen by the camera as Cycles
+    # shows them (per material: an object's own camera visibility and light group are not
+    # read for emission; they go to the default group).
+    for region_index, n, (colour, strength) in emissive:
+        lights.append({"type": "emissive", "region": region_index, "strength": strength,
+                       "color": colour, "visible_camera": True})
+        light_names.append(f"{n} (emission)")
+        light_groups.append("")
 
     if abs(scene.render.pixel_aspect_x - scene.render.pixel_aspect_y) > 1e-6:
         warnings.add(f"Scene '{scene.name}'", "non-square pixel aspect", "square pixels")
@@ -238,7 +250,9 @@ def export_scene(context, options: ExportOptions) -> ExportResult:
     # Version 2 adds translucency; a scene without it stays a version-1 file (older cores
     # read it).
     translucent = any("subsurface_weight" in r["material"] for r in regions)
-    scene_dict["version"] = 2 if translucent else 1
+    # Version 3 adds emitters the camera sees and emissive surfaces.
+    emitters = any(li.get("type") == "emissive" or li.get("visible_camera") for li in lights)
+    scene_dict["version"] = 3 if emitters else 2 if translucent else 1
     world = _world(scene, warnings, options.texture_dir)
     if world is not None:
         scene_dict["world"] = world

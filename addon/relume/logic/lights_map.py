@@ -39,6 +39,7 @@ class BlenderLight:
     normalize: bool = True
     cast_shadow: bool = True
     light_linked: bool = False
+    visible_camera: bool = True  # the object's Ray Visibility → Camera
     lightgroup: str = ""  # Blender's light group ("" for none): see light_groups.py
     extra: dict = field(default_factory=dict)
 
@@ -124,6 +125,9 @@ def map_light(light: BlenderLight, warnings: WarningList) -> dict | None:
                "shape": shape, "size_x": sx, "power": power, "color": color}
         if shape in ("rectangle", "ellipse"):
             out["size_y"] = sy
+        if light.visible_camera:
+            # Cycles shows the front face with radiance P/(π·A) (scene format 3).
+            out["visible_camera"] = True
         return out
     warnings.add(subject, f"light type {kind}", "left out of the bake")
     return None

@@ -48,6 +48,14 @@ class LiveState:
         return self.relighter is not None and self.stale_reason is None
 
     @property
+    def range_warnings(self) -> list[str]:
+        """One sentence per editable material whose roughness (exponent) lies outside the
+        range its basis was baked for: it is relit at the range's edge, and this says so."""
+        if self.relighter is None:
+            return []
+        return [w["message"] for w in self.relighter.warnings]
+
+    @property
     def device_text(self) -> str:
         if self.relighter is None:
             return "no stack loaded"

@@ -19,6 +19,7 @@ from .export_warnings import WarningList
 PRINCIPLED = "ShaderNodeBsdfPrincipled"
 DIFFUSE = "ShaderNodeBsdfDiffuse"
 IMAGE_TEXTURE = "ShaderNodeTexImage"
+EMISSION = "ShaderNodeEmission"
 
 #: What a material without a usable surface shader becomes: Blender's default grey.
 FALLBACK_PRINCIPLED = {"model": "principled", "base_color": [0.8, 0.8, 0.8], "metallic": 0.0,
@@ -89,6 +90,9 @@ def map_material(nodes: SurfaceNodes, warnings: WarningList) -> tuple[dict, bool
                          "the socket's own colour")
         colour = _rgb(nodes.values.get("Color", (0.8, 0.8, 0.8)))
         return ({"model": "blinn_phong", "kd": colour, "ks": [0.0, 0.0, 0.0], "ns": 1.0}, False)
+    if nodes.shader == EMISSION:
+        # A pure emitter reflects nothing; its light is exported by `emission_of`.
+        return ({"model": "blinn_phong", "kd": [0.0, 0.0, 0.0], "ks": [0.0, 0.0, 0.0], "ns": 1.0}, False)
     if nodes.shader != PRINCIPLED:
         what = f"surface shader {nodes.shader}" if nodes.shader else "no surface shader"
         warnings.add(subject, what, "Blender's default grey Principled BSDF (0.8, roughness 0.5)")
@@ -111,10 +115,6 @@ def map_material(nodes: SurfaceNodes, warnings: WarningList) -> tuple[dict, bool
         if name in nodes.links or abs(value - neutral) > 1e-6:
             shown = f"linked to {nodes.links[name]}" if name in nodes.links else f"{value:g}"
             warnings.add(subject, f"{name} {shown}", fallback)
-    strength = _scalar(nodes.values.get("Emission Strength", 0.0), 0.0)
-    emission = _rgb(nodes.values.get("Emission Color", (0.0, 0.0, 0.0)))
-    if "Emission Strength" in nodes.links or (strength > 0 and max(emission) > 0):
-        warnings.add(subject, "emission", "no emission (add a light instead)")
     if "Normal" in nodes.links:
         warnings.add(subject, f"Normal linked to {nodes.links['Normal']}", "the mesh's shading normals")
     tint = nodes.values.get("Specular Tint", (1.0, 1.0, 1.0, 1.0))
@@ -130,6 +130,33 @@ def map_material(nodes: SurfaceNodes, warnings: WarningList) -> tuple[dict, bool
                 "specular_ior_level": _clamp01(_scalar(nodes.values.get("Specular IOR Level", 0.5), 0.5))}
     material.update(subsurface_fields(nodes, warnings, subject))
     return material, textured
+
+
+def emission_of(nodes: SurfaceNodes, warnings: WarningList) -> tuple[list[float], float] | None:
+    """The surface's emission as (colour, strength) — Principled Emission Color × Strength or
+    an Emission shader's Color × Strength — or None when it emits nothing. Cycles renders
+    such a surface with radiance colour × strength (strength 1 of white shows as 1.0) from
+    both faces; the exporter writes it as an `emissive` light of the region (scene format 3).
+    A linked colour or strength is read as its socket's own value, and said so."""
+    if not nodes.uses_nodes:
+        return None
+    if nodes.shader == PRINCIPLED:
+        colour_name, strength_name = "Emission Color", "Emission Strength"
+        default_colour, default_strength = (0.0, 0.0, 0.0), 0.0
+    elif nodes.shader == EMISSION:
+        colour_name, strength_name = "Color", "Strength"
+        default_colour, default_strength = (1.0, 1.0, 1.0), 1.0
+    else:
+        return None
+    subject = f"Material '{nodes.material_name}'"
+    for name in (colour_name, strength_name):
+        if name in nodes.links:
+            warnings.add(subject, f"{name} linked to {nodes.links[name]}", "the socket's own value")
+    strength = _scalar(nodes.values.get(strength_name, default_strength), default_strength)
+    colour = _rgb(nodes.values.get(colour_name, default_colour))
+    if not (strength > 0 and max(colour) > 0):
+        return None
+    return colour, strength
 
 
 def subsurface_fields(nodes: SurfaceNodes, warnings: WarningList, subject: str) -> dict:

@@ -63,6 +63,7 @@ fn square_light_scene(size: f32, power: f32) -> Scene {
         size_y: None,
         power,
         color: [1.0, 1.0, 1.0],
+        visible_camera: false,
     }];
     scene
 }

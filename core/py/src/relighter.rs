@@ -361,6 +361,35 @@ impl Relighter {
         Ok(d)
     }
 
+    /// Editable materials whose exponent lies outside the ns range their region was baked
+    /// for: a list of {"region", "ns", "ns_range", "rendered_ns", "roughness_range",
+    /// "message"}. Such a material is relit with the nearest exponent the basis represents
+    /// (`rendered_ns`); this list is how the caller learns it — never a silent clamp.
+    #[getter]
+    fn warnings<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, pyo3::types::PyList>> {
+        let st = self.lock();
+        let list = pyo3::types::PyList::empty(py);
+        for w in self.bases.out_of_range(&st.materials) {
+            let name = self
+                .editable
+                .get(w.region)
+                .map(String::as_str)
+                .unwrap_or("?");
+            let d = PyDict::new(py);
+            d.set_item("region", name)?;
+            d.set_item("ns", w.ns)?;
+            d.set_item("ns_range", (w.ns_range[0], w.ns_range[1]))?;
+            d.set_item("rendered_ns", w.rendered_ns)?;
+            d.set_item(
+                "roughness_range",
+                (w.roughness_range[0], w.roughness_range[1]),
+            )?;
+            d.set_item("message", w.message(name))?;
+            list.append(d)?;
+        }
+        Ok(list)
+    }
+
     fn __repr__(&self) -> String {
         format!(
             "<relume.Relighter {}×{} on the {} ({} editable regions)>",

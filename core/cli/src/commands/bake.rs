@@ -130,6 +130,19 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
                 relume_engine::memory::human_bytes(e.peak_bytes),
                 relume_engine::memory::human_bytes(e.stack_bytes)
             );
+            for r in &e.editable {
+                eprintln!(
+                    "  editable \"{}\": ns [{:.3}, {:.0}] (roughness [{:.2}, {:.2}]) → {} bases, {} slots (worst lobe {:.2} %)",
+                    r.region,
+                    r.ns_range[0],
+                    r.ns_range[1],
+                    r.roughness_range[0],
+                    r.roughness_range[1],
+                    r.bases,
+                    r.slots,
+                    r.max_rel_l2 * 100.0
+                );
+            }
         }
         println!(
             "baked {}×{} in {:.2} s ({:.2} Mrays/s): {} layers ({} grey, {} RGB, {} empty dropped), {:.1} MB → {}",

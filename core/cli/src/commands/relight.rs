@@ -101,6 +101,22 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
     let gains = resolve_light_gains(&stack.header, &edits)?;
     let bases = StackBases::from_header(&stack.header)?;
     let coefs = bases.coefficients(&materials)?;
+    // Exponents outside a region's baked ns range: relit with the nearest one, and said so.
+    let editable_names: Vec<&str> = stack
+        .header
+        .regions
+        .iter()
+        .filter(|r| r.editable)
+        .map(|r| r.name.as_str())
+        .collect();
+    let warnings: Vec<String> = bases
+        .out_of_range(&materials)
+        .iter()
+        .map(|w| w.message(editable_names.get(w.region).copied().unwrap_or("?")))
+        .collect();
+    for w in &warnings {
+        eprintln!("warning: {w}");
+    }
     let (width, height) = (stack.header.width, stack.header.height);
     let mut relighter = Relighter::new(Arc::new(stack), args.device.preference())
         .map_err(|e| device_error(args.device, e))?;
@@ -133,6 +149,7 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
             "height": height,
             "load_seconds": load_seconds,
             "relight_ms": relight_ms,
+            "warnings": warnings,
         }));
     } else {
         println!(

@@ -61,6 +61,25 @@ pub struct BakeEstimate {
     /// Forecast size of the stack in memory (layer samples at the stored precision); the
     /// file is smaller by its compression.
     pub stack_bytes: u64,
+    /// Each editable region's basis: its ns (and Principled roughness) range and the basis
+    /// count the tolerance picked for it — the cost of a wide roughness range, shown before
+    /// the bake (slots, hence layers, grow with the count).
+    pub editable: Vec<RegionBasisCost>,
+}
+
+/// The basis an editable region is baked with ([`BakeEstimate::editable`]).
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct RegionBasisCost {
+    pub region: String,
+    pub ns_range: [f32; 2],
+    /// `[roughness(ns_max), roughness(ns_min)]` under `ns = 2/α² − 2`, `α = r²`.
+    pub roughness_range: [f32; 2],
+    /// `N_b`, the diffuse basis included.
+    pub bases: u32,
+    /// Slots of the region (bases, plus the textured constant and subsurface slots).
+    pub slots: u32,
+    /// Worst relative L2 error of a lobe in the range.
+    pub max_rel_l2: f64,
 }
 
 /// Records which layers a probe pixel's paths reach and whether their values carry colour.
@@ -230,6 +249,28 @@ pub fn estimate(
         prepared_bytes: geometry,
         peak_bytes,
         stack_bytes,
+        editable: ctx
+            .regions
+            .iter()
+            .filter_map(|r| match &r.model {
+                super::context::RegionModel::Editable { basis, .. } => {
+                    let cfg = basis.config();
+                    let rep = basis.error_report();
+                    Some(RegionBasisCost {
+                        region: r.name.clone(),
+                        ns_range: [cfg.ns_min, cfg.ns_max],
+                        roughness_range: [
+                            crate::stack::bases::ns_to_roughness(cfg.ns_max),
+                            crate::stack::bases::ns_to_roughness(cfg.ns_min),
+                        ],
+                        bases: basis.count() as u32,
+                        slots: r.slot_count,
+                        max_rel_l2: rep.max_rel_l2,
+                    })
+                }
+                _ => None,
+            })
+            .collect(),
     }
 }
 

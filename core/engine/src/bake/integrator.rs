@@ -24,6 +24,14 @@
 //! bake-time materials only, so the bake and a reference with other materials still trace
 //! the same paths. Emitters and the world are reached by next-event estimation only, at
 //! every vertex, as for the first bounce (a continuation ray that escapes carries nothing).
+//!
+//! **Emitters seen directly.** A camera ray also collects the emitters it sees before (or
+//! at) its first hit — area lights with camera visibility (front face), emissive surfaces
+//! ([`crate::scene::Light::Emissive`]) — into the world layer of the emitter's light group:
+//! that light depends on no material, so it relights as a constant scaled by the group's
+//! gain. Emissive surfaces light the scene through next-event estimation like any light
+//! (uniform area sampling, no MIS: continuation rays carry no emission, so nothing is
+//! counted twice).
 
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
@@ -176,7 +184,16 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(
     let mut stream = SampleStream::new(settings.seed, pixel, sample);
     let (jx, jy) = stream.next2();
     let (origin, dir) = ctx.camera.ray(px as f32 + jx, py as f32 + jy);
-    let Some(hit) = tracer.intersect(ctx, origin, dir, 0.0, ctx.clip_end) else {
+    let hit = tracer.intersect(ctx, origin, dir, 0.0, ctx.clip_end);
+    // Emitters the camera sees (visible area lights, emissive surfaces): constant light,
+    // independent of every material, so it goes to the world layer of the emitter's group.
+    ctx.lights.seen_directly(
+        origin,
+        dir,
+        hit.as_ref().map(|h| (h.t, h.region)),
+        |g, v| sink.world(g, v),
+    );
+    let Some(hit) = hit else {
         sink.world(
             ctx.lights.world_group(),
             ctx.lights.environment.radiance(dir),

@@ -57,7 +57,8 @@
 //!   (error ≤ 1e-4 of the lobe norm, tested). `ns` outside the range is **clamped** to it: a
 //!   material rougher/smoother than the basis was built for is rendered with the nearest lobe
 //!   the basis represents (extrapolating the PCA coefficients would give arbitrary lobes).
-//!   Callers that need wider ranges build a basis for them.
+//!   Callers that need wider ranges build a basis for them; the relighters report every
+//!   clamped material (`stack::bases::StackBases::ns_out_of_range`).
 //! * **Constant in the fit** ([`BasisConfig::constant_in_fit`], default on). The paper
 //!   keeps `1/π` for `Kd` alone and fits every specular lobe with the other `N_b − 1` bases.
 //!   But every lobe has a large constant component (its mean over the domain), and the

@@ -7,7 +7,10 @@
 //!   `ns ≤ NS_MAX = 10⁶` (a 0.067° half-width lobe, already sharper than an `f32` cos δ can
 //!   resolve). `r = 1` gives `ns = 0`, clamped up to `NS_MIN = 10⁻³` (a nearly constant lobe)
 //!   because `ns > 0` is required. The basis then clamps `ns` to its own range when it
-//!   computes coefficients (`BrdfBasis::spec_coefficients`).
+//!   computes coefficients (`BrdfBasis::spec_coefficients`) — never silently: the relighters
+//!   report every editable material outside its region's baked range
+//!   (`StackBases::ns_out_of_range`: the CLI's warnings, `Relighter.warnings` in Python, the
+//!   add-on's panel and `status()["range_warnings"]`).
 //! * **Specular colour.** Dielectric `F0 = ((ior−1)/(ior+1))²` (0.04 at the default IOR 1.5),
 //!   scaled by `2·Specular IOR Level` as Blender's manual describes it (0.5 leaves F0 as the
 //!   IOR gives it, 0 removes reflection, 1 doubles it at normal incidence), clamped to ≤ 1.

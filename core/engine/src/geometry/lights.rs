@@ -70,7 +70,39 @@ enum Emitter {
         /// Surface area, m² (0 for a degenerate light, which then emits nothing).
         area: f32,
     },
+    /// An emissive region's triangles, sampled uniformly by area (two-sided emission).
+    Mesh {
+        /// Per triangle: v0, e1 = v1 − v0, e2 = v2 − v0, unit normal.
+        triangles: Vec<[Vec3; 4]>,
+        /// Cumulative area fraction per triangle (last = 1).
+        cdf: Vec<f32>,
+        /// Radiance times the total area (the area pdf is 1/A).
+        radiance_times_area: Rgb,
+    },
     World,
+}
+
+/// An emitter the camera sees directly ([`LightSet::seen_directly`]).
+#[derive(Clone, Debug)]
+enum Visible {
+    /// A visible area light's front face.
+    Area {
+        centre: Vec3,
+        u: Vec3,
+        v: Vec3,
+        normal: Vec3,
+        half_u: f32,
+        half_v: f32,
+        elliptic: bool,
+        radiance: Rgb,
+        group: usize,
+    },
+    /// Every triangle of a region (the camera ray's own hit tells).
+    Region {
+        region: u32,
+        radiance: Rgb,
+        group: usize,
+    },
 }
 
 /// How square and rectangular area lights are sampled (disks and ellipses always by area).
@@ -119,6 +151,8 @@ pub struct LightSet {
     world_sampler: Option<EnvSampler>,
     world_sampling: WorldSampling,
     area_sampling: AreaSampling,
+    /// Emitters seen by camera rays, with the radiance they show (untinted, like the layers).
+    visible: Vec<Visible>,
 }
 
 /// The colour shared by a set of emitter colours, if there is one: when all are
@@ -156,6 +190,9 @@ fn light_colour(light: &Light) -> Rgb {
         | Light::Spot { color, power, .. }
         | Light::Area { color, power, .. } => Rgb::from(*color) * power.signum().max(0.0),
         Light::Sun {
+            color, strength, ..
+        }
+        | Light::Emissive {
             color, strength, ..
         } => Rgb::from(*color) * strength.signum().max(0.0),
     }
@@ -259,9 +296,15 @@ impl LightSet {
             .lights
             .iter()
             .zip(&member)
-            .filter_map(|(l, m)| prepare(l, groups[*m].tint))
+            .filter_map(|(l, m)| prepare(l, groups[*m].tint, scene))
             .collect();
         let mut emitter_group: Vec<u16> = member.iter().map(|m| *m as u16).collect();
+        let visible = scene
+            .lights
+            .iter()
+            .zip(&member)
+            .filter_map(|(l, m)| visible_emitter(l, groups[*m].tint, *m, scene))
+            .collect();
         let environment = match Environment::new(&scene.world) {
             Environment::Constant(c) => {
                 Environment::Constant(untinted(c, groups[world_group].tint))
@@ -284,6 +327,67 @@ impl LightSet {
             world_sampler,
             world_sampling: WorldSampling::default(),
             area_sampling: AreaSampling::default(),
+            visible,
+        }
+    }
+
+    /// Emitters a camera ray from `origin` along unit `dir` sees before its first surface
+    /// hit (at `t_hit`, in region `hit_region`; `None` for a ray that escapes): calls
+    /// `add(group, radiance)` for each. Area lights are tested for the front face (one-sided,
+    /// as Cycles renders them) and are not opaque: the surface behind is still shaded, as in
+    /// Cycles, where lights are not geometry. An emissive region shows on both faces.
+    pub fn seen_directly(
+        &self,
+        origin: Vec3,
+        dir: Vec3,
+        hit: Option<(f32, u32)>,
+        mut add: impl FnMut(usize, Rgb),
+    ) {
+        let t_hit = hit.map_or(f32::INFINITY, |(t, _)| t);
+        for vis in &self.visible {
+            match vis {
+                Visible::Area {
+                    centre,
+                    u,
+                    v,
+                    normal,
+                    half_u,
+                    half_v,
+                    elliptic,
+                    radiance,
+                    group,
+                } => {
+                    let denom = dir.dot(*normal);
+                    // Front face only: the light emits along `normal`, so the ray meets it
+                    // head-on (denom < 0).
+                    if !(denom < 0.0) {
+                        continue;
+                    }
+                    let t = (*centre - origin).dot(*normal) / denom;
+                    if !(t > 0.0 && t < t_hit) {
+                        continue;
+                    }
+                    let q = origin + dir * t - *centre;
+                    let (a, b) = (q.dot(*u) / half_u, q.dot(*v) / half_v);
+                    let inside = if *elliptic {
+                        a * a + b * b <= 1.0
+                    } else {
+                        a.abs() <= 1.0 && b.abs() <= 1.0
+                    };
+                    if inside {
+                        add(*group, *radiance);
+                    }
+                }
+                Visible::Region {
+                    region,
+                    radiance,
+                    group,
+                } => {
+                    if hit.is_some_and(|(_, r)| r == *region) {
+                        add(*group, *radiance);
+                    }
+                }
+            }
         }
     }
 
@@ -458,6 +562,42 @@ impl LightSet {
                     radiance_over_pdf: *radiance_times_area * (cos_light / dist2),
                 })
             }
+            Emitter::Mesh {
+                triangles,
+                cdf,
+                radiance_times_area,
+            } => {
+                // Pick a triangle by area with u1 (rescaled for reuse), a uniform point on it.
+                let i = cdf.partition_point(|c| *c <= u1).min(cdf.len() - 1);
+                let lo = if i == 0 { 0.0 } else { cdf[i - 1] };
+                let w = cdf[i] - lo;
+                let u1 = if w > 0.0 {
+                    ((u1 - lo) / w).clamp(0.0, ONE_MINUS_EPS)
+                } else {
+                    0.5
+                };
+                let [v0, e1, e2, nl] = triangles[i];
+                let su = u1.sqrt();
+                let (b1, b2) = (su * (1.0 - u2), su * u2);
+                let q = v0 + e1 * b1 + e2 * b2;
+                let d = q - p;
+                let dist2 = d.length_squared();
+                if !(dist2 > 0.0) {
+                    return None;
+                }
+                let dist = dist2.sqrt();
+                let wi = d / dist;
+                // Two-sided emission.
+                let cos_light = wi.dot(nl).abs();
+                if !(cos_light > 0.0) {
+                    return None;
+                }
+                Some(LightSample {
+                    wi,
+                    distance: dist,
+                    radiance_over_pdf: *radiance_times_area * (cos_light / dist2),
+                })
+            }
             Emitter::World => match (&self.world_sampler, self.world_sampling) {
                 (Some(env), WorldSampling::Mixture) => {
                     sample_world_mixture(env, &self.environment, n, u1, u2)
@@ -519,9 +659,97 @@ fn sample_world_mixture(
 /// The largest f32 below 1.
 const ONE_MINUS_EPS: f32 = 1.0 - f32::EPSILON / 2.0;
 
-fn prepare(light: &Light, tint: Rgb) -> Option<Emitter> {
+/// The emitter the camera sees for `light`, when its `visible_camera` is on (group `group`).
+fn visible_emitter(light: &Light, tint: Rgb, group: usize, scene: &Scene) -> Option<Visible> {
+    match light {
+        Light::Area {
+            visible_camera: true,
+            ..
+        } => match prepare(light, tint, scene)? {
+            Emitter::Area {
+                centre,
+                u,
+                v,
+                normal,
+                half_u,
+                half_v,
+                elliptic,
+                radiance_times_area,
+                area,
+            } if area > 0.0 => Some(Visible::Area {
+                centre,
+                u,
+                v,
+                normal,
+                half_u,
+                half_v,
+                elliptic,
+                radiance: radiance_times_area / area,
+                group,
+            }),
+            _ => None,
+        },
+        Light::Emissive {
+            region,
+            strength,
+            color,
+            visible_camera: true,
+        } => Some(Visible::Region {
+            region: *region,
+            radiance: untinted(Rgb::from(*color), tint) * strength.max(0.0),
+            group,
+        }),
+        _ => None,
+    }
+}
+
+fn prepare(light: &Light, tint: Rgb, scene: &Scene) -> Option<Emitter> {
     let colour = |c: &[f32; 3]| untinted(Rgb::from(*c), tint);
     match light {
+        Light::Emissive {
+            region,
+            strength,
+            color,
+            ..
+        } => {
+            let mut triangles = Vec::new();
+            let mut cdf = Vec::new();
+            let mut total = 0.0f64;
+            for mesh in &scene.meshes {
+                for (t, idx) in mesh.indices.iter().enumerate() {
+                    if mesh.region_of(t) != *region {
+                        continue;
+                    }
+                    let get = |k: u32| mesh.positions.get(k as usize).map(|p| Vec3::from(*p));
+                    let (Some(v0), Some(v1), Some(v2)) = (get(idx[0]), get(idx[1]), get(idx[2]))
+                    else {
+                        continue;
+                    };
+                    let (e1, e2) = (v1 - v0, v2 - v0);
+                    let c = e1.cross(e2);
+                    let a = 0.5 * c.length();
+                    if !(a > 0.0) || !a.is_finite() {
+                        continue;
+                    }
+                    total += a as f64;
+                    triangles.push([v0, e1, e2, c.normalize()]);
+                    cdf.push(total);
+                }
+            }
+            if triangles.is_empty() || !(*strength > 0.0) {
+                // Keep the emitter count equal to the light count (groups index by light).
+                return Some(Emitter::Mesh {
+                    triangles: vec![[Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z]],
+                    cdf: vec![1.0],
+                    radiance_times_area: Rgb::ZERO,
+                });
+            }
+            Some(Emitter::Mesh {
+                triangles,
+                cdf: cdf.iter().map(|c| (c / total) as f32).collect(),
+                radiance_times_area: colour(color) * (*strength * total as f32),
+            })
+        }
         Light::Point {
             position,
             power,
@@ -584,6 +812,7 @@ fn prepare(light: &Light, tint: Rgb) -> Option<Emitter> {
             size_y,
             power,
             color,
+            ..
         } => {
             let u = Vec3::from(*axis_u).normalize();
             let v = Vec3::from(*axis_v).normalize();

@@ -17,7 +17,9 @@ use crate::{RelumeError, Result};
 pub const SCENE_FORMAT: &str = "relume-scene";
 /// The scene file version this build writes. Version 2 adds translucency (a region's
 /// `subsurface` block, the Principled `subsurface_*` fields); version 1 files load unchanged.
-pub const SCENE_VERSION: u32 = 2;
+/// Version 3 adds emitters seen by the camera (`visible_camera` on area lights) and
+/// emissive surfaces (`"type": "emissive"` lights); versions 1 and 2 load unchanged.
+pub const SCENE_VERSION: u32 = 3;
 /// The oldest scene file version this build reads.
 pub const SCENE_VERSION_MIN: u32 = 1;
 
@@ -97,7 +99,7 @@ fn resolve_image(img: &mut ImageRef, dir: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Writes `scene` as a version-2 scene file (atomically: temp file + rename).
+/// Writes `scene` as a version-3 scene file (atomically: temp file + rename).
 pub fn save_scene(path: &Path, scene: &Scene) -> Result<()> {
     let file = SceneFile {
         format: SCENE_FORMAT.into(),

@@ -258,6 +258,27 @@ pub enum Light {
         power: f32,
         #[serde(default = "white")]
         color: [f32; 3],
+        /// Seen by camera rays (Blender's object Ray Visibility → Camera, on by default;
+        /// scene format 3, absent = off as older files baked): the front face shows radiance
+        /// P/(π·A)·color, as Cycles renders a visible area light. Lights are not opaque in
+        /// Cycles: the surface behind still shows.
+        #[serde(default)]
+        visible_camera: bool,
+    },
+    /// An emissive surface (scene format 3): every triangle of region `region` emits
+    /// radiance `strength · color` from both faces — Cycles' convention for an Emission
+    /// shader or the Principled BSDF's Emission (strength 1 of white shows as 1.0; Blender's
+    /// "W/m²" label aside, the value is radiance in W/(m²·sr) scaled as Cycles scales it).
+    /// Its light is sampled by next-event estimation (uniform by area, the area pdf
+    /// converted to solid angle) and, with `visible_camera`, seen directly. The region
+    /// itself still reflects with its material (black for a pure Emission shader).
+    Emissive {
+        region: u32,
+        strength: f32,
+        #[serde(default = "white")]
+        color: [f32; 3],
+        #[serde(default)]
+        visible_camera: bool,
     },
 }
 

@@ -145,6 +145,17 @@ pub fn validate_scene(scene: &Scene) -> Result<ValidationReport> {
     }
     let mut emits = false;
     for (li, light) in scene.lights.iter().enumerate() {
+        if let Light::Emissive { region, .. } = light {
+            if *region as usize >= scene.regions.len() {
+                return Err(RelumeError::invalid(
+                    format!("light {li}"),
+                    format!(
+                        "emissive region {region} does not exist ({} regions)",
+                        scene.regions.len()
+                    ),
+                ));
+            }
+        }
         emits |= validate_light(li, light)?;
     }
     match &scene.world {
@@ -417,6 +428,12 @@ fn validate_light(li: usize, light: &Light) -> Result<bool> {
                 return Err(RelumeError::invalid(what(), "area light size must be > 0"));
             }
             (*power, *color)
+        }
+        Light::Emissive {
+            strength, color, ..
+        } => {
+            finite(what, &[*strength])?;
+            (*strength, *color)
         }
     };
     finite(what, &color)?;

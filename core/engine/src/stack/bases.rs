@@ -101,6 +101,94 @@ impl StackBases {
     }
 }
 
+/// An editable material whose exponent lies outside the ns range its region's basis was
+/// baked for. The relight still runs — with the nearest exponent the basis represents
+/// (`rendered_ns`, [`BrdfBasis::spec_coefficients`] clamps) — but never silently: the
+/// relighters (command line, Python, add-on) report every one of these with its consequence.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct NsOutOfRange {
+    /// Editable index of the region.
+    pub region: usize,
+    /// The exponent the material asks for (after the Principled mapping).
+    pub ns: f32,
+    /// The baked range `[ns_min, ns_max]`.
+    pub ns_range: [f32; 2],
+    /// The exponent the relight renders instead.
+    pub rendered_ns: f32,
+    /// The Principled roughness range the baked ns range corresponds to (`ns = 2/α² − 2`,
+    /// `α = r²`): `[r(ns_max), r(ns_min)]`.
+    pub roughness_range: [f32; 2],
+}
+
+impl NsOutOfRange {
+    /// One sentence naming the region, the value and what the image shows instead.
+    pub fn message(&self, region_name: &str) -> String {
+        let r = ns_to_roughness(self.ns);
+        let smoother = self.ns > self.ns_range[1];
+        format!(
+            "region \"{region_name}\": ns {:.4} (roughness {r:.3}) is outside the baked range \
+             ns [{:.4}, {:.4}] (roughness [{:.3}, {:.3}]); relit as ns {:.4}, so its highlight \
+             is {} than Cycles renders it — rebake with a wider roughness range",
+            self.ns,
+            self.ns_range[0],
+            self.ns_range[1],
+            self.roughness_range[0],
+            self.roughness_range[1],
+            self.rendered_ns,
+            if smoother {
+                "broader and dimmer"
+            } else {
+                "sharper"
+            }
+        )
+    }
+}
+
+/// Principled roughness for a Blinn–Phong exponent, the inverse of
+/// [`crate::brdf::principled::roughness_to_ns`] (`α = √(2/(ns+2))`, `r = √α`).
+pub fn ns_to_roughness(ns: f32) -> f32 {
+    let ns = ns.max(0.0) as f64;
+    (2.0 / (ns + 2.0)).sqrt().sqrt() as f32
+}
+
+/// Relative slack before an exponent counts as outside (the range itself is stored as f32
+/// and mapped through `f32` logs).
+const NS_RANGE_SLACK: f32 = 1e-4;
+
+impl StackBases {
+    /// `Some` when `material`'s exponent lies outside the ns range of editable region
+    /// `region`'s basis and the material reflects specularly at all (`Ks > 0`); a material
+    /// without specular reflection renders the same whatever its exponent.
+    pub fn ns_out_of_range(&self, region: usize, material: &MaterialSpec) -> Option<NsOutOfRange> {
+        let basis = self.bases.get(region)?;
+        let cfg = basis.config();
+        let m = material.to_blinn_phong();
+        if m.ks.iter().all(|&k| k <= 0.0) || !m.ns.is_finite() {
+            return None;
+        }
+        let (lo, hi) = (cfg.ns_min, cfg.ns_max);
+        if m.ns >= lo * (1.0 - NS_RANGE_SLACK) && m.ns <= hi * (1.0 + NS_RANGE_SLACK) {
+            return None;
+        }
+        Some(NsOutOfRange {
+            region,
+            ns: m.ns,
+            ns_range: [lo, hi],
+            rendered_ns: m.ns.clamp(lo, hi),
+            roughness_range: [ns_to_roughness(hi), ns_to_roughness(lo)],
+        })
+    }
+
+    /// [`Self::ns_out_of_range`] for every editable region (editable order).
+    pub fn out_of_range(&self, materials: &[MaterialSpec]) -> Vec<NsOutOfRange> {
+        materials
+            .iter()
+            .enumerate()
+            .filter_map(|(r, m)| self.ns_out_of_range(r, m))
+            .collect()
+    }
+}
+
 /// The coefficient of every slot of an editable region for material `m`: the basis
 /// coefficients, except that a textured region (with the diffuse basis in the specular fit)
 /// has [Kd (textured diffuse layer), Ks·c̃₁, …, Ks·c₀ (untextured constant layer)].
@@ -112,5 +200,76 @@ pub fn slot_coefficients(basis: &BrdfBasis, textured: bool, m: &BlinnPhong) -> V
         rest
     } else {
         basis.material_coefficients(m)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::brdf::{principled::roughness_to_ns, BasisConfig, Principled, PrincipledMaterial};
+
+    fn principled(roughness: f32, metallic: f32) -> MaterialSpec {
+        MaterialSpec::Principled(PrincipledMaterial::from(Principled {
+            base_color: [0.8; 3],
+            metallic,
+            roughness,
+            ior: 1.5,
+            specular_ior_level: 0.5,
+        }))
+    }
+
+    fn bases(ns_min: f32, ns_max: f32) -> StackBases {
+        let cfg = BasisConfig {
+            ns_min,
+            ns_max,
+            ..BasisConfig::default()
+        };
+        StackBases {
+            bases: vec![Arc::new(BrdfBasis::build(&cfg).unwrap())],
+            textured: vec![false],
+            subsurface: vec![None],
+        }
+    }
+
+    #[test]
+    fn roughness_round_trips_through_ns() {
+        for r in [0.1f32, 0.2, 0.32, 0.5, 0.9] {
+            let back = ns_to_roughness(roughness_to_ns(r));
+            assert!((back - r).abs() < 1e-4, "{r} → {back}");
+        }
+    }
+
+    /// The paper's range [1, 200] is roughness ≥ 0.32: a ground at 0.15 is outside and says
+    /// so (relit at ns 200, broader); inside the range, nothing is reported; the add-on's
+    /// default range (roughness 0.1–1) covers 0.15 and roughness 1.
+    #[test]
+    fn an_exponent_outside_the_baked_range_is_reported_not_silently_clamped() {
+        let paper = bases(1.0, 200.0);
+        let w = paper.ns_out_of_range(0, &principled(0.15, 0.0)).unwrap();
+        assert_eq!(w.rendered_ns, 200.0);
+        assert!((w.ns - roughness_to_ns(0.15)).abs() < 1.0, "{w:?}");
+        assert!((w.roughness_range[0] - 0.3155).abs() < 1e-3, "{w:?}");
+        let msg = w.message("Floor");
+        assert!(msg.contains("Floor") && msg.contains("broader"), "{msg}");
+        assert!(paper.ns_out_of_range(0, &principled(0.5, 0.0)).is_none());
+        // Roughness 1 maps to ns = 10⁻³, below the paper's ns_min = 1: rendered sharper.
+        let w = paper.ns_out_of_range(0, &principled(1.0, 1.0)).unwrap();
+        assert!(w.message("M").contains("sharper"));
+        // No specular reflection (Specular IOR Level 0, dielectric): the exponent is moot.
+        let mut spec = principled(0.15, 0.0);
+        if let MaterialSpec::Principled(p) = &mut spec {
+            p.bsdf.specular_ior_level = 0.0;
+        }
+        assert!(paper.ns_out_of_range(0, &spec).is_none());
+
+        let wide = bases(roughness_to_ns(1.0), roughness_to_ns(0.1));
+        for r in [0.1, 0.15, 0.25, 0.5, 1.0] {
+            assert!(
+                wide.ns_out_of_range(0, &principled(r, 0.5)).is_none(),
+                "{r}"
+            );
+        }
+        assert!(wide.ns_out_of_range(0, &principled(0.05, 0.5)).is_some());
+        assert_eq!(wide.out_of_range(&[principled(0.05, 1.0)]).len(), 1);
     }
 }

@@ -173,6 +173,7 @@ pub fn cornell(size: u32) -> Scene {
             size_y: None,
             power: 40.0,
             color: [1.0, 1.0, 1.0],
+            visible_camera: false,
         }],
         world: World::Color {
             color: [0.0; 3],

@@ -1,0 +1,115 @@
+"""Relume on scenes nobody on the project made (issue 15): `../shared/scenes/` beside the
+repository (see its README: McGuire's CornellBox-Glossy mapped to Principled, the same as
+Blender's OBJ importer makes it with its emissive quad, the Stanford bunny on a glossy tile
+under an HDRI). Skipped with a message when the folder is absent (it is not part of the
+repository).
+
+Each scene: export (every warning must be one this test explains), bake with the final
+preset at a small resolution, relight, compare with a Cycles render made here at the file's
+own light paths (one bounce), over 8×8 tiles. The figures are printed and recorded; the
+assertions are loose bounds on the gap measured when this test was written (README's
+Cycles-agreement section, docs/fidelity.md), not the issue's 3–5 % goal, which the glossy
+mapping does not reach yet. The `_asis` variant's emissive quad must light the box and be
+seen: its pixels show the emission's radiance as Cycles shows it.
+"""
+
+from __future__ import annotations
+
+import json
+import pathlib
+import time
+
+import bpy
+import numpy as np
+import pytest
+from support import cycles as cy
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+SCENES = ROOT.parent / "shared" / "scenes"
+RES = 64
+CYCLES_SPP = 256
+BLOCK = 8
+
+#: Export warnings these scenes give and why they are expected (substring → reason).
+EXPLAINED = {
+    "Specular Tint": "OBJ importer materials tint the specular; Relume's mapping is untinted",
+    "Transmission Weight": "the OBJ importer turns the .mtl's transparency into transmission; Relume "
+                           "renders the sphere opaque (part of the measured gap)",
+}
+
+_RESULTS: dict[str, dict] = {}
+
+
+@pytest.fixture(scope="module")
+def results_file(tmp_path_factory):
+    path = tmp_path_factory.getbasetemp() / "third_party_scenes.json"
+    yield path
+    path.write_text(json.dumps(_RESULTS, indent=2))
+    print(f"\nThird-party scene figures: {path}")
+
+
+def _open(name: str) -> None:
+    path = SCENES / name
+    if not path.exists():
+        pytest.skip(f"{path} is absent: the third-party scenes live in ../shared/scenes/ beside the "
+                    "repository (not part of it)")
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    scene = bpy.context.scene
+    aspect = scene.render.resolution_y / scene.render.resolution_x
+    scene.render.resolution_x = RES
+    scene.render.resolution_y = max(BLOCK, int(round(RES * aspect / BLOCK)) * BLOCK)
+    scene.render.resolution_percentage = 100
+
+
+@pytest.mark.parametrize("name", ["cornell_glossy.blend", "cornell_glossy_asis.blend", "bunny.blend"])
+def test_third_party_scene_agrees_with_cycles(addon, prefs, tmp_path, results_file, name):
+    import relume
+
+    _open(name)
+    scene = bpy.context.scene
+    # Cycles first: it hides lamp objects from the camera (support/cycles.py) and the export
+    # then reads the same visibility.
+    c1, t1 = cy.render_cycles(scene, tmp_path / "c1.exr", CYCLES_SPP // 2, seed=1, bounces=1)
+    c2, t2 = cy.render_cycles(scene, tmp_path / "c2.exr", CYCLES_SPP // 2, seed=2, bounces=1)
+    reference = 0.5 * (c1 + c2)
+    result = addon.api.export()
+    warnings = [str(w) for w in result.warnings]
+    unexplained = [w for w in warnings if not any(k in w for k in EXPLAINED)]
+    assert not unexplained, unexplained
+    t0 = time.perf_counter()
+    report = addon.api.bake(settings=relume.BakeSettings.preset("final", seed=0, bounces=1))
+    bake_s = time.perf_counter() - t0
+    out = addon.api.render(str(tmp_path / "relume.exr"))
+    image = np.asarray(relume.read_exr(out), dtype=np.float64)[..., :3]
+    assert image.shape == reference.shape and np.isfinite(image).all()
+    blocks = cy.block_mean(image, BLOCK)
+    ref_blocks = cy.block_mean(reference, BLOCK)
+    figures = {
+        "resolution": list(reference.shape[:2]),
+        "cycles_spp": CYCLES_SPP,
+        "cycles_noise_of_mean_tiles": cy.noise_of_mean(cy.block_mean(c1, BLOCK), cy.block_mean(c2, BLOCK)),
+        "block8_rel_l2": cy.rel_l2(blocks, ref_blocks),
+        "pixel_rel_l2": cy.rel_l2(image, reference),
+        "mean_ratio_relume_over_cycles": float(image.sum() / reference.sum()),
+        "relume_layers": report.get("layers"),
+        "relume_bake_s": bake_s,
+        "cycles_s": t1 + t2,
+        "warnings": warnings,
+        "emissive_lights": [li for li in result.scene_dict["lights"] if li["type"] == "emissive"],
+    }
+    if name == "cornell_glossy_asis.blend":
+        # The emissive quad is exported as a light and is seen: the brightest Cycles pixels
+        # (the quad) are bright in Relume too, with the same radiance.
+        assert figures["emissive_lights"], "the emissive quad was not exported as a light"
+        quad = reference.max(axis=2) >= 0.5 * reference.max()
+        figures["emitter_pixels"] = int(quad.sum())
+        figures["emitter_ratio_relume_over_cycles"] = float(image[quad].sum() / reference[quad].sum())
+    _RESULTS[name] = figures
+    print(f"\n[third-party] {name}: " + ", ".join(
+        f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in figures.items()))
+    assert image.max() > 0
+    # Loose bounds on the measured gap (module docs): the glossy mapping, not the transport.
+    assert 0.75 <= figures["mean_ratio_relume_over_cycles"] <= 1.25, figures
+    assert figures["block8_rel_l2"] <= 0.35, figures
+    if "emitter_ratio_relume_over_cycles" in figures:
+        assert 0.8 <= figures["emitter_ratio_relume_over_cycles"] <= 1.2, figures
