@@ -49,7 +49,10 @@ def dask_overhead():
     from distributed import Client, LocalCluster
 
     t = time.perf_counter()
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, Client(cluster) as client:
+    with (
+        LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster,
+        Client(cluster) as client,
+    ):
         start_s = time.perf_counter() - t
         client.submit(lambda: 0, pure=False).result()  # warm
         n = 20
@@ -110,7 +113,7 @@ def main():
             same = relit_max_abs(a.relume, out, single, tmp)
             # What a task adds around relume's own bake: Dask, process start, scene load,
             # writing the partial stack.
-            around = sum(t - p["seconds"] for t, p in zip(task_walls, r["parts"])) / n
+            around = sum(t - p["seconds"] for t, p in zip(task_walls, r["parts"], strict=True)) / n
             runs.append({
                 "partitions": n,
                 "wall_seconds": r["wall_seconds"],
@@ -137,7 +140,8 @@ def main():
         # scales with the pixels (and the layers reached, which a real interior has more of).
         per_part_bytes = max(result["farm"][-1]["part_file_bytes"]) * scale
         guide = result["guide_seconds"] * scale
-        proj = {"per_pixel_sample_seconds_2_cores": cost, "one_machine_seconds": one, "guide_seconds_scaled_by_pixels": guide}
+        proj = {"per_pixel_sample_seconds_2_cores": cost, "one_machine_seconds": one,
+                "guide_seconds_scaled_by_pixels": guide}
         for m in (8, 32):
             overhead = result["farm"][-1]["overhead_per_partition_seconds"]
             merge = result["farm"][-1]["merge_seconds"] * scale

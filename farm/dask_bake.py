@@ -31,11 +31,11 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Callable, Optional, Sequence
 
 
-def _run_relume(relume: str, args: Sequence[str], cancel_name: Optional[str]) -> dict:
+def _run_relume(relume: str, args: Sequence[str], cancel_name: str | None) -> dict:
     """Runs `relume ARGS --json` on a worker; returns its JSON summary. Polls the cluster's
     cancel event (when named) and interrupts relume with SIGINT when it is set."""
     import json
@@ -53,11 +53,11 @@ def _run_relume(relume: str, args: Sequence[str], cancel_name: Optional[str]) ->
         try:
             out, err = proc.communicate(timeout=0.25)
             break
-        except subprocess.TimeoutExpired:
+        except subprocess.TimeoutExpired as timeout:
             if cancel is not None and cancel.is_set():
                 proc.send_signal(signal.SIGINT)
                 proc.communicate()
-                raise RuntimeError("cancelled")
+                raise RuntimeError("cancelled") from timeout
     if proc.returncode != 0:
         raise RuntimeError(f"relume {' '.join(args[:1])} failed: {err.strip()}")
     summary = json.loads(out)
@@ -90,8 +90,8 @@ def bake_on_dask(
     client=None,
     workers: int = 2,
     relume: str = "relume",
-    workdir: Optional[str] = None,
-    on_progress: Optional[Callable[[int, int, dict], None]] = None,
+    workdir: str | None = None,
+    on_progress: Callable[[int, int, dict], None] | None = None,
 ) -> dict:
     """Bakes `scene` into `output` over `partitions` Dask tasks and merges (on this machine).
 

@@ -38,7 +38,7 @@ status=0
 echo "== style: cargo fmt, cargo clippy, ruff"
 cargo fmt --all --check || { echo "cargo fmt: run 'cargo fmt --all'" >&2; status=1; }
 cargo clippy --workspace --all-targets --quiet -- -D warnings || status=1
-"$PYTHON" -m ruff check addon blender_tests core/py scripts examples || status=1
+"$PYTHON" -m ruff check addon blender_tests core/py scripts examples farm || status=1
 echo "== cargo test (workspace)"
 cargo test --workspace --no-fail-fast 2>&1 || status=1
 echo "== the relume wheel and the Blender extension zip"
