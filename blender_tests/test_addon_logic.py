@@ -126,10 +126,15 @@ def test_material_mapping_rules():
     assert "Roughness linked to ShaderNodeTexNoise" in text
     assert "Alpha 0.5" in text and "metallic with a Base Color texture" in text
 
+    # An Emission shader reflects nothing (its light is exported as an emissive light).
     w = WarningList()
-    fallback, _ = material_map.map_material(SN("E", "ShaderNodeEmission"), w)
+    black, _ = material_map.map_material(SN("E", material_map.EMISSION), w)
+    assert black == {"model": "blinn_phong", "kd": [0.0, 0.0, 0.0], "ks": [0.0, 0.0, 0.0], "ns": 1.0}
+    # A shader the exporter cannot map falls back with a warning naming it.
+    w = WarningList()
+    fallback, _ = material_map.map_material(SN("T", "ShaderNodeBsdfToon"), w)
     assert fallback == material_map.FALLBACK_PRINCIPLED
-    assert "ShaderNodeEmission" in str(w.items()[0])
+    assert "ShaderNodeBsdfToon" in str(w.items()[0])
 
 
 def test_eta_format():

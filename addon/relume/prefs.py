@@ -1,4 +1,4 @@
-"""Add-on preferences: bake settings and the Bake button (DESIGN.md §4)."""
+"""Add-on preferences: bake settings and the Bake button (docs/design.md §4)."""
 
 from __future__ import annotations
 

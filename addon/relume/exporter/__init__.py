@@ -1,4 +1,4 @@
-"""The exporter: Blender's evaluated scene → a Relume scene (DESIGN.md §3).
+"""The exporter: Blender's evaluated scene → a Relume scene (docs/design.md §3).
 
 bpy is read here and only here; the mapping rules live in `..logic` (bpy-free).
 """

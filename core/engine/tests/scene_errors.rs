@@ -214,7 +214,7 @@ fn scene_file_errors() {
         parse_scene(r#"{"format": "relume-scene", "version": 7}"#, p, d),
         Err(RelumeError::SceneVersion {
             found: 7,
-            supported: 2,
+            supported: relume_engine::scene::file::SCENE_VERSION,
             ..
         })
     ));

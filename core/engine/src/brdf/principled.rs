@@ -1,4 +1,4 @@
-//! Principled BSDF → Blinn–Phong: the one mapping (DESIGN.md §3).
+//! Principled BSDF → Blinn–Phong: the one mapping (docs/design.md §3).
 //!
 //! * **Exponent.** Blender's roughness `r` gives the GGX/Beckmann width `α = r²`; the
 //!   Blinn–Phong exponent with the same Beckmann-like width is `ns = 2/α² − 2`. So the paper's
@@ -188,7 +188,7 @@ mod tests {
         assert_eq!(roughness_to_ns(0.0), NS_MAX);
         // r = 1: α = 1, ns = 0 → NS_MIN.
         assert_eq!(roughness_to_ns(1.0), NS_MIN);
-        // The DESIGN.md landmarks: ns = 200 at r ≈ 0.32, r = 0.1 → ns ≈ 20,000.
+        // The docs/design.md landmarks: ns = 200 at r ≈ 0.32, r = 0.1 → ns ≈ 20,000.
         let ns = roughness_to_ns(0.3155);
         assert!((ns - 200.0).abs() < 5.0, "{ns}");
         let ns = roughness_to_ns(0.1);

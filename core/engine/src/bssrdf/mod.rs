@@ -1,5 +1,5 @@
 //! Translucency: the dipole diffuse BSSRDF, factored by PCA so its material can be edited
-//! after the bake (Wang Rui et al. 2008, "the translucency paper"; DESIGN.md §2).
+//! after the bake (Wang Rui et al. 2008, "the translucency paper"; docs/design.md §2).
 //!
 //! Jensen's BSSRDF for multiple scattering is `S_d = (1/π)·F_t(η, ω_i)·Rd(|x_i − x_o|, σ)·F_t(η, ω_o)`,
 //! so the radiance leaving x_o is

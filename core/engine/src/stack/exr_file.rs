@@ -1,6 +1,6 @@
 //! The stack as one OpenEXR file.
 //!
-//! Layout (DESIGN §3 "Stack file"):
+//! Layout (docs/design.md §3 "Stack file"):
 //! - one part, scanlines, ZIP (16 lines per block). ZIP is lossless; the lossy codecs
 //!   (B44, PXR24, DWA) are never used: B44A showed relative errors up to 5 on HDR edges.
 //!   ZIP costs ≈ 0.85 s per 46 MiB of f16 to write but reads at ≈ 0.1 s, and noise-free
