@@ -41,6 +41,8 @@ cargo clippy --workspace --all-targets --quiet -- -D warnings || status=1
 "$PYTHON" -m ruff check addon blender_tests core/py scripts examples farm || status=1
 echo "== cargo test (workspace)"
 cargo test --workspace --no-fail-fast 2>&1 || status=1
+echo "== fuzzing: stack reader, scene and materials parsers, 60 s each (scripts/fuzz.sh)"
+bash scripts/fuzz.sh 60 || status=1
 echo "== the relume wheel and the Blender extension zip"
 bash scripts/build_addon.sh
 echo "== the wheel's platform tag and the release workflow (scripts/check_release.py)"

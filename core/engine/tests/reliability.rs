@@ -322,3 +322,51 @@ fn bad_settings_are_refused_with_the_field_named() {
     .unwrap();
     assert!(e.to_string().contains("passes"), "{e}");
 }
+
+#[test]
+fn a_cancel_during_the_subsurface_set_up_returns_within_a_second() {
+    let mut scene = cornell(32);
+    scene.regions[1].material =
+        relume_engine::brdf::MaterialSpec::Principled(relume_engine::brdf::PrincipledMaterial {
+            bsdf: relume_engine::brdf::Principled {
+                base_color: [0.8, 0.6, 0.5],
+                metallic: 0.0,
+                roughness: 0.5,
+                ior: 1.4,
+                specular_ior_level: 0.5,
+            },
+            subsurface: relume_engine::brdf::Subsurface {
+                weight: 1.0,
+                radius: [1.0, 0.5, 0.25],
+                scale: 0.05,
+            },
+        });
+    // Millions of subsurface samples: seconds of set-up, each sample lit from every light.
+    let settings = BakeSettings {
+        spp: 1,
+        light_samples: 8,
+        subsurface_samples: 4_000_000,
+        ..BakeSettings::default()
+    };
+    let progress = Arc::new(Progress::new());
+    let job = {
+        let (progress, scene, settings) = (progress.clone(), scene.clone(), settings.clone());
+        std::thread::spawn(move || bake(&scene, &settings, &progress).map(|_| ()))
+    };
+    std::thread::sleep(Duration::from_millis(300));
+    assert_eq!(
+        progress.stage(),
+        Stage::Setup,
+        "the set-up ended before the cancel"
+    );
+    let asked = Instant::now();
+    progress.cancel();
+    let result = job.join().unwrap();
+    let took = asked.elapsed();
+    assert!(matches!(result, Err(RelumeError::Cancelled)), "{result:?}");
+    assert!(took < Duration::from_secs(1), "the cancel took {took:?}");
+    eprintln!(
+        "cancel during subsurface set-up: returned after {:.0} ms",
+        took.as_secs_f64() * 1e3
+    );
+}
