@@ -15,7 +15,7 @@ command -v cargo >/dev/null || { echo "demo: needs the Rust toolchain (cargo) on
 command -v python3 >/dev/null || { echo "demo: needs python3" >&2; exit 1; }
 
 echo "== building (release)"
-cargo build --release -p relume-cli --example contact_sheet --quiet
+cargo build --release -p relume-cli --bins --example contact_sheet --quiet
 relume="$(cargo metadata --format-version 1 --no-deps | python3 -c 'import json, sys; print(json.load(sys.stdin)["target_directory"])')/release/relume"
 echo "   built in $(elapsed "$t0") s"
 
@@ -24,9 +24,9 @@ python3 assets/build_scenes.py --out assets cornell >/dev/null
 
 mkdir -p out
 res=${RELUME_DEMO_RESOLUTION:-512x512}
-echo "== baking assets/cornell.scene.json at $res with --preset preview (16 spp x 4 light x 4 indirect samples, guided, one bounce, denoised)"
+echo "== baking assets/cornell.scene.json at $res with --preset preview (16 spp x 4 light x 4 indirect samples, guided, denoised; one bounce, so every edit of the sweep relights exactly)"
 tb=$(date +%s.%N)
-$relume bake assets/cornell.scene.json -o out/cornell.stack.exr --preset preview --resolution "$res" --json > out/bake.json
+$relume bake assets/cornell.scene.json -o out/cornell.stack.exr --preset preview --bounces 1 --resolution "$res" --json > out/bake.json
 echo "   bake: $(elapsed "$tb") s  ($(python3 -c "import json; r=json.load(open('out/bake.json')); b=r['report']; print(f\"bake {b['seconds']:.1f} s of which denoise {b['denoise_seconds']:.1f} s, {r['layers']} layers, {r['file_bytes']/1e6:.1f} MB, {b['rays_per_second']/1e6:.2f} Mrays/s\")"))"
 
 echo "== relighting a sweep of material edits"

@@ -43,10 +43,11 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Result<(), RelumeError> {
-    relume_engine::output_path::refuse_output_over_inputs(
-        &args.output,
-        &[(&args.scene, "the scene")],
-    )?;
+    let mut inputs: Vec<(&std::path::Path, &str)> = vec![(&args.scene, "the scene")];
+    if let Some(g) = &args.guide {
+        inputs.push((g, "the guide file"));
+    }
+    relume_engine::output_path::refuse_output_over_inputs(&args.output, &inputs)?;
     let scene = load_scene(&args.scene)?;
     let rss_before_bake = relume_engine::memory::current_rss_bytes();
     let settings = args.options.settings(scene.resolution)?;
