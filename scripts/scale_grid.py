@@ -1,0 +1,79 @@
+"""The issue-14 grid: resolution × editable materials, one `relume bake --json` process per
+cell (the eight-material Cornell scene of scripts/make_cornell8.py, the draft preset's
+samples at the cell's full resolution, one bounce), then `relume bench relight` on the stack
+it made. Prints one JSON object per cell: the forecast, peak memory (RSS growth over the
+bake), bake time, stack bytes (in memory and on disk), full relight time and its ratio to
+the machine's memory-bandwidth bound — or, for a cell over the memory budget, the refusal
+and the forecast that caused it (no bake then). Run it on a quiet machine.
+
+    python3 scripts/scale_grid.py --relume target/release/relume [--resolutions 512x512,1024x1024]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pathlib
+import subprocess
+import sys
+import tempfile
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+DRAFT_SAMPLES = ["--spp", "4", "--light-samples", "2", "--indirect-samples", "2", "--sampling", "mixture",
+                 "--tolerance", "0.05", "--denoise-bounce", "2", "--bounces", "1"]
+
+
+def cell(relume: str, tmp: pathlib.Path, res: str, k: int) -> dict:
+    scene = tmp / f"cornell8-{res}-k{k}.scene.json"
+    subprocess.run([sys.executable, str(ROOT / "scripts" / "make_cornell8.py"), "--editable", str(k),
+                    "--resolution", res, "--out", str(scene)], check=True, stdout=subprocess.DEVNULL)
+    stack = tmp / "grid.exr"
+    out = subprocess.run([relume, "bake", str(scene), "-o", str(stack), "--json", *DRAFT_SAMPLES],
+                         capture_output=True, text=True)
+    row: dict = {"resolution": res, "editable": k}
+    if out.returncode != 0:
+        est = subprocess.run([relume, "bake", str(scene), "-o", str(stack), "--estimate-only", *DRAFT_SAMPLES],
+                             capture_output=True, text=True)
+        row["refused"] = out.stderr.strip().splitlines()[-1] if out.stderr.strip() else f"exit {out.returncode}"
+        if est.returncode == 0:
+            row["estimate"] = json.loads(est.stdout)
+        return row
+    j = json.loads(out.stdout)
+    r = j["report"]
+    row.update({
+        "layers_possible": r["layers_possible"],
+        "layers_stored": j["layers"],
+        "peak_estimate_gib": round(r["estimate"]["peak_bytes"] / 2**30, 2),
+        "peak_rss_gib": round((j["peak_rss_bytes"] - j["rss_before_bake_bytes"]) / 2**30, 2),
+        "bake_s": round(r["seconds"], 1),
+        "assembly_s": round(r["assembly_seconds"], 1),
+        "write_s": round(j["write_seconds"], 1),
+        "stack_in_memory_mb": round(r["sample_bytes"] / 1e6, 1),
+        "stack_file_mb": round(j["file_bytes"] / 1e6, 1),
+    })
+    bench = subprocess.run([relume, "bench", "relight", str(stack), "--device", "cpu", "--repeats", "10", "--json"],
+                           capture_output=True, text=True)
+    if bench.returncode == 0:
+        b = json.loads(bench.stdout)
+        row.update({"relight_full_ms": round(b["full_ms"], 2),
+                    "relight_over_bandwidth_bound": round(b["full_over_bound"], 2),
+                    "incremental_over_full": round(b["fastest_incremental_over_full"], 3)})
+    else:
+        row["relight_error"] = bench.stderr.strip().splitlines()[-1] if bench.stderr.strip() else "failed"
+    return row
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--relume", default=str(ROOT / "target" / "release" / "relume"))
+    ap.add_argument("--resolutions", default="512x512,1024x1024,1920x1080")
+    ap.add_argument("--editable", default="1,2,4,8")
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        for res in args.resolutions.split(","):
+            for k in (int(v) for v in args.editable.split(",")):
+                print(json.dumps(cell(args.relume, pathlib.Path(tmp), res, k)), flush=True)
+
+
+if __name__ == "__main__":
+    main()
