@@ -128,21 +128,7 @@ fn the_estimate_counts_the_layers_the_bake_reaches() {
 #[test]
 fn the_translucent_header_round_trips_for_every_sample_count() {
     let mut scene = cornell(8);
-    scene.regions[1].material =
-        relume_engine::brdf::MaterialSpec::Principled(relume_engine::brdf::PrincipledMaterial {
-            bsdf: relume_engine::brdf::Principled {
-                base_color: [0.8, 0.6, 0.5],
-                metallic: 0.0,
-                roughness: 0.5,
-                ior: 1.4,
-                specular_ior_level: 0.5,
-            },
-            subsurface: relume_engine::brdf::Subsurface {
-                weight: 1.0,
-                radius: [1.0, 0.5, 0.25],
-                scale: 0.05,
-            },
-        });
+    make_object_translucent(&mut scene);
     let mut settings = BakeSettings::default();
     let mut failures = Vec::new();
     for samples in 1_000..=4_194_304u32 {
@@ -161,6 +147,25 @@ fn the_translucent_header_round_trips_for_every_sample_count() {
         failures.is_empty(),
         "no exact round trip for samples {failures:?}"
     );
+}
+
+/// Makes the Cornell box's "Object" (region 1) a translucent Principled wax.
+fn make_object_translucent(scene: &mut relume_engine::scene::Scene) {
+    scene.regions[1].material =
+        relume_engine::brdf::MaterialSpec::Principled(relume_engine::brdf::PrincipledMaterial {
+            bsdf: relume_engine::brdf::Principled {
+                base_color: [0.8, 0.6, 0.5],
+                metallic: 0.0,
+                roughness: 0.5,
+                ior: 1.4,
+                specular_ior_level: 0.5,
+            },
+            subsurface: relume_engine::brdf::Subsurface {
+                weight: 1.0,
+                radius: [1.0, 0.5, 0.25],
+                scale: 0.05,
+            },
+        });
 }
 
 /// A bake long enough that each stage lasts a noticeable time in a debug build.
@@ -326,21 +331,7 @@ fn bad_settings_are_refused_with_the_field_named() {
 #[test]
 fn a_cancel_during_the_subsurface_set_up_returns_within_a_second() {
     let mut scene = cornell(32);
-    scene.regions[1].material =
-        relume_engine::brdf::MaterialSpec::Principled(relume_engine::brdf::PrincipledMaterial {
-            bsdf: relume_engine::brdf::Principled {
-                base_color: [0.8, 0.6, 0.5],
-                metallic: 0.0,
-                roughness: 0.5,
-                ior: 1.4,
-                specular_ior_level: 0.5,
-            },
-            subsurface: relume_engine::brdf::Subsurface {
-                weight: 1.0,
-                radius: [1.0, 0.5, 0.25],
-                scale: 0.05,
-            },
-        });
+    make_object_translucent(&mut scene);
     // Millions of subsurface samples: seconds of set-up, each sample lit from every light.
     let settings = BakeSettings {
         spp: 1,

@@ -86,8 +86,7 @@ pub struct RegionBasisCost {
 struct ProbeSink<'a> {
     reached: &'a mut [bool],
     rgb: &'a mut [bool],
-    slots: usize,
-    per_group: usize,
+    layout: super::DenseLayout,
 }
 
 impl ProbeSink<'_> {
@@ -103,17 +102,13 @@ impl ProbeSink<'_> {
 
 impl PathSink for ProbeSink<'_> {
     fn world(&mut self, group: usize, v: Rgb) {
-        self.add(group * self.per_group, v);
+        self.add(self.layout.world(group), v);
     }
     fn direct(&mut self, group: usize, slot: u32, v: Rgb) {
-        self.add(group * self.per_group + 1 + slot as usize, v);
+        self.add(self.layout.direct(group, slot), v);
     }
     fn bounce(&mut self, group: usize, eye: u32, bounce: u32, v: Rgb) {
-        let s = self.slots;
-        self.add(
-            group * self.per_group + 1 + s + eye as usize * s + bounce as usize,
-            v,
-        );
+        self.add(self.layout.bounce(group, eye, bounce), v);
     }
     fn eye_hit(&mut self, _region: u32, _normal: glam::Vec3, _position: glam::Vec3) {}
 }
@@ -155,8 +150,7 @@ pub fn estimate(
                 let mut sink = ProbeSink {
                     reached: &mut reached,
                     rgb: &mut rgb,
-                    slots: ctx.slot_count(),
-                    per_group: ctx.layers_per_group(),
+                    layout: super::DenseLayout::of(ctx),
                 };
                 // Pixels take turns through the first samples of the sequence: a layer that
                 // only some strata of the stratified numbers reach is still seen.

@@ -86,14 +86,44 @@ pub struct BakeReport {
     pub bounce_estimate: Option<bounces::BounceEstimate>,
 }
 
+/// Where each path signature sits among a bake's dense layer indices: per light group the
+/// world, one layer per slot, one per (eye slot, bounce slot) pair ([`layer_key`] inverts
+/// it). Every sink that keeps layers densely (the bake's tiles, the memory probe) uses it.
+#[derive(Clone, Copy)]
+pub(crate) struct DenseLayout {
+    slots: usize,
+    /// Layers per light group.
+    per_group: usize,
+}
+
+impl DenseLayout {
+    pub(crate) fn of(ctx: &BakeContext) -> Self {
+        DenseLayout {
+            slots: ctx.slot_count(),
+            per_group: ctx.layers_per_group(),
+        }
+    }
+    #[inline]
+    pub(crate) fn world(self, group: usize) -> usize {
+        group * self.per_group
+    }
+    #[inline]
+    pub(crate) fn direct(self, group: usize, slot: u32) -> usize {
+        group * self.per_group + 1 + slot as usize
+    }
+    #[inline]
+    pub(crate) fn bounce(self, group: usize, eye: u32, bounce: u32) -> usize {
+        let s = self.slots;
+        group * self.per_group + 1 + s + eye as usize * s + bounce as usize
+    }
+}
+
 /// Accumulates one pixel of a tile densely: the tile buffer is pixel-major (all layers of
 /// a pixel together, so a path's writes stay in a few cache lines), then layer, then RGB.
 struct TileSink<'a> {
     /// The layers of the current pixel.
     buf: &'a mut [f32],
-    slots: usize,
-    /// Layers per light group.
-    per_group: usize,
+    layout: DenseLayout,
     /// The pixel's eye-hit record for the denoiser ([`denoise::EyeFeatures`]).
     features: &'a mut [f32],
 }
@@ -111,19 +141,15 @@ impl TileSink<'_> {
 impl PathSink for TileSink<'_> {
     #[inline]
     fn world(&mut self, group: usize, v: Rgb) {
-        self.add(group * self.per_group, v);
+        self.add(self.layout.world(group), v);
     }
     #[inline]
     fn direct(&mut self, group: usize, slot: u32, v: Rgb) {
-        self.add(group * self.per_group + 1 + slot as usize, v);
+        self.add(self.layout.direct(group, slot), v);
     }
     #[inline]
     fn bounce(&mut self, group: usize, eye: u32, bounce: u32, v: Rgb) {
-        let s = self.slots;
-        self.add(
-            group * self.per_group + 1 + s + eye as usize * s + bounce as usize,
-            v,
-        );
+        self.add(self.layout.bounce(group, eye, bounce), v);
     }
     #[inline]
     fn eye_hit(&mut self, region: u32, normal: glam::Vec3, position: glam::Vec3) {
@@ -335,12 +361,12 @@ fn trace_tile(
     fold: bool,
     tile: &tiles::Tile,
     samples: std::ops::Range<u32>,
-    slots: usize,
     width: usize,
     progress: &Progress,
     rays: &std::sync::atomic::AtomicU64,
 ) -> Result<bool> {
     let layer_count = ctx.layer_count();
+    let layout = DenseLayout::of(ctx);
     let height = ctx.resolution.height as usize;
     let tp = tile.pixels();
     let fs = denoise::FEATURE_STRIDE;
@@ -360,8 +386,7 @@ fn trace_tile(
                 let (layers, features) = tree.push_leaf(s);
                 let mut sink = TileSink {
                     buf: layers,
-                    slots,
-                    per_group: ctx.layers_per_group(),
+                    layout,
                     features,
                 };
                 trace_eye_sample(
@@ -450,7 +475,6 @@ pub(crate) fn trace_range(
         .collect::<Result<Vec<_>>>()?;
     let alloc_failure: Mutex<Option<crate::RelumeError>> = Mutex::new(None);
     let brdf = BasisBrdf { ctx };
-    let slots = ctx.slot_count();
     tiles::run_tiles(
         res,
         ctx.settings.threads,
@@ -467,7 +491,6 @@ pub(crate) fn trace_range(
                 fold,
                 tile,
                 from..to,
-                slots,
                 width,
                 progress,
                 rays,

@@ -116,7 +116,9 @@ pub fn prepare_light(
     progress: &crate::bake::progress::Progress,
 ) -> crate::Result<()> {
     let settings = &ctx.settings;
+    progress.check()?;
     t.points = sample_region(scene, index as u32, t.info.samples as usize, settings.seed);
+    progress.check()?;
     let groups = ctx.lights.groups.len();
     let light_samples = settings.light_samples.max(1);
     let eta = t.eta;
@@ -126,10 +128,11 @@ pub fn prepare_light(
         .par_iter()
         .enumerate()
         .map(|(i, &p)| {
-            let mut e = vec![Rgb::ZERO; groups];
             if progress.is_cancelled() {
-                return e;
+                // Discarded below: no allocation per remaining sample.
+                return Vec::new();
             }
+            let mut e = vec![Rgb::ZERO; groups];
             let n = t.points.normals[i];
             let ng = t.points.geometric_normals[i];
             let origin = ctx.geometry.offset(p, ng);
