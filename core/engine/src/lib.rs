@@ -11,6 +11,7 @@
 //! - [`scene`]: the scene model, its versioned JSON file, validation.
 //! - [`brdf`]: Blinn–Phong, the PCA basis, the Principled mapping.
 //! - [`bssrdf`]: translucency: the dipole profile, its PCA basis, Blender's subsurface inputs.
+//! - [`linalg`]: the Gram matrices and eigen-solvers behind both PCA bases.
 //! - [`geometry`]: BVH (obvhs), sampling helpers, camera rays, light sampling.
 //! - [`bake`]: path signatures, the bake integrator, the reference renderer, progress/cancel.
 //! - [`stack`]: the transfer stack in memory and as one OpenEXR file.
@@ -27,6 +28,7 @@ pub mod bssrdf;
 pub mod error;
 pub mod geometry;
 pub mod image_io;
+pub mod linalg;
 pub mod materials;
 pub mod memory;
 pub mod output_path;

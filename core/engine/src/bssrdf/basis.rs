@@ -5,8 +5,8 @@
 //! 3ρ ([`BLUR_PER_RHO`]), ρ the radius of the area element of one sample (`√(A/(πN))`). The bake sums the profile at
 //! sample points ρ apart, which cannot resolve anything finer; unblurred, the α′ → 1 spike
 //! (width z_r, down to 10⁻³ mean free paths) makes the image depend on which sample happens to
-//! lie nearest, and the PCA needs a basis function per octave of z_r (K = 12 left 5·10⁻³
-//! relative error over half a decade of mean free path; blurred at 3ρ, 1.2·10⁻⁶). The blur keeps the
+//! lie nearest, and the PCA needs a basis function per octave of z_r (docs/measurements.md,
+//! "Subsurface basis", compares the errors with and without the blur). The blur keeps the
 //! total reflectance exactly (columns of the blur matrix are normalised to unit mass) and
 //! changes `Rd(r)` by O(ρ²/ℓ²) where it varies on the scale ℓ. It is computed exactly on the
 //! profile's *masses* per annulus (from the closed-form disc integral), so no spike is ever
@@ -23,7 +23,7 @@
 //!
 //! **Coefficients.** The b_k are orthonormal under that inner product, so
 //! `s_k(σ) = ∫ (B·Rd_σ) b_k dA = Σ_m mass_m(σ)·c_mk` with `c = Bᵀ·b` precomputed — `R_NODES`
-//! annulus masses and `R_NODES·K` multiply-adds (≈ 10–30 µs per channel in a release build). σ outside the box
+//! annulus masses and `R_NODES·K` multiply-adds, cheap enough for every edit. σ outside the box
 //! is clamped into it (documented in [`SssBasis::coefficients`]).
 //!
 //! **Count.** The smallest K whose worst relative L2 error over a test set of σ *between* the
@@ -31,16 +31,17 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::blur::{annulus_masses, apply_blur, blur_matrix, blur_row, BlurRows};
 use super::dipole::DipoleParams;
 use super::mapping::ALPHA_MAX;
-use crate::brdf::basis::top_eigenpairs;
+use crate::linalg::{top_eigenpairs, GramAccumulator};
 use crate::{RelumeError, Result};
 
 /// Standard deviation of the sample-scale blur in units of ρ. Samples are `h = ρ√π` apart
 /// on average; a Gaussian of σ = 3ρ ≈ 1.7h holds ≈ 35 samples within 2σ, so the sum over
-/// (stratified, jittered) samples of the blurred profile is a smooth quadrature: a uniformly
-/// lit plane comes out within 2 % of its exact radiance (tests/subsurface.rs), where σ = ρ
-/// (≈ 1 sample) gave errors up to 80 %.
+/// (stratified, jittered) samples of the blurred profile is a smooth quadrature, where σ = ρ
+/// (≈ 1 sample) leaves the image at the mercy of the nearest sample (tests/subsurface.rs
+/// checks a uniformly lit plane; figures in docs/measurements.md, "Subsurface basis").
 pub const BLUR_PER_RHO: f64 = 3.0;
 /// Radii at which the profiles are sampled (and the basis tabulated).
 pub const R_NODES: usize = 384;
@@ -225,9 +226,9 @@ fn family(cfg: &SssBasisConfig, mid: bool) -> Vec<DipoleParams> {
 }
 
 impl SssBasis {
-    /// Builds the basis (≈ 0.3–1.2 s in a dev build: a 384² Gram matrix over 1 600 blurred
-    /// profiles, a pivoted Cholesky and a small Jacobi eigensolve; deterministic, so a stack
-    /// stores only the configuration).
+    /// Builds the basis: a Gram matrix on the radius grid over the blurred training
+    /// profiles, a pivoted Cholesky and a small Jacobi eigensolve ([`crate::linalg`]).
+    /// Deterministic, so a stack stores only the configuration.
     pub fn build(cfg: &SssBasisConfig) -> Result<SssBasis> {
         check(cfg)?;
         let warp_a = 0.25 * cfg.rho.min(cfg.mfp_min);
@@ -255,54 +256,23 @@ impl SssBasis {
             f.iter_mut().for_each(|x| *x /= norm);
             Some(f)
         };
-        // Gram matrix of the radius grid: G = Σ f fᵀ over the training profiles.
-        let mut gram = vec![0.0f64; n * n];
+        // Gram matrix of the radius grid: G = Σ f fᵀ over the training profiles (unweighted:
+        // each profile is already normalised; `1.0·f` is `f` exactly).
+        let mut gram = GramAccumulator::new(n);
         for p in family(cfg, false) {
             let Some(f) = profile(&p) else { continue };
-            for i in 0..n {
-                let fi = f[i];
-                if fi == 0.0 {
-                    continue;
-                }
-                let row = &mut gram[i * n..i * n + i + 1];
-                for (g, fj) in row.iter_mut().zip(&f[..=i]) {
-                    *g += fi * fj;
-                }
-            }
+            gram.add(1.0, &f);
         }
-        for i in 0..n {
-            for j in 0..i {
-                gram[j * n + i] = gram[i * n + j];
-            }
-        }
+        let gram = gram.finish();
         let (lam, vecs) = top_eigenpairs(&gram, n);
         let rank = lam.len();
         let kmax = rank.min(MAX_SSS_BASES);
         if kmax == 0 {
             return Err(RelumeError::Basis("subsurface basis: empty family".into()));
         }
-        let _ = lam;
         // Error table over the test profiles (between the training samples).
         let tests: Vec<Vec<f64>> = family(cfg, true).iter().filter_map(profile).collect();
-        let mut sum_err = vec![0.0f64; kmax + 1];
-        let mut max_err = vec![0.0f64; kmax + 1];
-        for f in &tests {
-            let mut resid2 = 1.0f64; // ‖f‖² = 1
-            for k in 0..kmax {
-                let c: f64 = (0..n).map(|j| f[j] * vecs[j * rank + k]).sum();
-                resid2 -= c * c;
-                let e = resid2.max(0.0).sqrt();
-                sum_err[k + 1] += e;
-                max_err[k + 1] = max_err[k + 1].max(e);
-            }
-        }
-        let errors: Vec<SssErrorRow> = (1..=kmax)
-            .map(|k| SssErrorRow {
-                bases: k,
-                mean_rel_l2: sum_err[k] / tests.len().max(1) as f64,
-                max_rel_l2: max_err[k],
-            })
-            .collect();
+        let errors = error_table(&tests, &vecs, rank, kmax);
         let count = match cfg.bases {
             Some(b) => (b as usize).min(kmax),
             None => errors
@@ -319,17 +289,7 @@ impl SssBasis {
                 table[j * count + k] = (v / sqrt_w[j]) as f32;
             }
         }
-        // c_mk = Σ_j √area_j · B_jm · v_jk.
-        let mut mass_coef = vec![0.0f64; n * count];
-        for (j, (first, w)) in blur.iter().enumerate() {
-            for (i, bjm) in w.iter().enumerate() {
-                let m = first + i;
-                let s = bjm * sqrt_w[j];
-                for k in 0..count {
-                    mass_coef[m * count + k] += s * unit[j * count + k];
-                }
-            }
-        }
+        let mass_coef = mass_coefficients(&blur, &sqrt_w, &unit, count);
         Ok(SssBasis {
             cfg: cfg.clone(),
             count,
@@ -439,17 +399,7 @@ impl SssBasis {
     /// The blurred profile `(B·Rd_σ)(r)` at any radius (1/area; the exact quantity the basis
     /// approximates, for brute-force references), σ clamped by [`Self::clamp`].
     pub fn blurred_profile(&self, p: &DipoleParams, r: f64) -> f64 {
-        let p = self.clamp(p);
-        let masses = annulus_masses(&p, &self.edges);
-        let (first, w) = blur_row(
-            r,
-            &self.radii,
-            &self.edges,
-            &self.areas,
-            BLUR_PER_RHO * self.cfg.rho,
-            Some(&self.blur_norm),
-        );
-        w.iter().zip(&masses[first..]).map(|(w, m)| w * m).sum()
+        self.blurred_profile_fn(p)(r)
     }
 
     /// The blurred profile of σ as a function of r, with the annulus masses computed once
@@ -500,129 +450,44 @@ impl SssBasis {
     }
 }
 
-/// Mass of `Rd_σ` over every cell (annulus) of the grid: exact, from the disc integral.
-fn annulus_masses(p: &DipoleParams, edges: &[f64]) -> Vec<f64> {
-    edges
-        .windows(2)
-        .map(|e| p.annulus(e[0] * e[0], (e[1] - e[0]) * (e[1] + e[0])))
-        .collect()
-}
-
-fn apply_blur(blur: &[(usize, Vec<f64>)], masses: &[f64]) -> Vec<f64> {
-    blur.iter()
-        .map(|(first, w)| w.iter().zip(&masses[*first..]).map(|(w, m)| w * m).sum())
-        .collect()
-}
-
-/// `e^{−x}·I₀(x)` for x ≥ 0 (Abramowitz & Stegun 9.8.1–9.8.2, relative error < 2·10⁻⁷).
-fn i0e(x: f64) -> f64 {
-    if x <= 3.75 {
-        let t = (x / 3.75) * (x / 3.75);
-        let i0 = 1.0
-            + t * (3.515_622_9
-                + t * (3.089_942_4
-                    + t * (1.206_749_2 + t * (0.265_973_2 + t * (0.036_076_8 + t * 0.004_581_3)))));
-        i0 * (-x).exp()
-    } else {
-        let t = 3.75 / x;
-        let p = 0.398_942_28
-            + t * (0.013_285_92
-                + t * (0.002_253_19
-                    + t * (-0.001_575_65
-                        + t * (0.009_162_81
-                            + t * (-0.020_577_06
-                                + t * (0.026_355_37 + t * (-0.016_476_33 + t * 0.003_923_77)))))));
-        p / x.sqrt()
-    }
-}
-
-/// Angular average of the 2D Gaussian of standard deviation `sd` between a point at radius r
-/// and the ring of radius s: `e^{−(r−s)²/(2sd²)}·i0e(rs/sd²)/(2π sd²)`.
-fn ring_gauss(r: f64, s: f64, sd: f64) -> f64 {
-    let v = sd * sd;
-    (-(r - s) * (r - s) / (2.0 * v)).exp() * i0e(r * s / v) / (2.0 * std::f64::consts::PI * v)
-}
-
-/// Sub-rings per cell when averaging the Gaussian over a source cell.
-const SUB_RINGS: usize = 6;
-
-/// Unnormalised blur weights from every source cell to radius r: the Gaussian averaged over
-/// the cell (SUB_RINGS sub-rings, area-weighted) for cells narrower than sd; cells wider
-/// than sd (far out, where the profile varies on scales ≫ ρ) are not blurred (weight
-/// 1/area for the cell holding r). Optional column normalisation `norm`.
-fn blur_row(
-    r: f64,
-    radii: &[f64],
-    edges: &[f64],
-    areas: &[f64],
-    sd: f64,
-    norm: Option<&[f64]>,
-) -> (usize, Vec<f64>) {
-    let n = radii.len();
-    let lo = edges
-        .partition_point(|e| *e < r - 8.0 * sd)
-        .saturating_sub(1);
-    let hi = edges.partition_point(|e| *e <= r + 8.0 * sd).min(n);
-    let cell_of_r = edges
-        .partition_point(|e| *e <= r)
-        .saturating_sub(1)
-        .min(n - 1);
-    let (lo, hi) = (lo.min(cell_of_r), hi.max(cell_of_r + 1));
-    let mut w = vec![0.0; hi - lo];
-    for m in lo..hi {
-        let (a, b) = (edges[m], edges[m + 1]);
-        let v = if b - a > sd {
-            if m == cell_of_r {
-                1.0 / areas[m]
-            } else {
-                0.0
-            }
-        } else {
-            let mut acc = 0.0;
-            let mut wsum = 0.0;
-            for q in 0..SUB_RINGS {
-                let s0 = a + (b - a) * q as f64 / SUB_RINGS as f64;
-                let s1 = a + (b - a) * (q + 1) as f64 / SUB_RINGS as f64;
-                let ws = s1 * s1 - s0 * s0;
-                acc += ws * ring_gauss(r, 0.5 * (s0 + s1), sd);
-                wsum += ws;
-            }
-            acc / wsum
-        };
-        w[m - lo] = v * norm.map_or(1.0, |nm| nm[m]);
-    }
-    (lo, w)
-}
-
-/// The blur matrix on the grid, columns normalised so each source cell's mass is kept:
-/// `Σ_j B_jm·area_j = 1`.
-type BlurRows = Vec<(usize, Vec<f64>)>;
-
-fn blur_matrix(radii: &[f64], edges: &[f64], areas: &[f64], sd: f64) -> (BlurRows, Vec<f64>) {
-    let rows: Vec<(usize, Vec<f64>)> = radii
-        .iter()
-        .map(|&r| blur_row(r, radii, edges, areas, sd, None))
-        .collect();
-    let mut colsum = vec![0.0f64; radii.len()];
-    for (j, (first, w)) in rows.iter().enumerate() {
-        for (i, v) in w.iter().enumerate() {
-            colsum[first + i] += v * areas[j];
+/// Mean and maximum relative L2 error of the unit-norm `tests` projected on the first
+/// K = 1…`kmax` eigenvectors (`vecs`, `R_NODES × rank` row-major, orthonormal).
+fn error_table(tests: &[Vec<f64>], vecs: &[f64], rank: usize, kmax: usize) -> Vec<SssErrorRow> {
+    let n = R_NODES;
+    let mut sum_err = vec![0.0f64; kmax + 1];
+    let mut max_err = vec![0.0f64; kmax + 1];
+    for f in tests {
+        let mut resid2 = 1.0f64; // ‖f‖² = 1
+        for k in 0..kmax {
+            let c: f64 = (0..n).map(|j| f[j] * vecs[j * rank + k]).sum();
+            resid2 -= c * c;
+            let e = resid2.max(0.0).sqrt();
+            sum_err[k + 1] += e;
+            max_err[k + 1] = max_err[k + 1].max(e);
         }
     }
-    let norm: Vec<f64> = colsum
-        .iter()
-        .map(|c| if *c > 0.0 { 1.0 / c } else { 0.0 })
-        .collect();
-    let rows = rows
-        .into_iter()
-        .map(|(first, w)| {
-            let w = w
-                .iter()
-                .enumerate()
-                .map(|(i, v)| v * norm[first + i])
-                .collect();
-            (first, w)
+    (1..=kmax)
+        .map(|k| SssErrorRow {
+            bases: k,
+            mean_rel_l2: sum_err[k] / tests.len().max(1) as f64,
+            max_rel_l2: max_err[k],
         })
-        .collect();
-    (rows, norm)
+        .collect()
+}
+
+/// `c_mk = Σ_j √area_j · B_jm · v_jk`: the coefficient of basis k per unit mass in annulus
+/// m, so a material's coefficients are a sum over its annulus masses
+/// ([`SssBasis::coefficients`]).
+fn mass_coefficients(blur: &BlurRows, sqrt_w: &[f64], unit: &[f64], count: usize) -> Vec<f64> {
+    let mut mass_coef = vec![0.0f64; R_NODES * count];
+    for (j, (first, w)) in blur.iter().enumerate() {
+        for (i, bjm) in w.iter().enumerate() {
+            let m = first + i;
+            let s = bjm * sqrt_w[j];
+            for k in 0..count {
+                mass_coef[m * count + k] += s * unit[j * count + k];
+            }
+        }
+    }
+    mass_coef
 }

@@ -11,11 +11,13 @@
 //! - [`dipole`]: Rd(r, σ), its closed-form disc integral, the area-averaged kernel, Fresnel.
 //! - [`mapping`]: Blender's Subsurface Weight / Radius / Scale / IOR / Base Color → σ.
 //! - [`basis`]: the PCA basis b_k(r), the projection s_k(σ), the error table.
+//! - `blur`: the sample-scale blur of the profile the basis factors.
 //! - [`coefficients`]: a translucent region's slot layout and relight weights.
 //! - [`samples`]: surface samples of a translucent region and their irradiance.
 //! - [`tree`]: the hierarchical (octree) evaluation of B_k at a pixel (Jensen & Buhler 2002).
 
 pub mod basis;
+mod blur;
 pub mod coefficients;
 pub mod dipole;
 pub mod mapping;
