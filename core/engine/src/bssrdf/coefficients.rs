@@ -22,8 +22,9 @@ use serde::{Deserialize, Serialize};
 use super::basis::{SssBasis, SssBasisConfig};
 use super::dipole::mean_transmittance;
 use super::mapping::eta_of_ior;
-use crate::brdf::{BrdfBasis, MaterialSpec};
-use crate::stack::bases::slot_coefficients;
+use crate::brdf::basis::coefficients::slot_coefficients;
+use crate::brdf::basis::BrdfBasis;
+use crate::brdf::material::MaterialSpec;
 use crate::Rgb;
 
 /// What a stack records of a translucent region (in its [`crate::stack::RegionInfo`]).
@@ -43,7 +44,7 @@ pub struct SubsurfaceInfo {
 
 /// Coefficients of every slot of an editable region for material `m`: the BRDF slots
 /// ([`slot_coefficients`]) and, for a translucent region, the eye-diffuse and subsurface
-/// slots (module docs). Cost for a translucent region: 3 projections, ≈ 3 × 10–30 µs.
+/// slots (module docs).
 pub fn region_slot_coefficients(
     basis: &BrdfBasis,
     textured: bool,

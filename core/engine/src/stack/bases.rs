@@ -4,10 +4,14 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use crate::brdf::{BlinnPhong, BrdfBasis, MaterialSpec};
+use crate::brdf::{BrdfBasis, MaterialSpec};
 use crate::bssrdf::{region_slot_coefficients, SssBasis, SubsurfaceInfo};
 use crate::stack::StackHeader;
 use crate::{RelumeError, Result, Rgb};
+
+/// Moved to the BRDF basis, which the subsurface weights build on too; kept here for the
+/// callers that knew it as part of a stack's bases.
+pub use crate::brdf::basis::coefficients::slot_coefficients;
 
 /// One basis per editable region, in editable order (shared when configurations are equal).
 pub struct StackBases {
@@ -186,20 +190,6 @@ impl StackBases {
             .enumerate()
             .filter_map(|(r, m)| self.ns_out_of_range(r, m))
             .collect()
-    }
-}
-
-/// The coefficient of every slot of an editable region for material `m`: the basis
-/// coefficients, except that a textured region (with the diffuse basis in the specular fit)
-/// has [Kd (textured diffuse layer), Ks·c̃₁, …, Ks·c₀ (untextured constant layer)].
-pub fn slot_coefficients(basis: &BrdfBasis, textured: bool, m: &BlinnPhong) -> Vec<Rgb> {
-    if textured && basis.spec_constant() {
-        let (kd, ks_c0, mut rest) = basis.split_coefficients(m);
-        rest.insert(0, kd);
-        rest.push(ks_c0);
-        rest
-    } else {
-        basis.material_coefficients(m)
     }
 }
 
