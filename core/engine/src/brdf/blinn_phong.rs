@@ -5,8 +5,8 @@
 //! The paper writes the BRDF as `ρ = Kd/π + Ks·(ns+2)/(2π)·cos^ns δ` (eq. 15), δ the angle
 //! between the normal and the half vector. `(ns+2)/(2π)·cos^ns δ` is the *normalised
 //! half-vector distribution* (∫ D cos δ dω_h = 1), not a normalised BRDF: used as a BRDF its
-//! directional albedo tends to **4** at normal incidence for large `ns` (measured by
-//! `tests::paper_normalisation_is_not_energy_conserving`: 3.85 at ns = 100, θo = 0), so
+//! directional albedo tends to **4** at normal incidence for large `ns`
+//! (`tests::paper_normalisation_is_not_energy_conserving`), so
 //! `Kd + Ks ≤ 1` (eq. 16) would not keep a surface from reflecting more than it receives.
 //!
 //! Relume uses the same shape with the microfacet factor 1/4 (the Jacobian
@@ -15,11 +15,11 @@
 //! `f_s(δ) = (ns+2)/(8π)·cos^ns δ`   ([`lobe`])
 //!
 //! Its directional albedo is `≈ ns/(ns+4)` at normal incidence for large ns and falls towards
-//! grazing; it is ≤ 1 for every ns and angle (0.962 at ns = 100, θo = 0; tested over
-//! ns ∈ [1, 10⁴] and θo up to 89.9°), so with
-//! `Kd + Ks ≤ 1` per channel the BRDF conserves energy. The PCA of `basis.rs` and its relative
-//! errors are invariant under a constant scale of the lobes, so this choice changes nothing
-//! about the basis errors the paper reports; it only rescales the coefficients by 1/4.
+//! grazing; it is ≤ 1 for every ns and angle (tested over ns ∈ [1, 10⁴] and θo up to
+//! 89.9°), so with `Kd + Ks ≤ 1` per channel the BRDF conserves energy. The PCA of
+//! [`super::basis`] and its relative errors are invariant under a constant scale of the
+//! lobes, so this choice changes nothing about the basis errors the paper reports; it only
+//! rescales the coefficients by 1/4.
 
 #![allow(clippy::neg_cmp_op_on_partial_ord)] // `!(x > 0.0)` deliberately rejects NaN too.
 

@@ -110,8 +110,8 @@ pub fn sample_region(scene: &Scene, region: u32, count: usize, seed: u64) -> Sur
         let t = &tris[k];
         // A rank-1 lattice inside the triangle: u1 from the stratum (uniform in the triangle's
         // share of the CDF), u2 from the golden ratio sequence. Independent random (u1, u2)
-        // clump like a Poisson process (±10 % in the light gathered over a 35-sample blur);
-        // the lattice keeps that within ≈ 1 %.
+        // clump like a Poisson process, which shows as blotches in the light gathered over a
+        // blur; the lattice spreads the samples evenly.
         let before = if k == 0 { 0.0 } else { cdf[k - 1] };
         let u1 = (((target - before) / t.area) as f32).clamp(0.0, 1.0 - f32::EPSILON);
         let u2 = ((i as f64 * 0.618_033_988_749_894_9 + jitter2) % 1.0) as f32;

@@ -5,10 +5,10 @@
 //! light group) and its centroid (weighted by power); a node whose points all lie within
 //! `radius ≤ θ·d` of its centroid, d the distance from the centroid to x_o, is used as one
 //! point at its centroid. The centroid makes the first-order error vanish, so the relative
-//! error of a node is O(θ²·d²·|b″|/|b|): on an e^{−r} kernel over a grid the worst point
-//! measured 1.2 % at θ = 0.25 and 0.24 % at θ = 0.1 (unit test below). The bake's default
-//! θ = 0.15 keeps the whole relit subsurface image (octree + PCA + f16) within 0.3 % relative
-//! L2 of the brute-force sum (tests/subsurface.rs). Samples with no light are not stored.
+//! error of a node is O(θ²·d²·|b″|/|b|), checked on an e^{−r} kernel by the unit test below;
+//! the bake's default θ = 0.15 keeps the whole relit subsurface image (octree + PCA + f16)
+//! close to the brute-force sum (tests/subsurface.rs; figures in docs/measurements.md,
+//! "Subsurface basis"). Samples with no light are not stored.
 
 use glam::Vec3;
 
@@ -27,6 +27,18 @@ struct Node {
     first: u32,
     count: u32,
     leaf: bool,
+}
+
+impl Node {
+    /// A slot reserved before its contents are known (the root before the build, children
+    /// before their recursion), so a node's children stay contiguous.
+    const PLACEHOLDER: Node = Node {
+        centroid: Vec3::ZERO,
+        radius: 0.0,
+        first: 0,
+        count: 0,
+        leaf: true,
+    };
 }
 
 /// The octree of one region's lit samples.
@@ -61,13 +73,7 @@ impl ScatterTree {
         if idx.is_empty() {
             return tree;
         }
-        tree.nodes.push(Node {
-            centroid: Vec3::ZERO,
-            radius: 0.0,
-            first: 0,
-            count: 0,
-            leaf: true,
-        });
+        tree.nodes.push(Node::PLACEHOLDER);
         let n = idx.len();
         build_node(&mut tree, points, power, &mut idx, 0, 0, n, 0);
         tree.points = idx.iter().map(|&i| points[i as usize]).collect();
@@ -225,13 +231,7 @@ fn build_node(
     }
     let first_child = tree.nodes.len();
     for _ in &ranges {
-        tree.nodes.push(Node {
-            centroid: Vec3::ZERO,
-            radius: 0.0,
-            first: 0,
-            count: 0,
-            leaf: true,
-        });
+        tree.nodes.push(Node::PLACEHOLDER);
     }
     tree.nodes[node] = Node {
         centroid,
