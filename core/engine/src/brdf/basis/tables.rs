@@ -40,8 +40,8 @@ pub(super) fn basis_table(ns: &[f64], pca: &Pca, nspec: usize, warp_k: f32) -> V
             }
             for k in 0..nspec {
                 let mut s = -pca.off[k];
-                for j in 0..l {
-                    s += pca.bmat[j * kmax + k] * fv[j];
+                for (j, &f) in fv.iter().enumerate() {
+                    s += pca.bmat[j * kmax + k] * f;
                 }
                 table[node * nspec + k] = s as f32;
             }
