@@ -17,12 +17,16 @@ python3 assets/build_scenes.py --out assets && git diff --exit-code --stat -- as
 echo "== Vulkan software driver (lavapipe) for the GPU relight tests"
 # The GPU tests run forced on lavapipe (Debian's mesa-vulkan-drivers); without any
 # adapter they print SKIPPED and pass, so a machine without apt still runs everything else.
+# Where lavapipe is installed an adapter is expected: RELUME_REQUIRE_GPU=1 makes a GPU test
+# that finds none fail (a broken driver set-up) instead of skipping.
 if dpkg -s mesa-vulkan-drivers >/dev/null 2>&1; then
     echo "mesa-vulkan-drivers: installed"
+    export RELUME_REQUIRE_GPU=1
 elif command -v apt-get >/dev/null && [ "$(id -u)" = 0 ] \
     && apt-get update -qq >/dev/null 2>&1 \
     && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq mesa-vulkan-drivers >/dev/null 2>&1; then
     echo "mesa-vulkan-drivers: installed now"
+    export RELUME_REQUIRE_GPU=1
 else
     echo "mesa-vulkan-drivers: could not be installed (no apt, not root, or no network): GPU tests will skip"
 fi

@@ -8,6 +8,7 @@ an Image Editor image named "Relume" whenever an editable material changes.
 from __future__ import annotations
 
 from . import api, live, ops, panels, prefs, props  # noqa: F401  (api: the scripting API)
+from .runtime import RUNTIME
 
 _CLASSES = prefs.CLASSES + ops.CLASSES + panels.CLASSES
 
@@ -23,8 +24,6 @@ def register() -> None:
 
 def unregister() -> None:
     import bpy
-
-    from .runtime import RUNTIME
 
     if RUNTIME.session is not None and not RUNTIME.session.finished:
         RUNTIME.session.cancel()

@@ -1,20 +1,24 @@
-"""Operators: thin wrappers over `api` that turn errors into `self.report`."""
+"""Operators: thin wrappers over `services` that turn errors into `self.report`."""
 
 from __future__ import annotations
 
 import bpy
 from bpy.props import StringProperty
 
-from . import api
 from .exporter.scene_export import ExportError
-from .live import check_stale
+from .logic.estimate_text import estimate_lines
 from .runtime import RUNTIME
+from .services.bake import bake, cancel_bake, start_bake
+from .services.errors import BakeCancelled, BakeError
+from .services.export import estimate, export
+from .services.output import render
+from .services.stack import check_stale, load_stack
 
 
 def _relume_error_types():
     import relume
 
-    return (relume.RelumeError, ExportError, api.BakeError, OSError, ValueError)
+    return (relume.RelumeError, ExportError, BakeError, OSError, ValueError)
 
 
 def _report_warnings(op) -> None:
@@ -34,8 +38,8 @@ class RELUME_OT_bake(bpy.types.Operator):
     def execute(self, context):
         # Blocking path: background mode, scripts, and `bpy.ops.relume.bake()`.
         try:
-            report = api.bake(context)
-        except api.BakeCancelled as e:
+            report = bake(context)
+        except BakeCancelled as e:
             self.report({"WARNING"}, str(e))
             return {"CANCELLED"}
         except _relume_error_types() as e:
@@ -51,7 +55,7 @@ class RELUME_OT_bake(bpy.types.Operator):
         if bpy.app.background or context.window is None:
             return self.execute(context)
         try:
-            api.start_bake(context)
+            start_bake(context)
         except _relume_error_types() as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
@@ -100,7 +104,7 @@ class RELUME_OT_cancel_bake(bpy.types.Operator):
     bl_label = "Cancel Bake"
 
     def execute(self, context):
-        if not api.cancel_bake():
+        if not cancel_bake():
             self.report({"INFO"}, "Relume: no bake is running")
         return {"FINISHED"}
 
@@ -115,7 +119,7 @@ class RELUME_OT_render(bpy.types.Operator):
 
     def execute(self, context):
         try:
-            path = api.render(self.filepath, context)
+            path = render(self.filepath, context)
         except _relume_error_types() as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
@@ -133,7 +137,7 @@ class RELUME_OT_export_scene(bpy.types.Operator):
 
     def execute(self, context):
         try:
-            result = api.export(context, scene_file=bpy.path.abspath(self.filepath))
+            result = export(context, scene_file=bpy.path.abspath(self.filepath))
         except _relume_error_types() as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
@@ -149,7 +153,7 @@ class RELUME_OT_reload(bpy.types.Operator):
     bl_label = "Reload Stack"
 
     def execute(self, context):
-        api.load_stack(context)
+        load_stack(context)
         if RUNTIME.live.stale_reason:
             self.report({"WARNING"}, f"Relume: stack is stale: {RUNTIME.live.stale_reason}")
         elif RUNTIME.live.load_error:
@@ -179,11 +183,11 @@ class RELUME_OT_estimate(bpy.types.Operator):
 
     def execute(self, context):
         try:
-            est = api.estimate(context)
+            est = estimate(context)
         except _relume_error_types() as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
-        for line in api.estimate_lines(est):
+        for line in estimate_lines(est):
             self.report({"INFO"}, f"Relume: {line}")
         return {"FINISHED"}
 

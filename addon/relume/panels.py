@@ -4,39 +4,12 @@ from __future__ import annotations
 
 import bpy
 
+from .bake_controls import draw_bake_controls
+from .logic.light_groups import cost_text, group_label
+from .logic.region_params import PrincipledParams
 from .runtime import RUNTIME
-
-
-def draw_bake_controls(layout, context) -> None:
-    """Bake state, progress and the Bake / Cancel buttons (also in the preferences)."""
-    live = RUNTIME.live
-    session = RUNTIME.session
-    box = layout.box()
-    if session is not None and not session.finished:
-        frac = float(session.progress.get("fraction", 0.0))
-        box.progress(factor=frac, type="BAR", text=session.message)
-        box.operator("relume.cancel_bake", icon="CANCEL")
-        return
-    if session is not None and session.message:
-        box.label(text=f"Last bake: {session.message}",
-                  icon="CHECKMARK" if session.state == "done" else "ERROR")
-    if live.stale_reason:
-        box.label(text="Stack is stale: the scene changed since the bake", icon="ERROR")
-        box.label(text=live.stale_reason[:120])
-        box.operator("relume.bake", text="Rebake", icon="FILE_REFRESH")
-        return
-    if live.stack is None:
-        box.label(text=f"No stack: {live.load_error or 'not baked yet'}", icon="INFO")
-    else:
-        box.label(text=f"Stack: {live.stack.width}×{live.stack.height}, {live.stack.layer_count} layers, "
-                       f"{live.stack.bytes / 1e6:.0f} MB", icon="CHECKMARK")
-    from .api import estimate_lines
-
-    for line in estimate_lines(RUNTIME.estimate):
-        box.label(text=line[:140])
-    row = box.row()
-    row.operator("relume.estimate", icon="INFO")
-    row.operator("relume.bake", icon="RENDER_STILL")
+from .scene_values import region_params
+from .services.export import roughness_range
 
 
 class RELUME_PT_image(bpy.types.Panel):
@@ -84,8 +57,6 @@ def _draw_light_groups(layout, context) -> None:
     The entries are created when the stack loads (`live.sync_light_groups`); a draw may not
     write data, so a missing one is only reported (Reload Stack creates it).
     """
-    from .logic.light_groups import cost_text, group_label
-
     groups = RUNTIME.live.light_groups
     if not groups:
         return
@@ -131,14 +102,14 @@ def _draw_region(layout, mat, relume) -> None:
         sock = node.inputs[name]
         if not sock.is_linked:
             layout.prop(sock, "default_value", text=name)
-    from .live import region_params
-
     p = region_params(mat)
-    if p[0] == "principled":
-        bp = relume.principled_to_blinn_phong(p[1], p[2], p[3], p[4], p[5])
-        if p[6] > 0:
-            layout.label(text=f"Subsurface: weight {p[6]:.2f}, mean free path "
-                              f"({', '.join(f'{r * p[8]:.3g}' for r in p[7])}) m")
+    if isinstance(p, PrincipledParams):
+        bp = relume.principled_to_blinn_phong(p.base_color, p.metallic, p.roughness, p.ior,
+                                              p.specular_ior_level)
+        if p.subsurface_weight > 0:
+            mean_free_path = ", ".join(f"{r * p.subsurface_scale:.3g}" for r in p.subsurface_radius)
+            layout.label(text=f"Subsurface: weight {p.subsurface_weight:.2f}, mean free path "
+                              f"({mean_free_path}) m")
         kd = ", ".join(f"{c:.2f}" for c in bp["kd"])
         ks = ", ".join(f"{c:.2f}" for c in bp["ks"])
         layout.label(text=f"Blinn–Phong: Kd ({kd})  Ks ({ks})  ns {bp['ns']:.3g}")
@@ -165,8 +136,6 @@ class RELUME_PT_material(bpy.types.Panel):
             sub.enabled = props.use_roughness_range
             sub.prop(props, "roughness_min")
             sub.prop(props, "roughness_max")
-            from .api import roughness_range
-
             lo, hi = roughness_range(context.material)
             layout.label(text=f"Basis baked for roughness {lo:.2f}–{hi:.2f}; outside it the relight "
                               f"uses the range's edge and the Relume tab says so", icon="INFO")

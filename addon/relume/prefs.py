@@ -5,6 +5,8 @@ from __future__ import annotations
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 
+from .bake_controls import draw_bake_controls
+
 ADDON_ID = __package__
 
 PRESET_ITEMS = [
@@ -92,8 +94,6 @@ class RelumePreferences(bpy.types.AddonPreferences):
         if self.light_groups != "none":
             col.label(text="Stack size and relight time grow by the number of groups", icon="INFO")
         col.prop(self, "stack_folder")
-        from .panels import draw_bake_controls
-
         draw_bake_controls(layout, context)
 
 

@@ -5,20 +5,19 @@ from __future__ import annotations
 import bpy
 from bpy.props import BoolProperty, CollectionProperty, FloatProperty, FloatVectorProperty, PointerProperty
 
+from .live import request_stale_check
+from .live_image import request_relight
+from .runtime import RUNTIME
+
 
 # Changing a registered property of a material does not tag the material for the depsgraph,
 # so the depsgraph handler never sees these edits: they call the live relight (or the stale
 # check) themselves.
 def _relight_on_change(self, context) -> None:
-    from .live import request_relight
-
     request_relight()
 
 
 def _stale_check_on_change(self, context) -> None:
-    from .live import request_stale_check
-    from .runtime import RUNTIME
-
     if RUNTIME.live.stack is not None:
         request_stale_check()
 

@@ -1,6 +1,6 @@
 """The live relight's state: the loaded stack, its relighter, and what was last applied.
 
-Material values arrive as plain tuples (read from bpy by the add-on); only regions whose
+Material values arrive as `RegionParams` (read from bpy by the add-on); only regions whose
 values changed since the last relight are sent to the relighter, which then re-sums only the
 layers whose signature holds those regions (the core's incremental path). A stack that does
 not match the current scene is kept but marked stale and never relit from.
@@ -15,10 +15,7 @@ import os
 import time
 from dataclasses import dataclass
 
-#: ("principled", base_color, metallic, roughness, ior, specular_ior_level, subsurface_weight,
-#: subsurface_radius, subsurface_scale) or
-#: ("override", kd, ks, ns): the material of one editable region.
-RegionParams = tuple
+from .region_params import RegionParams
 
 
 @dataclass
@@ -113,15 +110,7 @@ class LiveState:
         for region, p in params.items():
             if not force and self.applied.get(region) == p:
                 continue
-            if p[0] == "override":
-                _, kd, ks, ns = p
-                self.relighter.set_material(region, kd, ks, ns)
-            else:
-                _, base, metallic, roughness, ior, level, sss_weight, sss_radius, sss_scale = p
-                self.relighter.set_principled(region, base, metallic, roughness, ior, level,
-                                              subsurface_weight=sss_weight,
-                                              subsurface_radius=sss_radius,
-                                              subsurface_scale=sss_scale)
+            p.send(self.relighter, region)
             self.applied[region] = p
             changed.append(region)
         return changed

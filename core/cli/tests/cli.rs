@@ -1,39 +1,12 @@
 //! The `relume` binary end to end on the assets' Cornell scene at a tiny resolution:
 //! bake → relight → reference → compare, the basis report, the benches, and errors.
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
-fn relume(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_relume"))
-        .args(args)
-        .output()
-        .expect("run relume")
-}
-
-fn json_of(out: &Output) -> serde_json::Value {
-    assert!(
-        out.status.success(),
-        "relume failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout)
-        .unwrap_or_else(|e| panic!("not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
-}
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("relume-cli-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+use common::*;
 
 #[test]
 fn bake_relight_reference_compare() {
@@ -284,22 +257,8 @@ fn errors_are_specific_and_exit_nonzero() {
 
 /// Bakes a tiny Cornell stack into `dir` and returns (scene, stack).
 fn tiny_stack(dir: &Path) -> (PathBuf, PathBuf) {
-    let scene = root().join("assets/cornell.scene.json");
     let stack = dir.join("tiny.exr");
-    let out = relume(&[
-        "bake",
-        s(&scene),
-        "-o",
-        s(&stack),
-        "--resolution",
-        "16x16",
-        "--spp",
-        "1",
-        "--light-samples",
-        "1",
-        "--json",
-    ]);
-    json_of(&out);
+    let scene = bake_cornell(&stack, "16x16", "1");
     (scene, stack)
 }
 

@@ -3,8 +3,12 @@
 //! Vulkan driver is hidden (auto falls back to the CPU and says why; gpu is an error that
 //! says so and points to auto).
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
+
+use std::io::Write as _;
+use std::path::PathBuf;
+
+use common::*;
 
 /// Environment that hides every Vulkan driver from the loader (old and new variable).
 const HIDE_ADAPTERS: [(&str, &str); 2] = [
@@ -12,57 +16,33 @@ const HIDE_ADAPTERS: [(&str, &str); 2] = [
     ("VK_DRIVER_FILES", "/nonexistent/icd.json"),
 ];
 
-fn relume_env(args: &[&str], env: &[(&str, &str)]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_relume"))
-        .args(args)
-        .envs(env.iter().copied())
-        .output()
-        .expect("run relume")
-}
-
-fn relume(args: &[&str]) -> Output {
-    relume_env(args, &[])
-}
-
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
-
-fn json_of(out: &Output) -> serde_json::Value {
-    assert!(out.status.success(), "relume failed: {}", stderr(out));
-    serde_json::from_slice(&out.stdout)
-        .unwrap_or_else(|e| panic!("not JSON ({e}): {}", String::from_utf8_lossy(&out.stdout)))
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
 /// A 24×24 bake of the assets' Cornell box in a fresh scratch folder.
 fn small_stack(name: &str) -> (PathBuf, PathBuf) {
-    let dir = std::env::temp_dir().join(format!("relume-cli-device-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/cornell.scene.json");
+    let dir = scratch(name);
     let stack = dir.join("s.exr");
-    json_of(&relume(&[
-        "bake",
-        s(&scene),
-        "-o",
-        s(&stack),
-        "--resolution",
-        "24x24",
-        "--spp",
-        "2",
-        "--light-samples",
-        "1",
-        "--json",
-    ]));
+    bake_cornell(&stack, "24x24", "2");
     (dir, stack)
 }
 
-/// Whether this machine has any adapter `--device gpu` can take.
-fn has_adapter() -> bool {
-    relume_gpu::choose_device(relume_gpu::DevicePreference::Gpu).is_ok()
+/// Whether this machine has any adapter `--device gpu` can take; when it has none, says in
+/// the test output that `test` skips its GPU part, or fails the test where
+/// `RELUME_REQUIRE_GPU` is set (scripts/test.sh sets it when lavapipe is installed).
+fn has_adapter(test: &str) -> bool {
+    let Err(e) = relume_gpu::choose_device(relume_gpu::DevicePreference::Gpu) else {
+        return true;
+    };
+    let required = std::env::var("RELUME_REQUIRE_GPU").is_ok_and(|v| !v.is_empty() && v != "0");
+    assert!(
+        !required,
+        "{test}: no GPU adapter ({e}), but RELUME_REQUIRE_GPU is set: a GPU (or lavapipe, \
+         Debian's mesa-vulkan-drivers) is expected on this machine"
+    );
+    // Straight to the process's stderr: the test harness captures `eprintln!`.
+    let _ = writeln!(
+        std::io::stderr(),
+        "SKIPPED: {test}: the GPU part, no wgpu adapter on this machine ({e})"
+    );
+    false
 }
 
 #[test]
@@ -95,7 +75,7 @@ fn relight_reports_its_device_and_gpu_matches_cpu() {
     }
 
     let gpu = run("gpu");
-    if !has_adapter() {
+    if !has_adapter("relight_reports_its_device_and_gpu_matches_cpu") {
         assert!(!gpu.status.success());
         eprintln!(
             "relight --device gpu: SKIPPED the comparison, no adapter ({})",
@@ -166,7 +146,7 @@ fn hidden_adapters_auto_falls_back_and_gpu_is_a_clear_error() {
 
 #[test]
 fn bench_relight_on_the_gpu_prints_upload_kernel_and_read_back() {
-    if !has_adapter() {
+    if !has_adapter("bench_relight_on_the_gpu_prints_upload_kernel_and_read_back") {
         eprintln!("bench relight --device gpu: SKIPPED, no GPU adapter on this machine");
         return;
     }

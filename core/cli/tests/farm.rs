@@ -2,43 +2,14 @@
 //! `bake --partition i/N`, `merge`, and the Open Job Description template run by `openjd`
 //! (from PyPI's openjd-cli) — each gives the stack of a one-machine bake, bit for bit.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use common::*;
 use relume_engine::stack::exr_file::read_stack;
 use relume_engine::stack::{LayerSamples, TransferStack};
-
-fn relume(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_relume"))
-        .args(args)
-        .output()
-        .expect("run relume")
-}
-
-fn ok(out: Output) -> Output {
-    assert!(
-        out.status.success(),
-        "failed: {}\n{}",
-        String::from_utf8_lossy(&out.stderr),
-        String::from_utf8_lossy(&out.stdout)
-    );
-    out
-}
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("relume-farm-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
 
 /// Guided, denoised preview with a light group per light, tiny.
 const OPTIONS: &[&str] = &[

@@ -11,7 +11,7 @@ use relume_engine::bake::presets::Preset;
 use relume_engine::bake::{
     bake, bake_progressive, progress::Progress, BakeSettings, LightGrouping,
 };
-use relume_engine::scene::{Light, Scene, World};
+use relume_engine::scene::{Scene, World};
 use relume_engine::stack::exr_file::{read_stack, write_stack};
 use relume_engine::stack::partial::{read_partial, write_partial, PartialStack};
 use relume_engine::stack::{LayerSamples, TransferStack};
@@ -19,21 +19,7 @@ use relume_engine::stack::{LayerSamples, TransferStack};
 /// The Cornell box with a second (coloured point) light and a dim world, at `size`² — not a
 /// multiple of the 16-px bake tiles or the 8-px guide tiles.
 fn two_lights(size: u32) -> Scene {
-    let mut scene = common::cornell(size);
-    if let Light::Area { color, .. } = &mut scene.lights[0] {
-        *color = [1.0, 0.9, 0.7];
-    }
-    scene.lights.push(Light::Point {
-        position: [0.5, -0.5, 0.3],
-        power: 8.0,
-        color: [0.3, 0.5, 1.0],
-        radius: 0.05,
-    });
-    scene.world = World::Color {
-        color: [0.02, 0.02, 0.03],
-        strength: 1.0,
-    };
-    scene
+    common::cornell_two_lights(size)
 }
 
 /// The preview preset (guided sampling, denoised bounce layers) with one group per light.

@@ -9,37 +9,15 @@ use relume_engine::bake::{bake, progress::Progress, BakeSettings, LightGrouping}
 use relume_engine::image_io::compare_rgb;
 use relume_engine::relight::CpuRelighter;
 use relume_engine::scene::{Light, LightGroupSpec, Scene, World};
-use relume_engine::stack::bases::StackBases;
 use relume_engine::stack::TransferStack;
 use relume_engine::Rgb;
 
 fn two_lights() -> Scene {
-    let mut scene = common::cornell(32);
-    if let Light::Area { color, .. } = &mut scene.lights[0] {
-        *color = [1.0, 0.9, 0.7];
-    }
-    scene.lights.push(Light::Point {
-        position: [0.5, -0.5, 0.3],
-        power: 8.0,
-        color: [0.3, 0.5, 1.0],
-        radius: 0.05,
-    });
-    scene.world = World::Color {
-        color: [0.02, 0.02, 0.03],
-        strength: 1.0,
-    };
-    scene
+    common::cornell_two_lights(32)
 }
 
 fn relighter(stack: TransferStack, scene: &Scene) -> CpuRelighter {
-    let bases = StackBases::from_header(&stack.header).unwrap();
-    let materials: Vec<_> = scene
-        .regions
-        .iter()
-        .filter(|r| r.editable)
-        .map(|r| r.material.clone())
-        .collect();
-    let coefs = bases.coefficients(&materials).unwrap();
+    let coefs = common::bake_material_coefs(&stack.header, scene);
     let mut r = CpuRelighter::new(Arc::new(stack)).unwrap();
     r.relight(&coefs).unwrap();
     r

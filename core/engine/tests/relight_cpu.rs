@@ -1,10 +1,10 @@
 //! The CPU relight against a naive f64 sum, incremental against full, span skipping, errors.
 
-mod relight_common;
+mod common;
 
 use std::sync::Arc;
 
-use relight_common::*;
+use common::synthetic_stack::*;
 use relume_engine::bake::signature::{LayerKey, PathVertex};
 use relume_engine::relight::{layer_weight, CpuRelighter, FULL_RESUM_EVERY};
 use relume_engine::stack::{Layer, LayerSamples, Precision, TransferStack};

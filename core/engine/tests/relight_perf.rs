@@ -6,12 +6,12 @@
 //! What is asserted is what must hold anywhere: the incremental update reads fewer bytes
 //! than the full sum, and both agree.
 
-mod relight_common;
+mod common;
 
 use std::sync::Arc;
 use std::time::Instant;
 
-use relight_common::*;
+use common::synthetic_stack::*;
 use relume_engine::relight::{bandwidth::measure_read_bandwidth, CpuRelighter};
 use relume_engine::stack::{Precision, TransferStack};
 

@@ -151,14 +151,7 @@ fn no_light_warns_and_bakes_black() {
     let path = dir.join("black.exr");
     relume_engine::stack::exr_file::write_stack(&path, &stack).unwrap();
     let back = relume_engine::stack::exr_file::read_stack(&path).unwrap();
-    let bases = relume_engine::stack::bases::StackBases::from_header(&back.header).unwrap();
-    let materials: Vec<_> = s
-        .regions
-        .iter()
-        .filter(|r| r.editable)
-        .map(|r| r.material.clone())
-        .collect();
-    let coefs = bases.coefficients(&materials).unwrap();
+    let coefs = common::bake_material_coefs(&back.header, &s);
     let mut relighter =
         relume_engine::relight::CpuRelighter::new(std::sync::Arc::new(back)).unwrap();
     let img = relighter.relight(&coefs).unwrap();

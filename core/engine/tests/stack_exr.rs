@@ -1,24 +1,29 @@
 //! The stack file: round trips, validation errors, atomic writes, generic readability.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use exr::prelude::{self as x, ReadChannels as _, ReadLayers as _, WritableImage as _};
 use relume_engine::bake::signature::{LayerKey, PathVertex};
-use relume_engine::brdf::{BlinnPhong, MaterialSpec};
 use relume_engine::scene::{Camera, Light, Projection, SensorFit};
 use relume_engine::stack::exr_file::{
     check_scene_hash, read_stack, read_stack_header, write_stack,
 };
 use relume_engine::stack::{
-    Layer, LayerSamples, Precision, RegionInfo, StackHeader, TransferStack, STACK_FORMAT_VERSION,
+    Layer, LayerSamples, Precision, StackHeader, TransferStack, STACK_FORMAT_VERSION,
 };
 use relume_engine::RelumeError;
 
+use common::stack_header::{blinn_phong_region, stack_header};
+
 fn header(width: u32, height: u32, precision: Precision) -> StackHeader {
+    let regions = vec![
+        // Non-ASCII survives (texts are UTF-8).
+        blinn_phong_region("Wand – grün", true, [0.7, 0.1, 0.1], [0.04; 3], 120.0),
+        blinn_phong_region("Floor", false, [0.5; 3], [0.0; 3], 1.0),
+    ];
     StackHeader {
-        format_version: STACK_FORMAT_VERSION,
-        width,
-        height,
         camera: Camera {
             projection: Projection::Perspective,
             matrix_world: [
@@ -38,36 +43,8 @@ fn header(width: u32, height: u32, precision: Precision) -> StackHeader {
             clip_end: 100.0,
         },
         spp: 64,
-        light_samples: 1,
         bounces: 2,
-        sampling: "uniform".into(),
         seed: 0xDEAD_BEEF_1234,
-        regions: vec![
-            RegionInfo {
-                name: "Wand – grün".into(), // non-ASCII survives (texts are UTF-8)
-                editable: true,
-                material: MaterialSpec::BlinnPhong(BlinnPhong {
-                    kd: [0.7, 0.1, 0.1],
-                    ks: [0.04, 0.04, 0.04],
-                    ns: 120.0,
-                }),
-                basis: None,
-                textured: false,
-                subsurface: None,
-            },
-            RegionInfo {
-                name: "Floor".into(),
-                editable: false,
-                material: MaterialSpec::BlinnPhong(BlinnPhong {
-                    kd: [0.5, 0.5, 0.5],
-                    ks: [0.0; 3],
-                    ns: 1.0,
-                }),
-                basis: None,
-                textured: false,
-                subsurface: None,
-            },
-        ],
         lights: vec![Light::Point {
             position: [0.0, 0.0, 1.9],
             power: 1000.0,
@@ -76,9 +53,7 @@ fn header(width: u32, height: u32, precision: Precision) -> StackHeader {
         }],
         scene_hash: "3f2a9c0e1b7d4455".into(),
         precision,
-        light_tint: [1.0; 3],
-        light_groups: Vec::new(),
-        denoise: Default::default(),
+        ..stack_header(width, height, regions)
     }
 }
 

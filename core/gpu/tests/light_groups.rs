@@ -1,19 +1,19 @@
 //! Light-group gains on the GPU equal the CPU's (the CPU relight is the reference).
 
+mod common;
+
 use std::sync::Arc;
 
 use relume_engine::bake::{bake, progress::Progress, BakeSettings, LightGrouping};
 use relume_engine::image_io::compare_rgb;
 use relume_engine::relight::CpuRelighter;
 use relume_engine::scene::{file::load_scene, Light, Resolution};
-use relume_engine::stack::bases::StackBases;
 use relume_engine::Rgb;
-use relume_gpu::{choose_device, DevicePreference, Relighter};
+use relume_gpu::{DevicePreference, Relighter};
 
 #[test]
 fn gpu_light_group_gains_match_the_cpu() {
-    if let Err(e) = choose_device(DevicePreference::Gpu) {
-        eprintln!("SKIPPED: no GPU adapter ({e})");
+    if common::gpu_or_skip("gpu_light_group_gains_match_the_cpu").is_none() {
         return;
     }
     let path =
@@ -35,14 +35,7 @@ fn gpu_light_group_gains_match_the_cpu() {
         ..Default::default()
     };
     let (stack, _) = bake(&scene, &settings, &Progress::new()).unwrap();
-    let bases = StackBases::from_header(&stack.header).unwrap();
-    let materials: Vec<_> = scene
-        .regions
-        .iter()
-        .filter(|r| r.editable)
-        .map(|r| r.material.clone())
-        .collect();
-    let coefs = bases.coefficients(&materials).unwrap();
+    let (_, coefs) = common::default_coefs(&stack);
     let gains = [Rgb::new(0.5, 1.0, 2.0), Rgb::splat(3.0)];
     let stack = Arc::new(stack);
     let mut cpu = CpuRelighter::new(stack.clone()).unwrap();

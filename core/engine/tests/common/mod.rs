@@ -1,9 +1,17 @@
-//! Small scenes built in code for the physics tests (the assets/ scenes are for demos and
-//! benchmarks; these stay tiny so debug-build tests run in seconds).
+//! Shared by the engine's integration tests. Here: small scenes built in code for the
+//! physics tests (the assets/ scenes are for demos and benchmarks; these stay tiny so
+//! debug-build tests run in seconds). `stack_header`: the one hand-made `StackHeader`;
+//! `synthetic_stack`: random stacks and a naive reference for the relight tests.
 #![allow(dead_code)]
+
+pub mod stack_header;
+pub mod synthetic_stack;
 
 use relume_engine::brdf::{BlinnPhong, MaterialSpec};
 use relume_engine::scene::*;
+use relume_engine::stack::bases::StackBases;
+use relume_engine::stack::{StackHeader, TransferStack};
+use relume_engine::Rgb;
 
 pub fn bp(kd: f32, ks: f32, ns: f32) -> MaterialSpec {
     MaterialSpec::BlinnPhong(BlinnPhong {
@@ -207,19 +215,41 @@ pub fn furnace(material: MaterialSpec, editable: bool, size: u32) -> Scene {
     }
 }
 
-/// `stack` relit on the CPU with the bake-time materials of `scene`'s editable regions.
-pub fn relight_at_bake_materials(
-    stack: &relume_engine::stack::TransferStack,
-    scene: &Scene,
-) -> Vec<f32> {
-    let bases = relume_engine::stack::bases::StackBases::from_header(&stack.header).unwrap();
+/// The Cornell box with a second (coloured point) light and a dim world, at `size`².
+pub fn cornell_two_lights(size: u32) -> Scene {
+    let mut scene = cornell(size);
+    if let Light::Area { color, .. } = &mut scene.lights[0] {
+        *color = [1.0, 0.9, 0.7];
+    }
+    scene.lights.push(Light::Point {
+        position: [0.5, -0.5, 0.3],
+        power: 8.0,
+        color: [0.3, 0.5, 1.0],
+        radius: 0.05,
+    });
+    scene.world = World::Color {
+        color: [0.02, 0.02, 0.03],
+        strength: 1.0,
+    };
+    scene
+}
+
+/// The relight coefficients of `scene`'s editable regions at their bake-time materials, on
+/// the bases `header` records.
+pub fn bake_material_coefs(header: &StackHeader, scene: &Scene) -> Vec<Vec<Rgb>> {
+    let bases = StackBases::from_header(header).unwrap();
     let materials: Vec<_> = scene
         .regions
         .iter()
         .filter(|r| r.editable)
         .map(|r| r.material.clone())
         .collect();
-    let coefs = bases.coefficients(&materials).unwrap();
+    bases.coefficients(&materials).unwrap()
+}
+
+/// `stack` relit on the CPU with the bake-time materials of `scene`'s editable regions.
+pub fn relight_at_bake_materials(stack: &TransferStack, scene: &Scene) -> Vec<f32> {
+    let coefs = bake_material_coefs(&stack.header, scene);
     relume_engine::relight::CpuRelighter::new(std::sync::Arc::new(stack.clone()))
         .unwrap()
         .relight(&coefs)

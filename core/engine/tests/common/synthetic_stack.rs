@@ -1,14 +1,11 @@
 //! Synthetic transfer stacks for the relight tests: random layers, any mix of precision,
 //! channels and path signatures, built by hand (no bake involved).
 
-#![allow(dead_code)]
-
 use relume_engine::bake::signature::{LayerKey, PathVertex};
-use relume_engine::brdf::{BlinnPhong, MaterialSpec};
-use relume_engine::stack::{
-    Layer, LayerSamples, Precision, RegionInfo, StackHeader, TransferStack, STACK_FORMAT_VERSION,
-};
+use relume_engine::stack::{Layer, LayerSamples, Precision, StackHeader, TransferStack};
 use relume_engine::Rgb;
+
+use super::stack_header::{blinn_phong_region, stack_header};
 
 /// xorshift64*: deterministic, dependency-free randomness for tests.
 pub struct Rng(u64);
@@ -36,43 +33,21 @@ impl Rng {
 
 /// Regions: editable "Bunny" (editable 0), fixed "Walls", editable "Floor" (editable 1).
 pub fn header(width: u32, height: u32) -> StackHeader {
-    let camera = serde_json::from_str(
-        r#"{"projection":"perspective","matrix_world":[[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]}"#,
-    )
-    .unwrap();
-    let region = |name: &str, editable| RegionInfo {
-        name: name.into(),
-        editable,
-        material: MaterialSpec::BlinnPhong(BlinnPhong {
-            kd: [0.5; 3],
-            ks: [0.2; 3],
-            ns: 20.0,
-        }),
-        basis: None,
-        textured: false,
-        subsurface: None,
-    };
+    let region =
+        |name: &str, editable| blinn_phong_region(name, editable, [0.5; 3], [0.2; 3], 20.0);
     StackHeader {
-        format_version: STACK_FORMAT_VERSION,
-        width,
-        height,
-        camera,
         spp: 16,
-        light_samples: 1,
-        bounces: 1,
-        sampling: "uniform".into(),
         seed: 1,
-        regions: vec![
-            region("Bunny", true),
-            region("Walls", false),
-            region("Floor", true),
-        ],
-        lights: vec![],
         scene_hash: "test".into(),
-        precision: Precision::F16,
-        light_tint: [1.0; 3],
-        light_groups: Vec::new(),
-        denoise: Default::default(),
+        ..stack_header(
+            width,
+            height,
+            vec![
+                region("Bunny", true),
+                region("Walls", false),
+                region("Floor", true),
+            ],
+        )
     }
 }
 

@@ -1,0 +1,95 @@
+"""The "Relume" image: relit from the scene's current values and written with `foreach_set`.
+
+Relights are throttled: `request_relight` relights now when the throttle allows it, else once
+its interval has passed (a timer; in background mode, at once, as there is no event loop).
+Light group gains (the scene's `relume_light_groups`, the Relume tab's sliders) take the
+same throttled path.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import time
+
+import bpy
+import numpy as np
+
+from .runtime import RUNTIME
+from .scene_values import current_gains, current_params, sync_light_groups
+
+IMAGE_NAME = "Relume"
+
+
+def write_image(pixels: np.ndarray) -> bpy.types.Image:
+    """Put an (h, w, 4) bottom-row-first float image into the "Relume" image."""
+    h, w = pixels.shape[0], pixels.shape[1]
+    img = bpy.data.images.get(IMAGE_NAME)
+    if img is not None and (img.size[0] != w or img.size[1] != h or not img.is_float):
+        bpy.data.images.remove(img)
+        img = None
+    if img is None:
+        img = bpy.data.images.new(IMAGE_NAME, width=w, height=h, alpha=True, float_buffer=True)
+        # Older colour-management configs name it "Linear"; float images default to it.
+        with contextlib.suppress(TypeError):
+            img.colorspace_settings.name = "Linear Rec.709"
+    img.pixels.foreach_set(np.ascontiguousarray(pixels, dtype=np.float32).ravel())
+    img.update()
+    return img
+
+
+def relight_now(force: bool = False) -> bool:
+    """Relight from the current material values; True when the image was updated."""
+    import relume
+
+    t0 = time.perf_counter()
+    try:
+        outcome = RUNTIME.live.relight(current_params(), force=force, gains=current_gains())
+    except relume.RelumeError as e:
+        # A value the relighter refuses (an override with Kd + Ks > 1, say) or a failure in
+        # the relight: shown in the panel, never raised into Blender's handlers.
+        RUNTIME.live.relight_error = f"{type(e).__name__}: {e}"
+        _redraw_image_editors()
+        return False
+    RUNTIME.live.relight_error = None
+    if outcome is None:
+        return False
+    write_image(outcome.image)
+    RUNTIME.live.last_latency_ms = (time.perf_counter() - t0) * 1e3
+    _redraw_image_editors()
+    return True
+
+
+def on_stack_loaded() -> None:
+    """After a (re)load: the scene's light group entries, then a full relight with its gains."""
+    sync_light_groups()
+    relight_now(force=True)
+
+
+def _redraw_image_editors() -> None:
+    wm = getattr(bpy.context, "window_manager", None)
+    if wm is None:
+        return
+    for window in wm.windows:
+        for area in window.screen.areas:
+            if area.type in ("IMAGE_EDITOR", "PREFERENCES", "PROPERTIES"):
+                area.tag_redraw()
+
+
+def _pending_relight():
+    RUNTIME.relight_timer_registered = False
+    if RUNTIME.throttle.pending and RUNTIME.throttle.request():
+        relight_now()
+    return None
+
+
+def request_relight() -> None:
+    """Relight now if the throttle allows it, else once the interval has passed."""
+    if RUNTIME.throttle.request():
+        relight_now()
+    elif not bpy.app.background and not RUNTIME.relight_timer_registered:
+        RUNTIME.relight_timer_registered = True
+        bpy.app.timers.register(_pending_relight, first_interval=RUNTIME.throttle.remaining() + 1e-3)
+    elif bpy.app.background:
+        # No timers without an event loop: a script's edit must still land, so run it.
+        RUNTIME.throttle.pending = False
+        relight_now()

@@ -1,0 +1,46 @@
+"""The relit image with the current materials: as pixels, and written to a file."""
+
+from __future__ import annotations
+
+import os
+
+import bpy
+
+from ..live_image import write_image
+from ..runtime import RUNTIME
+from ..scene_values import current_gains, current_params
+from . import stack as stack_service
+from .errors import BakeError
+
+
+def relight(context=None):
+    """Relight with the current material values; returns the (h, w, 4) image (bottom row first)."""
+    live = RUNTIME.live
+    if live.stack is None and not stack_service.load_stack(context):
+        raise BakeError(f"no usable Relume stack: {live.load_error or 'not baked yet'}")
+    if live.stale_reason is not None:
+        raise BakeError(f"the Relume stack is stale: {live.stale_reason}")
+    outcome = live.relight(current_params(), force=True, gains=current_gains())
+    write_image(outcome.image)
+    return outcome.image
+
+
+def render(filepath: str, context=None, check_stale: bool = True) -> str:
+    """Write the relit image to `filepath` (.exr: linear float; .png: sRGB 8-bit)."""
+    import relume
+
+    if check_stale and RUNTIME.live.stack is not None and stack_service.check_stale(context) is not None:
+        raise BakeError(f"the Relume stack is stale: {RUNTIME.live.stale_reason}")
+    image = relight(context)
+    path = bpy.path.abspath(filepath)
+    folder = os.path.dirname(path)
+    if folder:
+        os.makedirs(folder, exist_ok=True)
+    top_first = image[::-1]
+    if path.lower().endswith(".png"):
+        relume.write_png(path, top_first)
+    elif path.lower().endswith(".exr"):
+        relume.write_exr(path, top_first)
+    else:
+        raise ValueError(f"unsupported output format '{os.path.splitext(path)[1]}': use .exr or .png")
+    return path
