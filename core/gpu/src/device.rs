@@ -2,10 +2,8 @@
 //!
 //! `auto` takes the GPU only when the best adapter is a real one (discrete, integrated or
 //! virtual). A software adapter (lavapipe / llvmpipe, `DeviceType::Cpu`) is correct but
-//! far slower than the CPU loop: the project notes measured 15–30× (84 layers at 512²,
-//! 190–570 ms against 13–21 ms), and with the CPU loop's zero-span skipping the gap is now
-//! ≈ 600× (assets Cornell box, 182 layers at 512²: 2.3 s on lavapipe against 2.7–3.8 ms on
-//! two cores). So `auto` leaves it to tests that force `gpu`. The reason for the choice is a sentence
+//! far slower than the CPU loop, by orders of magnitude (`docs/measurements.md`). So `auto`
+//! leaves it to tests that force `gpu`. The reason for the choice is a sentence
 //! the command line prints and the add-on shows.
 //!
 //! Backends: Vulkan, Metal and DX12 (every current GPU has one of them). GL is left out:

@@ -10,10 +10,6 @@
 //! incremental edit adds its deltas to it. Each workgroup skips, unread, the layers that
 //! are zero on its 256 pixels (`tiles.rs`).
 //!
-//! **Measured** only on lavapipe (no real GPU was available): assets Cornell box, 182 f16
-//! layers at 512² (123 MB, 65 MB of non-zero tiles), upload 171 ms, full relight 2.33 s,
-//! read-back 0.38–0.42 ms. Correctness figures, not GPU speed.
-//!
 //! Failures are values: the upload runs inside out-of-memory and validation error scopes,
 //! a device-lost callback and an uncaptured-error handler (wgpu's default one panics)
 //! record what happened, and every submission checks them.

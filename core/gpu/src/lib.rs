@@ -13,7 +13,8 @@
 //!   f16 pairs / f32 packing.
 //! - [`tiles`]: which 256-pixel tiles of each layer are non-zero (the rest is skipped).
 //! - `kernel` (+ `kernel.wgsl`): device, pipeline, upload, one submission per edit.
-//! - [`relight`]: [`GpuRelighter`], the weights and the incremental bookkeeping.
+//! - [`relight`]: [`GpuRelighter`], the engine's relight bookkeeping
+//!   (`relume_engine::relight::RelightBookkeeping`) over the kernel's sum.
 //! - [`relighter`]: [`Relighter`], GPU or CPU behind the same methods, with fallback.
 //! - [`error`]: the error type, [`GpuError`].
 
@@ -23,7 +24,6 @@ mod kernel;
 pub mod layout;
 pub mod relight;
 pub mod relighter;
-mod shape;
 pub mod tiles;
 
 pub use device::{choose_device, DeviceChoice, DeviceKind, DevicePreference};
@@ -31,6 +31,8 @@ pub use error::GpuError;
 pub use kernel::GpuOptions;
 pub use relight::{GpuRelighter, GpuTimings};
 pub use relighter::Relighter;
+/// The engine's shape of a stack and its checks, shared with the CPU relight.
+pub use relume_engine::relight::StackShape;
 
 /// The wgpu this crate is built on (for callers that hold an adapter from [`choose_device`]).
 pub use wgpu;

@@ -231,3 +231,17 @@ impl Relighter {
         }
     }
 }
+
+/// A live material session (the Python bindings' relighter) drives this relighter.
+impl relume_engine::materials::LiveRelighter for Relighter {
+    type Error = GpuError;
+    fn relight_all(&mut self, coefs: &[Vec<Rgb>]) -> Result<(), GpuError> {
+        self.relight(coefs).map(|_| ())
+    }
+    fn relight_one(&mut self, region: usize, coefs: &[Rgb]) -> Result<(), GpuError> {
+        self.relight_region(region, coefs).map(|_| ())
+    }
+    fn set_gains(&mut self, gains: &[Rgb]) -> Result<(), GpuError> {
+        self.set_light_group_gains(gains).map(|_| ())
+    }
+}

@@ -2,10 +2,10 @@
 //!
 //! A tile is the [`TILE_PIXELS`] consecutive pixels (row-major) of one workgroup, so the
 //! skip is the same for every invocation of a workgroup and costs no divergence. Layers of
-//! a path that starts at a region cover only that region's pixels: on the assets' Cornell
-//! box at 512² (182 layers) the CPU relight reads 39 MB of the 123 MB stack for this
-//! reason, and the tiles let the GPU skip about as much (its granularity is 256 pixels, the
-//! CPU's a span per row). The masks cost one bit per tile and layer: 23 KiB there.
+//! a path that starts at a region cover only that region's pixels, so the CPU relight reads
+//! a fraction of the stack's bytes, and the tiles let the GPU skip about as much (its
+//! granularity is 256 pixels, the CPU's a span per row). The masks cost one bit per tile
+//! and layer.
 
 use relume_engine::stack::{Layer, LayerSamples};
 

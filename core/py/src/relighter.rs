@@ -1,12 +1,12 @@
 //! `relume.Relighter`: live relight of a stack for material and light-group edits, on the
 //! GPU or the CPU (relume-gpu's `Relighter`, which falls back to the CPU in `auto` mode).
 //!
-//! Edits only record the new material; `relight()` then re-sums the regions changed since
-//! the last call (the core's incremental `relight_region`, which itself re-sums everything
+//! Edits only record the new material in the core's `LiveMaterials`, which checks it by the
+//! rules of a materials file and tracks what changed; `relight()` then re-sums the regions
+//! changed since the last call (the core's incremental `relight_region`, which itself re-sums everything
 //! every 64 edits to bound float drift), or everything on the first call. The sum runs
 //! with the GIL released.
 
-use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
@@ -17,13 +17,11 @@ use pyo3::types::PyDict;
 use relume_engine::brdf::{
     principled_to_blinn_phong, BlinnPhong, MaterialSpec, PrincipledMaterial, Subsurface,
 };
-use relume_engine::materials::{
-    resolve_light_gains, resolve_materials, LightGroupEdit, MaterialsFile,
-};
+use relume_engine::materials::{LightGroupEdit, LiveMaterials};
 use relume_engine::stack::bases::StackBases;
 use relume_engine::stack::TransferStack;
-use relume_engine::{RelumeError, Rgb};
-use relume_gpu::{DevicePreference, Relighter as Engine};
+use relume_engine::RelumeError;
+use relume_gpu::{DevicePreference, GpuError, Relighter as Engine};
 
 use crate::errors::{engine_err, new_err, IntoPy};
 use crate::guard::{guard, guard_detached};
@@ -32,14 +30,9 @@ use crate::stack::Stack;
 
 struct State {
     engine: Engine,
-    /// Current material of every editable region, in editable order: Blinn–Phong values,
-    /// or Principled inputs (whose subsurface part drives a translucent region's layers).
-    materials: Vec<MaterialSpec>,
-    /// Regions changed since the last relight.
-    dirty: Vec<bool>,
-    gains: BTreeMap<String, LightGroupEdit>,
-    gains_dirty: bool,
-    has_image: bool,
+    /// The materials and light-group edits, and what changed since the last relight (the
+    /// core's rules and bookkeeping: this layer only converts arguments and errors).
+    live: LiveMaterials,
     last_ms: f64,
 }
 
@@ -48,10 +41,10 @@ struct State {
 pub struct Relighter {
     stack: Arc<TransferStack>,
     bases: StackBases,
-    editable: Vec<String>,
     state: Mutex<State>,
 }
 
+/// An edit the core refused: a value outside its rules is a `MaterialsError`.
 fn materials_err(py: Python<'_>, e: RelumeError) -> PyErr {
     match e {
         RelumeError::InvalidValue { .. } | RelumeError::NonFinite { .. } => {
@@ -66,75 +59,21 @@ impl Relighter {
         self.state.lock().unwrap_or_else(|e| e.into_inner())
     }
 
-    /// The editable index of `region`, with the core's errors for unknown and fixed regions
-    /// and for values outside the core's rules ([`MaterialSpec::validate`], the same words
-    /// as the command line's materials file).
-    fn region_index(&self, py: Python<'_>, region: &str, spec: &MaterialSpec) -> PyResult<usize> {
-        let mut edits = MaterialsFile::default();
-        edits.regions.insert(region.to_string(), spec.clone());
-        resolve_materials(&self.stack.header.regions, &edits).map_err(|e| materials_err(py, e))?;
-        Ok(self.editable.iter().position(|n| n == region).unwrap_or(0))
-    }
-
     fn set(&self, py: Python<'_>, region: &str, spec: MaterialSpec) -> PyResult<()> {
-        let index = self.region_index(py, region, &spec)?;
-        let mut st = self.lock();
-        if st.materials[index] != spec {
-            st.materials[index] = spec;
-            st.dirty[index] = true;
-        }
-        Ok(())
+        self.lock()
+            .live
+            .set_material(&self.stack.header, region, spec)
+            .map_err(|e| materials_err(py, e))
     }
 
     /// Runs the sums the edits since the last call need; returns the image (RGBA, rows in
-    /// the order asked) and the milliseconds it took.
-    fn run(&self, flip_y: bool) -> Result<Vec<f32>, PyErrLike> {
+    /// the order asked).
+    fn run(&self, flip_y: bool) -> Result<Vec<f32>, GpuError> {
         let mut guard = self.lock();
         let st = &mut *guard;
         let t = Instant::now();
-        let gains = if st.gains.is_empty() {
-            None
-        } else {
-            let edits = MaterialsFile {
-                regions: BTreeMap::new(),
-                light_groups: st.gains.clone(),
-            };
-            resolve_light_gains(&self.stack.header, &edits).map_err(PyErrLike::Engine)?
-        };
-        let coefs_of = |r: usize, m: &MaterialSpec| -> Result<Vec<Rgb>, PyErrLike> {
-            self.bases
-                .region_coefficients(r, m)
-                .map_err(PyErrLike::Engine)
-        };
-        if !st.has_image {
-            let coefs = st
-                .materials
-                .iter()
-                .enumerate()
-                .map(|(r, m)| coefs_of(r, m))
-                .collect::<Result<Vec<_>, _>>()?;
-            st.engine.relight(&coefs).map_err(PyErrLike::Gpu)?;
-            if let Some(g) = &gains {
-                st.engine.set_light_group_gains(g).map_err(PyErrLike::Gpu)?;
-            }
-            st.has_image = true;
-        } else {
-            for r in 0..st.materials.len() {
-                if st.dirty[r] {
-                    let c = coefs_of(r, &st.materials[r])?;
-                    st.engine.relight_region(r, &c).map_err(PyErrLike::Gpu)?;
-                }
-            }
-            if st.gains_dirty {
-                let g =
-                    gains.unwrap_or_else(|| vec![Rgb::ONE; self.stack.header.light_groups.len()]);
-                st.engine
-                    .set_light_group_gains(&g)
-                    .map_err(PyErrLike::Gpu)?;
-            }
-        }
-        st.dirty.iter_mut().for_each(|d| *d = false);
-        st.gains_dirty = false;
+        st.live
+            .update(&self.stack.header, &self.bases, &mut st.engine)?;
         let image = st.engine.image();
         let (w, _) = st.engine.size();
         let out = if flip_y {
@@ -146,12 +85,6 @@ impl Relighter {
         st.last_ms = t.elapsed().as_secs_f64() * 1e3;
         Ok(out)
     }
-}
-
-/// An error from the detached part, turned into a Python exception once the GIL is back.
-enum PyErrLike {
-    Engine(RelumeError),
-    Gpu(relume_gpu::GpuError),
 }
 
 #[pymethods]
@@ -186,27 +119,13 @@ impl Relighter {
             }
             Err(e) => return Err(engine_err(py, &e)),
         };
-        let materials: Vec<MaterialSpec> =
-            resolve_materials(&stack.header.regions, &MaterialsFile::default()).py_err(py)?;
-        let editable = stack
-            .header
-            .regions
-            .iter()
-            .filter(|r| r.editable)
-            .map(|r| r.name.clone())
-            .collect();
-        let n = materials.len();
+        let live = LiveMaterials::new(&stack.header).py_err(py)?;
         Ok(Relighter {
             stack,
             bases,
-            editable,
             state: Mutex::new(State {
                 engine,
-                materials,
-                dirty: vec![false; n],
-                gains: BTreeMap::new(),
-                gains_dirty: false,
-                has_image: false,
+                live,
                 last_ms: 0.0,
             }),
         })
@@ -307,17 +226,10 @@ impl Relighter {
                 Some(c) => rgb("color", c)?,
                 None => [1.0; 3],
             };
-            let mut st = self.lock();
-            let mut gains = st.gains.clone();
-            gains.insert(name.to_string(), LightGroupEdit { strength, color });
-            let edits = MaterialsFile {
-                regions: BTreeMap::new(),
-                light_groups: gains.clone(),
-            };
-            resolve_light_gains(&self.stack.header, &edits).map_err(|e| materials_err(py, e))?;
-            st.gains = gains;
-            st.gains_dirty = true;
-            Ok(())
+            self.lock()
+                .live
+                .set_light_group(&self.stack.header, name, LightGroupEdit { strength, color })
+                .map_err(|e| materials_err(py, e))
         })
     }
 
@@ -326,10 +238,7 @@ impl Relighter {
     #[pyo3(signature = (flip_y = false))]
     fn relight<'py>(&self, py: Python<'py>, flip_y: bool) -> PyResult<Bound<'py, PyArray3<f32>>> {
         let out = guard_detached(py, "Relighter.relight", || self.run(flip_y))?;
-        let pixels = out.map_err(|e| match e {
-            PyErrLike::Engine(e) => engine_err(py, &e),
-            PyErrLike::Gpu(e) => crate::errors::gpu_err(py, &e),
-        })?;
+        let pixels = out.py_err(py)?;
         let (w, h) = (
             self.stack.header.width as usize,
             self.stack.header.height as usize,
@@ -355,7 +264,8 @@ impl Relighter {
     fn materials<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let st = self.lock();
         let d = PyDict::new(py);
-        for (name, m) in self.editable.iter().zip(&st.materials) {
+        let live = &st.live;
+        for (name, m) in live.editable_names().iter().zip(live.materials()) {
             d.set_item(name, blinn_phong_dict(py, &m.to_blinn_phong())?)?;
         }
         Ok(d)
@@ -369,12 +279,9 @@ impl Relighter {
     fn warnings<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, pyo3::types::PyList>> {
         let st = self.lock();
         let list = pyo3::types::PyList::empty(py);
-        for w in self.bases.out_of_range(&st.materials) {
-            let name = self
-                .editable
-                .get(w.region)
-                .map(String::as_str)
-                .unwrap_or("?");
+        let names = st.live.editable_names();
+        for w in self.bases.out_of_range(st.live.materials()) {
+            let name = names.get(w.region).map(String::as_str).unwrap_or("?");
             let d = PyDict::new(py);
             d.set_item("region", name)?;
             d.set_item("ns", w.ns)?;
@@ -391,12 +298,13 @@ impl Relighter {
     }
 
     fn __repr__(&self) -> String {
+        let editable = self.lock().live.editable_names().len();
         format!(
             "<relume.Relighter {}×{} on the {} ({} editable regions)>",
             self.stack.header.width,
             self.stack.header.height,
             self.device().to_uppercase(),
-            self.editable.len()
+            editable
         )
     }
 }

@@ -2,8 +2,7 @@
 //!
 //! A relight reads every sample of the layers it sums once, so `bytes / bandwidth` is a
 //! time no implementation can beat; reporting relight times beside it shows how much is
-//! left on the table (on the 2-core machines of this project: ≈ 16 GB/s with two threads,
-//! 8 GB/s with one, so 74 MB of f16 layers take ≥ 4.6 ms).
+//! left on the table (figures for this project's machines: `docs/measurements.md`).
 
 use rayon::prelude::*;
 use std::time::Instant;

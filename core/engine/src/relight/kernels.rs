@@ -1,21 +1,27 @@
-//! The inner loops of the relight: `out(RGBA) += w(RGB) · layer row segment`.
+//! The inner loops of the relight: `acc += w(RGB) · layer row segment`, into the per-row
+//! accumulators of the packed row sum (`packed.rs`), which merges them into the RGBA image
+//! once per row.
 //!
-//! Every relight ends here, so this is where its time goes. A 512×512 stack of the paper's
-//! size (55 grey + 29 RGB layers, f16) is 74 MB of samples; at the ≈ 16 GB/s this machine
-//! reads with two threads that is 4.6 ms that no relight can beat, and the arithmetic
-//! (≈ 66 M multiply-adds, plus one f16 → f32 conversion per sample) must hide under it.
+//! Every relight ends here, so this is where its time goes: the sum is bound by the memory
+//! bandwidth, and the arithmetic (one multiply-add per sample and channel, plus one
+//! f16 → f32 conversion per sample) must hide under the reads.
+//!
+//! Two shapes of accumulator, so that neither inner loop needs a permute:
+//! - **Planar grey** ([`Kernels::add_grey_planar`]): a grey sample adds to three separate
+//!   R, G and B rows, three fused multiply-adds per 8 pixels.
+//! - **Interleaved RGB** ([`Kernels::add_rgb_interleaved`]): an RGB sample adds to the same
+//!   position of an interleaved RGB row, with the weight vector rotated per 8-lane step
+//!   (the pattern repeats every 24 samples).
 //!
 //! Two implementations, chosen once per [`Kernels::detect`]:
 //! - **AVX2 + FMA + F16C** (x86-64, detected at run time because the workspace builds for
-//!   baseline x86-64): 8 samples per step, `vcvtph2ps` converts f16 in registers, the
-//!   grey/RGB value is spread over the RGBA accumulator with `vpermps` and added with one
-//!   fused multiply-add per 2 pixels. No temporary buffer, no bounds checks.
+//!   baseline x86-64): 8 samples per step, `vcvtph2ps` converts f16 in registers, one fused
+//!   multiply-add per 8 samples and accumulator. No temporary buffer, no bounds checks.
 //! - **Portable**: converts a chunk of at most [`CHUNK`] samples into a stack buffer with
 //!   `half`'s slice conversion (which itself uses F16C where present), then plain loops.
 //!   Used on other CPUs, and by the tests to check the AVX2 path against it.
 //!
-//! The alpha lane gets weight 0, and samples are checked finite when a relighter is built,
-//! so `alpha += 0·finite` leaves the alpha of 1 exact.
+//! The accumulators hold colour only; the image's alpha of 1 is never touched by a sum.
 
 use half::f16;
 

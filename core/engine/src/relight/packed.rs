@@ -2,15 +2,15 @@
 //!
 //! A stack keeps each layer as its own image; summing them row by row jumps between ~180
 //! separate arrays per image row (one per layer with pixels there), which defeats the
-//! hardware prefetcher and left the sum at ~4× the memory-bandwidth bound. Repacked, the
-//! non-zero span of every (row, layer) lies back to back in row order, so a full relight
-//! reads one array front to back while one image row (16 bytes a pixel, 8 KiB at 512
-//! pixels) stays in L1. Building it costs one pass over the stack at load.
+//! hardware prefetcher and left the sum several times above the memory-bandwidth bound
+//! (`docs/measurements.md`). Repacked, the non-zero span of every (row, layer) lies back to
+//! back in row order, so a full relight reads one array front to back while one image row
+//! (16 bytes a pixel, 8 KiB at 512 pixels) stays in L1. Building it costs one pass over the stack at load.
 
 use half::f16;
 
 use super::kernels::Kernels;
-use super::LayerPlan;
+use super::spans::LayerPlan;
 use crate::stack::{LayerSamples, TransferStack};
 use crate::Rgb;
 

@@ -1,12 +1,16 @@
 //! Unit tests that need the crate-private kernel choice; the behavioural tests are in
 //! `core/engine/tests/relight_*.rs`.
 
+use std::sync::Arc;
+
+use super::kernels::Kernels;
 use super::*;
 use crate::bake::signature::{LayerKey, PathVertex};
 use crate::brdf::{BlinnPhong, MaterialSpec};
 use crate::stack::{
     Layer, Precision, RegionInfo, StackHeader, TransferStack, STACK_FORMAT_VERSION,
 };
+use crate::Rgb;
 
 fn header(width: u32, height: u32) -> StackHeader {
     let camera = serde_json::from_str(

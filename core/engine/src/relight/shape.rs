@@ -1,27 +1,35 @@
-//! What a relight needs to know of a stack besides its samples — editable regions, bases
-//! per region, the layers each region appears in, the light tint — and the checks of the
-//! CPU relighter on the stack and on coefficients, with the same messages, so that a stack
-//! or an edit the CPU refuses is refused on the GPU too. (Sample finiteness is checked
-//! while packing, in `layout::pack_layer`.)
+//! What a relight needs to know of a stack besides its samples — its size, the editable
+//! regions, the bases each region uses and the layers each region appears in — and the
+//! checks every relighter makes on the stack and on the coefficients of an edit. The CPU
+//! and the GPU relighters both build this one type, so a stack or an edit that one refuses
+//! the other refuses too, in the same words. (Sample finiteness is checked where each
+//! relighter reads the samples: its span scan on the CPU, its packing on the GPU.)
 
-use relume_engine::stack::TransferStack;
-use relume_engine::{RelumeError, Result, Rgb};
+use crate::stack::TransferStack;
+use crate::{RelumeError, Result, Rgb};
 
+use super::weight::group_factors;
+
+/// The shape of a stack as the relight sees it.
+#[derive(Clone, Debug)]
 pub struct StackShape {
     pub width: usize,
     pub height: usize,
+    /// Names of the editable regions, in editable order (`PathVertex::Editable::region`).
     pub editable_names: Vec<String>,
     /// Per editable region: the largest basis index in any key, plus one.
     pub basis_counts: Vec<usize>,
     /// Per editable region: the layers whose key contains it, ascending.
     pub region_layers: Vec<Vec<u32>>,
-    /// The emitters' common colour; every layer weight is multiplied by it.
-    /// Per layer-key light group, the factor of its layers (tint × live gain): see
-    /// `relume_engine::relight::group_factors`.
-    pub group_factors: Vec<Rgb>,
 }
 
 impl StackShape {
+    /// Checks every layer and maps layers to the editable regions they depend on.
+    ///
+    /// Errors: a layer whose channel count is not 1 or 3, whose sample count is not
+    /// width·height·channels, whose scale is not finite, whose key names an editable region
+    /// the header does not have or a light group it does not have; a light tint that is not
+    /// a finite non-negative colour.
     pub fn new(stack: &TransferStack) -> Result<StackShape> {
         let width = stack.header.width as usize;
         let height = stack.header.height as usize;
@@ -79,26 +87,42 @@ impl StackShape {
                 }
             }
         }
-        let group_factors = relume_engine::relight::group_factors(stack, None)?;
+        // The light tints and every layer's light group, checked once here.
+        group_factors(stack, None)?;
         Ok(StackShape {
             width,
             height,
             editable_names,
             basis_counts,
             region_layers,
-            group_factors,
         })
+    }
+
+    /// Number of editable regions.
+    pub fn editable_count(&self) -> usize {
+        self.editable_names.len()
+    }
+
+    /// Number of bases the layers of editable region `region` use: the largest basis index
+    /// in any key plus one (0 for a region no layer mentions or an index out of range).
+    pub fn basis_count(&self, region: usize) -> usize {
+        self.basis_counts.get(region).copied().unwrap_or(0)
+    }
+
+    /// Image width and height in pixels.
+    pub fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
     }
 
     /// One coefficient list per editable region, each complete and finite.
     pub fn check_coefs(&self, coefs: &[Vec<Rgb>]) -> Result<()> {
-        if coefs.len() != self.editable_names.len() {
+        if coefs.len() != self.editable_count() {
             return Err(RelumeError::invalid(
                 "relight coefficients",
                 format!(
                     "{} coefficient lists for {} editable regions ({})",
                     coefs.len(),
-                    self.editable_names.len(),
+                    self.editable_count(),
                     self.editable_names.join(", ")
                 ),
             ));
@@ -109,13 +133,14 @@ impl StackShape {
             .try_for_each(|(r, c)| self.check_region(r, c))
     }
 
-    /// `region` exists and `c` has at least its basis count of finite coefficients.
+    /// `region` exists and `c` has at least its basis count of finite coefficients (more are
+    /// accepted: a basis whose layers were all dropped as negligible leaves no key behind).
     pub fn check_region(&self, region: usize, c: &[Rgb]) -> Result<()> {
         let Some(name) = self.editable_names.get(region) else {
             return Err(RelumeError::IndexOutOfRange {
                 what: "editable region to relight".into(),
                 index: region as u64,
-                len: self.editable_names.len(),
+                len: self.editable_count(),
             });
         };
         if c.len() < self.basis_counts[region] {
