@@ -7,7 +7,11 @@
 //! *transfer stack*, and a relight is a weighted sum of those layers whose weights are
 //! products of per-region basis coefficients.
 //!
-//! Module map (one concept per file):
+//! Module map (one concept per file), from the ground floor up:
+//! - [`error`], [`layer_key`] (path signatures, the key of every layer), [`options`] (the
+//!   bake's options that the stack records, and the limits that size the integrator),
+//!   [`progress`] (progress and cancellation): the shared vocabulary, importing none of the
+//!   folders below.
 //! - [`scene`]: the scene model, its versioned JSON file, validation.
 //! - [`brdf`]: Blinn–Phong, the PCA basis, the Principled mapping.
 //! - [`bssrdf`]: translucency: the dipole profile, its PCA basis, Blender's subsurface inputs.
@@ -27,9 +31,12 @@ pub mod bssrdf;
 pub mod error;
 pub mod geometry;
 pub mod image_io;
+pub mod layer_key;
 pub mod materials;
 pub mod memory;
+pub mod options;
 pub mod output_path;
+pub mod progress;
 pub mod relight;
 pub mod scene;
 pub mod stack;

@@ -15,12 +15,13 @@
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::bake::context::{BakeContext, MAX_BASES};
+use crate::bake::context::BakeContext;
 use crate::bake::integrator::Tracer;
-use crate::bake::integrator::{direct_light, sample_indirect, CountingTracer, MAX_GROUPS};
+use crate::bake::integrator::{direct_light, sample_indirect, CountingTracer};
 use crate::bake::settings::IndirectSampling;
 use crate::bake::vertex_brdf::{frozen_value, BasisBrdf};
 use crate::geometry::sampling::SampleStream;
+use crate::options::{MAX_BASES, MAX_GROUPS};
 use crate::Rgb;
 
 /// Pixels per side of the pre-pass grid (fewer when the image is smaller).

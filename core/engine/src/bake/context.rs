@@ -10,16 +10,14 @@ use std::sync::Arc;
 use crate::bake::guide::GuideField;
 use crate::bake::mixture::DirectionMixture;
 use crate::bake::settings::{BakeSettings, IndirectSampling};
-use crate::bake::signature::PathVertex;
 use crate::bake::subsurface::{self, TranslucentRegion};
 use crate::brdf::{BasisConfig, BlinnPhong, BrdfBasis};
 use crate::bssrdf::{SssBasis, SubsurfaceInfo};
 use crate::geometry::{bvh::SceneGeometry, camera::CameraRays, lights::LightSet, texture::Texture};
+use crate::layer_key::PathVertex;
+use crate::options::{MAX_BASES, MAX_GROUPS};
 use crate::scene::{validate::validate_scene, validate::ValidationReport, Resolution, Scene};
 use crate::{RelumeError, Result};
-
-/// Most bases one region may use: bounds the per-vertex scratch arrays.
-pub const MAX_BASES: usize = 32;
 
 /// How a region reflects.
 #[derive(Clone)]
@@ -76,7 +74,7 @@ pub struct BakeContext {
 impl BakeContext {
     /// Validates `scene` and prepares it for `settings`, with the guide pass of a guided bake.
     pub fn new(scene: &Scene, settings: &BakeSettings) -> Result<(BakeContext, ValidationReport)> {
-        let progress = crate::bake::progress::Progress::new();
+        let progress = crate::progress::Progress::new();
         let (mut ctx, report) = Self::prepare(scene, settings, &progress)?;
         ctx.build_guide(scene, &progress)?;
         Ok((ctx, report))
@@ -87,7 +85,7 @@ impl BakeContext {
     pub fn build_guide(
         &mut self,
         scene: &Scene,
-        progress: &crate::bake::progress::Progress,
+        progress: &crate::progress::Progress,
     ) -> Result<()> {
         // `self.settings.bounces` is the count the bounce pre-pass chose.
         if self.settings.sampling == IndirectSampling::Guided && self.settings.bounces >= 1 {
@@ -109,7 +107,7 @@ impl BakeContext {
     pub fn prepare(
         scene: &Scene,
         settings: &BakeSettings,
-        progress: &crate::bake::progress::Progress,
+        progress: &crate::progress::Progress,
     ) -> Result<(BakeContext, ValidationReport)> {
         settings.validate()?;
         let mut report = validate_scene(scene)?;
@@ -231,13 +229,13 @@ impl BakeContext {
             }
         }
         let lights = LightSet::new(scene, settings.light_grouping);
-        if lights.groups.len() > crate::bake::integrator::MAX_GROUPS {
+        if lights.groups.len() > MAX_GROUPS {
             return Err(RelumeError::invalid(
                 "light groups",
                 format!(
                     "{} groups (at most {}): group the lights in the scene file's light_groups",
                     lights.groups.len(),
-                    crate::bake::integrator::MAX_GROUPS
+                    MAX_GROUPS
                 ),
             ));
         }

@@ -90,7 +90,7 @@ impl GuideField {
     pub fn build(
         ctx: &BakeContext,
         materials: Vec<BlinnPhong>,
-        progress: &crate::bake::progress::Progress,
+        progress: &crate::progress::Progress,
     ) -> Result<GuideField> {
         let start = Instant::now();
         let brdf = MaterialBrdf::new(ctx, materials, false)?;

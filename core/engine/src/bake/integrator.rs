@@ -36,13 +36,13 @@
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
 
-use crate::bake::context::{BakeContext, MAX_BASES};
+use crate::bake::context::BakeContext;
 use crate::bake::guide::GUIDE_WEIGHT;
 use crate::bake::guide_tree::DirectionTree;
 use crate::bake::mixture::DirectionMixture;
-use crate::bake::settings::IndirectSampling;
 use crate::geometry::bvh::SurfaceHit;
 use crate::geometry::sampling::{cosine_hemisphere, to_world, uniform_hemisphere, SampleStream};
+use crate::options::{IndirectSampling, MAX_BASES, MAX_GROUPS};
 use crate::Rgb;
 
 /// The BRDF values at a path vertex, one per slot of its region.
@@ -126,9 +126,6 @@ pub trait PathSink {
     #[inline]
     fn eye_hit(&mut self, _region: u32, _normal: Vec3, _position: Vec3) {}
 }
-
-/// Most light groups a bake keeps apart: bounds the per-vertex scratch arrays.
-pub const MAX_GROUPS: usize = 16;
 
 /// Ray queries, counted (and recordable for throughput measurements).
 pub trait Tracer {

@@ -19,6 +19,7 @@ pub mod guide_file;
 pub mod guide_tree;
 pub mod integrator;
 pub mod mixture;
+pub mod partial;
 pub mod partition;
 pub mod presets;
 pub mod progress;
@@ -35,6 +36,8 @@ use serde::Serialize;
 use std::sync::Mutex;
 use std::time::Instant;
 
+use crate::layer_key::LayerKey;
+use crate::progress::{Progress, Stage};
 use crate::scene::{hash::scene_hash, Scene};
 use crate::stack::{
     Layer, LightGroupInfo, RegionInfo, StackHeader, TransferStack, STACK_FORMAT_VERSION,
@@ -43,9 +46,7 @@ use crate::{Result, Rgb};
 use context::BakeContext;
 use drop::RawLayer;
 use integrator::{trace_eye_sample, CountingTracer, PathSink};
-use progress::{Progress, Stage};
 pub use settings::{BakeSettings, Denoise, IndirectSampling, LightGrouping};
-use signature::LayerKey;
 use vertex_brdf::BasisBrdf;
 
 /// What a bake did, for the command line's JSON and the add-on's status.

@@ -3,72 +3,8 @@
 use serde::{Deserialize, Serialize};
 
 use crate::brdf::BasisConfig;
+pub use crate::options::{Denoise, IndirectSampling, LightGrouping, Precision};
 use crate::scene::Resolution;
-
-use crate::stack::Precision;
-
-/// How indirect directions are drawn at the eye hit. Both are unbiased and share one sample
-/// set across all layers, so the layers' noise stays correlated.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum IndirectSampling {
-    /// Uniform over the hemisphere, as in the paper (pdf 1/2π).
-    Uniform,
-    /// A mixture: ½ cosine-weighted + ½ spread over Blinn–Phong lobes covering the region's
-    /// ns range (4 exponents, log-spaced), its pdf evaluated exactly.
-    Mixture,
-    /// The mixture plus a guide: a first pass records incoming indirect radiance per screen
-    /// tile ([`crate::bake::guide`]); half of the directions are drawn from that map, the
-    /// other half from the cosine + lobes mixture; pdf exact.
-    Guided,
-}
-
-impl IndirectSampling {
-    /// The name written in stack headers.
-    pub fn name(self) -> &'static str {
-        match self {
-            IndirectSampling::Uniform => "uniform",
-            IndirectSampling::Mixture => "mixture",
-            IndirectSampling::Guided => "guided",
-        }
-    }
-}
-
-/// Which lights share layers. Light groups make each group's strength and colour live at
-/// relight time; storage and relight cost grow with the number of groups.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "kebab-case")]
-pub enum LightGrouping {
-    /// All lights (and the world) in one set of layers.
-    #[default]
-    All,
-    /// One group per light, and one for the world.
-    PerLight,
-    /// The scene file's `light_groups` (Blender's light groups); lights in none share a
-    /// "default" group.
-    Scene,
-}
-
-/// How much of the bake's noise the stack's linear denoiser ([`crate::bake::denoise`]) takes
-/// out: À-trous iterations per kind of layer, 0 for none. Each iteration doubles the
-/// kernel's reach (5 iterations: 125 pixels across); the filter's weights come from the
-/// geometry only, so relighting stays exact with respect to the filtered stack, at the cost
-/// of bias where light changes faster than geometry.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
-pub struct Denoise {
-    /// Iterations on the layers lit directly at the eye vertex (shadows live here: keep small).
-    pub direct_iterations: u32,
-    /// Iterations on the one-bounce layers (smooth indirect light, most of the noise).
-    pub bounce_iterations: u32,
-}
-
-impl Denoise {
-    /// No filtering: the stack is the unbiased Monte Carlo estimate.
-    pub const OFF: Denoise = Denoise {
-        direct_iterations: 0,
-        bounce_iterations: 0,
-    };
-}
 
 /// Everything that controls a bake (and the reference render that mirrors it).
 #[derive(Clone, Debug, Serialize, Deserialize)]

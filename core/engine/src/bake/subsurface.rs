@@ -113,7 +113,7 @@ pub fn prepare_light(
     scene: &Scene,
     index: usize,
     t: &mut TranslucentRegion,
-    progress: &crate::bake::progress::Progress,
+    progress: &crate::progress::Progress,
 ) -> crate::Result<()> {
     let settings = &ctx.settings;
     progress.check()?;

@@ -4,9 +4,10 @@
 use glam::{Vec2, Vec3};
 use std::f32::consts::FRAC_1_PI;
 
-use crate::bake::context::{BakeContext, PreparedRegion, RegionModel, MAX_BASES};
+use crate::bake::context::{BakeContext, PreparedRegion, RegionModel};
 use crate::bake::integrator::VertexBrdf;
 use crate::brdf::{blinn_phong::lobe, BlinnPhong};
+use crate::options::MAX_BASES;
 use crate::{RelumeError, Result, Rgb};
 
 #[inline]

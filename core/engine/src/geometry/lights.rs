@@ -30,7 +30,7 @@ use super::env_sampling::EnvSampler;
 use super::environment::Environment;
 use super::sampling::{concentric_disk, cosine_hemisphere, frame, to_world, uniform_cone};
 use super::spherical_rect::SphericalRect;
-use crate::bake::settings::LightGrouping;
+use crate::options::LightGrouping;
 use crate::scene::{AreaShape, Light, Scene, World};
 use crate::Rgb;
 

@@ -33,10 +33,12 @@ use std::path::Path;
 use exr::prelude::{self as x, ReadChannels as _, ReadLayers as _, WritableImage as _};
 use serde::{Deserialize, Serialize};
 
-use super::{Layer, LayerSamples, Precision, StackHeader, TransferStack, STACK_FORMAT_VERSION};
-use crate::bake::signature::LayerKey;
+use super::{Layer, LayerSamples, StackHeader, TransferStack, STACK_FORMAT_VERSION};
 use crate::error::{RelumeError, Result};
 use crate::image_io::write_atomic_checked;
+use crate::layer_key::LayerKey;
+use crate::options::Precision;
+use crate::progress::Progress;
 
 /// Attribute: the [`StackHeader`] as JSON.
 pub const ATTR_HEADER: &str = "relume/header";
@@ -210,14 +212,14 @@ fn validate_for_write(path: &Path, stack: &TransferStack) -> Result<String> {
 /// read-only directory gives [`RelumeError::Io`]; an existing file at `path` survives any
 /// failure.
 pub fn write_stack(path: &Path, stack: &TransferStack) -> Result<u64> {
-    write_stack_cancellable(path, stack, &crate::bake::progress::Progress::new())
+    write_stack_cancellable(path, stack, &Progress::new())
 }
 
 /// Passes writes through while `progress` is not cancelled; after a cancel every write
 /// fails, which stops the OpenEXR encoder within one chunk.
 struct CancellableWriter<'a, W> {
     inner: W,
-    progress: &'a crate::bake::progress::Progress,
+    progress: &'a Progress,
 }
 
 impl<W> CancellableWriter<'_, W> {
@@ -260,7 +262,7 @@ impl<W: std::io::Seek> std::io::Seek for CancellableWriter<'_, W> {
 pub fn write_stack_cancellable(
     path: &Path,
     stack: &TransferStack,
-    progress: &crate::bake::progress::Progress,
+    progress: &Progress,
 ) -> Result<u64> {
     progress.check()?;
     let header_json = validate_for_write(path, stack)?;
