@@ -8,7 +8,7 @@
 //! products of per-region basis coefficients.
 //!
 //! Module map (one concept per file), from the ground floor up:
-//! - [`error`], [`layer_key`] (path signatures, the key of every layer), [`options`] (the
+//! - [`error`], [`byte_size`], [`layer_key`] (path signatures, the key of every layer), [`options`] (the
 //!   bake's options that the stack records, and the limits that size the integrator),
 //!   [`progress`] (progress and cancellation): the shared vocabulary, importing none of the
 //!   folders below.
@@ -28,6 +28,7 @@
 pub mod bake;
 pub mod brdf;
 pub mod bssrdf;
+pub mod byte_size;
 pub mod error;
 pub mod geometry;
 pub mod image_io;

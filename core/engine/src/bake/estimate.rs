@@ -86,7 +86,7 @@ pub struct RegionBasisCost {
 struct ProbeSink<'a> {
     reached: &'a mut [bool],
     rgb: &'a mut [bool],
-    layout: super::DenseLayout,
+    layout: super::layout::DenseLayout,
 }
 
 impl ProbeSink<'_> {
@@ -150,7 +150,7 @@ pub fn estimate(
                 let mut sink = ProbeSink {
                     reached: &mut reached,
                     rgb: &mut rgb,
-                    layout: super::DenseLayout::of(ctx),
+                    layout: super::layout::DenseLayout::of(ctx),
                 };
                 // Pixels take turns through the first samples of the sequence: a layer that
                 // only some strata of the stratified numbers reach is still seen.

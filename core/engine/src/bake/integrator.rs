@@ -504,7 +504,7 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
         }
         let w = cos / pdf;
         throughput *= brdf.tail(hit.region, hit.uv, n, wi, wo) * w;
-        frozen *= crate::bake::vertex_brdf::frozen_value(ctx, hit.region, hit.uv, n, wi, wo) * w;
+        frozen *= crate::bake::frozen::frozen_value(ctx, hit.region, hit.uv, n, wi, wo) * w;
         bounce += 1;
         if bounce >= RR_START {
             let q = crate::luminance(frozen).clamp(RR_MIN_SURVIVAL, 1.0);

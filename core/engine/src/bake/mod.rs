@@ -8,16 +8,20 @@
 
 pub mod bench;
 pub mod blocks;
+pub mod bounce_budget;
 pub mod bounces;
 pub mod context;
 pub mod denoise;
 pub mod drop;
 pub mod estimate;
 pub mod farm_file;
+pub mod frozen;
 pub mod guide;
 pub mod guide_file;
+pub mod guide_pass;
 pub mod guide_tree;
 pub mod integrator;
+pub mod layout;
 pub mod mixture;
 pub mod partial;
 pub mod partition;
@@ -25,8 +29,10 @@ pub mod presets;
 pub mod progress;
 pub mod reference;
 pub mod settings;
+pub mod setup;
 pub mod signature;
 pub mod subsurface;
+pub mod subsurface_light;
 pub mod tiles;
 pub mod to_file;
 pub mod vertex_brdf;
@@ -46,6 +52,8 @@ use crate::{Result, Rgb};
 use context::BakeContext;
 use drop::RawLayer;
 use integrator::{trace_eye_sample, CountingTracer, PathSink};
+pub use layout::layer_key;
+use layout::DenseLayout;
 pub use settings::{BakeSettings, Denoise, IndirectSampling, LightGrouping};
 use vertex_brdf::BasisBrdf;
 
@@ -84,39 +92,7 @@ pub struct BakeReport {
     /// Bounces baked (the header's `bounces`) and, when the settings asked for what the
     /// scene needs, what the pre-pass measured ([`bounces`]).
     pub bounces: u32,
-    pub bounce_estimate: Option<bounces::BounceEstimate>,
-}
-
-/// Where each path signature sits among a bake's dense layer indices: per light group the
-/// world, one layer per slot, one per (eye slot, bounce slot) pair ([`layer_key`] inverts
-/// it). Every sink that keeps layers densely (the bake's tiles, the memory probe) uses it.
-#[derive(Clone, Copy)]
-pub(crate) struct DenseLayout {
-    slots: usize,
-    /// Layers per light group.
-    per_group: usize,
-}
-
-impl DenseLayout {
-    pub(crate) fn of(ctx: &BakeContext) -> Self {
-        DenseLayout {
-            slots: ctx.slot_count(),
-            per_group: ctx.layers_per_group(),
-        }
-    }
-    #[inline]
-    pub(crate) fn world(self, group: usize) -> usize {
-        group * self.per_group
-    }
-    #[inline]
-    pub(crate) fn direct(self, group: usize, slot: u32) -> usize {
-        group * self.per_group + 1 + slot as usize
-    }
-    #[inline]
-    pub(crate) fn bounce(self, group: usize, eye: u32, bounce: u32) -> usize {
-        let s = self.slots;
-        group * self.per_group + 1 + s + eye as usize * s + bounce as usize
-    }
+    pub bounce_estimate: Option<bounce_budget::BounceEstimate>,
 }
 
 /// Accumulates one pixel of a tile densely: the tile buffer is pixel-major (all layers of
@@ -155,30 +131,6 @@ impl PathSink for TileSink<'_> {
     #[inline]
     fn eye_hit(&mut self, region: u32, normal: glam::Vec3, position: glam::Vec3) {
         denoise::EyeFeatures::add(self.features, region, normal, position);
-    }
-}
-
-/// The key of dense layer index `layer` for `ctx`'s slots and light groups (light group
-/// g + 1 in the key when the bake keeps groups apart, 0 when all lights share the layers).
-pub fn layer_key(ctx: &BakeContext, layer: usize) -> LayerKey {
-    let per_group = ctx.layers_per_group();
-    let group = layer / per_group;
-    let mut key = path_key(ctx, layer % per_group);
-    if ctx.settings.light_grouping != LightGrouping::All {
-        key.light_group = group as u16 + 1;
-    }
-    key
-}
-
-fn path_key(ctx: &BakeContext, layer: usize) -> LayerKey {
-    let s = ctx.slot_count();
-    if layer == 0 {
-        LayerKey::new(vec![])
-    } else if layer <= s {
-        LayerKey::new(vec![ctx.slot_vertex[layer - 1]])
-    } else {
-        let pair = layer - 1 - s;
-        LayerKey::new(vec![ctx.slot_vertex[pair / s], ctx.slot_vertex[pair % s]])
     }
 }
 

@@ -177,3 +177,21 @@ pub const MAX_BOUNCES: u32 = 128;
 /// Blender's default Max Bounces (Cycles, `scene.cycles.max_bounces`): the cap the presets
 /// use when the caller gives none.
 pub const DEFAULT_BOUNCES: u32 = 12;
+
+/// The settings as a farm compares them: threads and the memory budget cleared (they change
+/// no result), everything else as given.
+pub fn normalized(settings: &BakeSettings) -> BakeSettings {
+    BakeSettings {
+        threads: 0,
+        memory_budget: None,
+        ..settings.clone()
+    }
+}
+
+/// Hash (hex) of [`normalized`] settings and the engine version: parts, guide and merge
+/// must agree on it.
+pub fn settings_fingerprint(settings: &BakeSettings) -> String {
+    let mut bytes = serde_json::to_vec(&normalized(settings)).unwrap_or_default();
+    bytes.extend_from_slice(env!("CARGO_PKG_VERSION").as_bytes());
+    format!("{:016x}", crate::scene::hash::fnv1a(&bytes))
+}
