@@ -18,8 +18,7 @@ use crate::bake::bounce_budget::{choose, BounceEstimate};
 use crate::bake::context::BakeContext;
 use crate::bake::frozen::frozen_value;
 use crate::bake::integrator::Tracer;
-use crate::bake::integrator::{direct_light, sample_indirect, CountingTracer};
-use crate::bake::settings::IndirectSampling;
+use crate::bake::integrator::{continuation, direct_light, CountingTracer};
 use crate::bake::vertex_brdf::BasisBrdf;
 use crate::geometry::sampling::SampleStream;
 use crate::options::{MAX_BASES, MAX_GROUPS};
@@ -115,21 +114,9 @@ fn row(ctx: &BakeContext, cap: u32, gx: u32, gy: u32, y: u32) -> Vec<f64> {
                     break;
                 }
                 let n = hit.shading_normal;
-                let region = &ctx.regions[hit.region as usize];
-                let Some((wi, pdf)) = sample_indirect(
-                    IndirectSampling::Mixture,
-                    &region.mixture,
-                    None,
-                    n,
-                    wo,
-                    &mut stream,
-                ) else {
+                let Some((wi, cos, pdf)) = continuation(ctx, &hit, wo, &mut stream) else {
                     break;
                 };
-                let cos = n.dot(wi);
-                if cos <= 0.0 || hit.geometric_normal.dot(wi) <= 0.0 || !(pdf > 0.0) {
-                    break;
-                }
                 throughput *= frozen_value(ctx, hit.region, hit.uv, n, wi, wo) * (cos / pdf);
                 if throughput == Rgb::ZERO {
                     break;

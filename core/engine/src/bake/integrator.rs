@@ -400,21 +400,9 @@ fn frozen_tail<B: VertexBrdf, T: Tracer>(
     (first, count): (&mut u32, &mut usize),
 ) {
     let n = hit.shading_normal;
-    let region = &ctx.regions[hit.region as usize];
-    let Some((wi, pdf)) = sample_indirect(
-        IndirectSampling::Mixture,
-        &region.mixture,
-        None,
-        n,
-        wo,
-        stream,
-    ) else {
+    let Some((wi, cos, pdf)) = continuation(ctx, hit, wo, stream) else {
         return;
     };
-    let cos = n.dot(wi);
-    if cos <= 0.0 || hit.geometric_normal.dot(wi) <= 0.0 || !(pdf > 0.0) {
-        return;
-    }
     let groups = ctx.lights.groups.len();
     let mut radiance = [Rgb::ZERO; MAX_GROUPS];
     if !tail_radiance(ctx, brdf, tracer, hit, wi, stream, &mut radiance[..groups]) {
@@ -487,21 +475,9 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
             break;
         }
         let n = hit.shading_normal;
-        let region = &ctx.regions[hit.region as usize];
-        let Some((wi, pdf)) = sample_indirect(
-            IndirectSampling::Mixture,
-            &region.mixture,
-            None,
-            n,
-            wo,
-            stream,
-        ) else {
+        let Some((wi, cos, pdf)) = continuation(ctx, &hit, wo, stream) else {
             break;
         };
-        let cos = n.dot(wi);
-        if cos <= 0.0 || hit.geometric_normal.dot(wi) <= 0.0 || !(pdf > 0.0) {
-            break;
-        }
         let w = cos / pdf;
         throughput *= brdf.tail(hit.region, hit.uv, n, wi, wo) * w;
         frozen *= crate::bake::frozen::frozen_value(ctx, hit.region, hit.uv, n, wi, wo) * w;
@@ -522,6 +498,35 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
         dir = wi;
     }
     any
+}
+
+/// The direction a path continues in from vertex `hit` (seen from `wo`) beyond the first
+/// bounce: one draw from the region's cosine-and-lobes mixture, kept only above both the
+/// shading and the geometric surface and with a positive pdf. Returns the direction, its
+/// cosine to the shading normal and its pdf. One function for the bake's frozen tail and
+/// the bounce pre-pass, so both consume the random stream alike.
+#[inline]
+pub(crate) fn continuation(
+    ctx: &BakeContext,
+    hit: &SurfaceHit,
+    wo: Vec3,
+    stream: &mut SampleStream,
+) -> Option<(Vec3, f32, f32)> {
+    let n = hit.shading_normal;
+    let region = &ctx.regions[hit.region as usize];
+    let (wi, pdf) = sample_indirect(
+        IndirectSampling::Mixture,
+        &region.mixture,
+        None,
+        n,
+        wo,
+        stream,
+    )?;
+    let cos = n.dot(wi);
+    if cos <= 0.0 || hit.geometric_normal.dot(wi) <= 0.0 || !(pdf > 0.0) {
+        return None;
+    }
+    Some((wi, cos, pdf))
 }
 
 /// Draws an indirect direction at a vertex with normal `n`: uniform (the paper), the
