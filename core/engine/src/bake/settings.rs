@@ -46,9 +46,10 @@ pub struct BakeSettings {
     #[serde(default = "default_subsurface_samples")]
     pub subsurface_samples: u32,
     /// Opening criterion θ of the subsurface octree: a cluster of samples is summed as one
-    /// point when its radius is ≤ θ × its distance (error ≈ θ²/2 of the far field; 0.15
-    /// keeps octree + PCA + f16 within 0.3 % of the brute-force sum in `tests/subsurface.rs`;
-    /// the gather costs ≈ 90 µs per eye hit there, most of a translucent bake).
+    /// point when its radius is ≤ θ × its distance (error ≈ θ²/2 of the far field). The
+    /// default keeps octree + PCA + f16 close to the brute-force sum (`tests/subsurface.rs`)
+    /// while the gather stays most of a translucent bake's cost rather than all of it
+    /// (docs/measurements.md, "Figures that were in code comments").
     #[serde(default = "default_subsurface_theta")]
     pub subsurface_theta: f32,
     /// The stack's denoiser; off by default (the presets turn it on).

@@ -51,7 +51,7 @@ impl VertexBrdf for BasisBrdf<'_> {
                 if r.texture.is_some() {
                     out[0] *= albedo_at(r, uv);
                 }
-                // The untextured constant slot of a textured region (see `BakeContext::new`).
+                // The untextured constant slot of a textured region (see `BakeContext::lay_out`).
                 if r.slot_count as usize > count {
                     out[count] = Rgb::splat(scratch[0]);
                 }

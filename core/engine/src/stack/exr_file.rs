@@ -2,9 +2,10 @@
 //!
 //! Layout (docs/design.md §3 "Stack file"):
 //! - one part, scanlines, ZIP (16 lines per block). ZIP is lossless; the lossy codecs
-//!   (B44, PXR24, DWA) are never used: B44A showed relative errors up to 5 on HDR edges.
-//!   ZIP costs ≈ 0.85 s per 46 MiB of f16 to write but reads at ≈ 0.1 s, and noise-free
-//!   data shrinks ~7× (STACK_NOTES).
+//!   (B44, PXR24, DWA) are never used: they lose HDR edges. ZIP is slower to write than to
+//!   read, which suits a file written once and loaded at every relight session, and it
+//!   shrinks noise-free data several times (docs/measurements.md, "Figures that were in
+//!   code comments").
 //! - one channel per layer and colour, named Blender-style `Layer.Pass.Channel`:
 //!   `{key.layer_name()}.Transfer.Y` for a grey layer, `.Transfer.R/G/B` for an RGB one, so
 //!   Blender shows every layer in its compositor and image editor. Channels are sorted by
