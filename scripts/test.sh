@@ -39,10 +39,12 @@ missing = [m for m in ("bpy", "pytest", "maturin", "ziglang", "ruff", "yaml", "o
 sys.exit(1 if missing else 0)
 PY
 status=0
-echo "== style: cargo fmt, cargo clippy, ruff"
+echo "== style: cargo fmt, cargo clippy, ruff, the import graph"
 cargo fmt --all --check || { echo "cargo fmt: run 'cargo fmt --all'" >&2; status=1; }
 cargo clippy --workspace --all-targets --quiet -- -D warnings || status=1
 "$PYTHON" -m ruff check addon blender_tests core/py scripts examples farm || status=1
+echo "== import graph: no circle in core/engine or addon/relume, nothing below the bake imports it, no file outside the repository cited"
+"$PYTHON" scripts/import_graph.py || status=1
 echo "== cargo test (workspace)"
 cargo test --workspace --no-fail-fast 2>&1 || status=1
 echo "== fuzzing: stack reader, scene and materials parsers, 60 s each (scripts/fuzz.sh)"

@@ -61,7 +61,7 @@ pub enum RelumeError {
     Image { path: PathBuf, message: String },
     /// A large allocation that would not fit: refused before it is tried (an estimate over
     /// the budget) or after the allocator said no — never an abort.
-    #[error("not enough memory for {what}: it needs {} but {} {}", crate::memory::human_bytes(*needed), crate::memory::human_bytes(*available), if *budget { "is the memory budget (see --memory-budget-mb, BakeSettings.memory_budget_mb or the add-on's Memory Budget)" } else { "could be allocated" })]
+    #[error("not enough memory for {what}: it needs {} but {} {}", crate::byte_size::human_bytes(*needed), crate::byte_size::human_bytes(*available), if *budget { "is the memory budget (see --memory-budget-mb, BakeSettings.memory_budget_mb or the add-on's Memory Budget)" } else { "could be allocated" })]
     OutOfMemory {
         what: String,
         needed: u64,

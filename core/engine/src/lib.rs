@@ -7,13 +7,17 @@
 //! *transfer stack*, and a relight is a weighted sum of those layers whose weights are
 //! products of per-region basis coefficients.
 //!
-//! Module map (one concept per file):
+//! Module map (one concept per file), from the ground floor up:
+//! - [`error`], [`byte_size`], [`layer_key`] (path signatures, the key of every layer), [`options`] (the
+//!   bake's options that the stack records, and the limits that size the integrator),
+//!   [`progress`] (progress and cancellation): the shared vocabulary, importing none of the
+//!   folders below.
 //! - [`scene`]: the scene model, its versioned JSON file, validation.
 //! - [`brdf`]: Blinn–Phong, the PCA basis, the Principled mapping.
 //! - [`bssrdf`]: translucency: the dipole profile, its PCA basis, Blender's subsurface inputs.
 //! - [`linalg`]: the Gram matrices and eigen-solvers behind both PCA bases.
 //! - [`geometry`]: BVH (obvhs), sampling helpers, camera rays, light sampling.
-//! - [`bake`]: path signatures, the bake integrator, the reference renderer, progress/cancel.
+//! - [`bake`]: the bake integrator, its set-up steps, assembly, the reference renderer.
 //! - [`stack`]: the transfer stack in memory and as one OpenEXR file.
 //! - [`relight`]: the CPU relight (the reference for the GPU one).
 //! - [`materials`]: material edits (JSON) applied at relight time.
@@ -25,13 +29,17 @@
 pub mod bake;
 pub mod brdf;
 pub mod bssrdf;
+pub mod byte_size;
 pub mod error;
 pub mod geometry;
 pub mod image_io;
+pub mod layer_key;
 pub mod linalg;
 pub mod materials;
 pub mod memory;
+pub mod options;
 pub mod output_path;
+pub mod progress;
 pub mod relight;
 pub mod scene;
 pub mod stack;

@@ -7,30 +7,12 @@
 //! [`RelumeError::OutOfMemory`], and the bake estimates its peak first and refuses up front
 //! when the estimate is over the budget ([`budget_bytes`]).
 
+pub use crate::byte_size::human_bytes;
 use crate::{RelumeError, Result};
 
 /// Share of the available memory a bake may plan to use when no budget is given: the rest
 /// is left to the host (Blender, the OS's caches) and to the estimate's own error.
 pub const DEFAULT_BUDGET_FRACTION: f64 = 0.8;
-
-/// `1536 MiB`-style text for messages.
-pub fn human_bytes(bytes: u64) -> String {
-    const UNITS: [&str; 5] = ["B", "KiB", "MiB", "GiB", "TiB"];
-    if bytes == u64::MAX {
-        return "more than 16 EiB (the size overflows)".into();
-    }
-    let mut v = bytes as f64;
-    let mut unit = 0;
-    while v >= 1024.0 && unit + 1 < UNITS.len() {
-        v /= 1024.0;
-        unit += 1;
-    }
-    if unit == 0 {
-        format!("{bytes} B")
-    } else {
-        format!("{v:.1} {}", UNITS[unit])
-    }
-}
 
 /// Memory the OS says a new allocation can get, in bytes: `MemAvailable` of
 /// `/proc/meminfo`, lowered to the cgroup's remaining limit when one is set (containers,

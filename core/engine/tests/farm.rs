@@ -6,6 +6,7 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use relume_engine::bake::guide_file::{build_guide, read_guide, write_guide};
+use relume_engine::bake::partial::{read_partial, write_partial, PartialStack};
 use relume_engine::bake::partition::{bake_partition, merge, Partition};
 use relume_engine::bake::presets::Preset;
 use relume_engine::bake::{
@@ -13,7 +14,6 @@ use relume_engine::bake::{
 };
 use relume_engine::scene::{Scene, World};
 use relume_engine::stack::exr_file::{read_stack, write_stack};
-use relume_engine::stack::partial::{read_partial, write_partial, PartialStack};
 use relume_engine::stack::{LayerSamples, TransferStack};
 
 /// The Cornell box with a second (coloured point) light and a dim world, at `size`² — not a

@@ -5,10 +5,10 @@
 
 use std::path::PathBuf;
 
+use relume_engine::bake::partial::read_partial_header;
 use relume_engine::bake::partition::merge_files;
 use relume_engine::scene::file::load_scene;
 use relume_engine::stack::exr_file::write_stack_cancellable;
-use relume_engine::stack::partial::read_partial_header;
 use relume_engine::RelumeError;
 use serde_json::json;
 

@@ -13,11 +13,11 @@ use std::time::Instant;
 
 use crate::bake::context::BakeContext;
 use crate::bake::integrator::{trace_eye_sample, PathSink, Tracer};
-use crate::bake::progress::Progress;
 use crate::bake::settings::BakeSettings;
 use crate::bake::tiles::tiles;
 use crate::bake::vertex_brdf::BasisBrdf;
 use crate::geometry::bvh::SurfaceHit;
+use crate::progress::Progress;
 use crate::scene::Scene;
 use crate::{Result, Rgb};
 

@@ -13,37 +13,21 @@
 //! for more than it says.
 
 use rayon::prelude::*;
-use serde::Serialize;
 
-use crate::bake::context::{BakeContext, MAX_BASES};
+use crate::bake::bounce_budget::{choose, BounceEstimate};
+use crate::bake::context::BakeContext;
+use crate::bake::frozen::frozen_value;
 use crate::bake::integrator::Tracer;
-use crate::bake::integrator::{direct_light, sample_indirect, CountingTracer, MAX_GROUPS};
-use crate::bake::settings::IndirectSampling;
-use crate::bake::vertex_brdf::{frozen_value, BasisBrdf};
+use crate::bake::integrator::{continuation, direct_light, CountingTracer};
+use crate::bake::vertex_brdf::BasisBrdf;
 use crate::geometry::sampling::SampleStream;
+use crate::options::{MAX_BASES, MAX_GROUPS};
 use crate::Rgb;
 
 /// Pixels per side of the pre-pass grid (fewer when the image is smaller).
 pub const GRID: u32 = 48;
 /// Paths per grid pixel.
 pub const PATHS: u32 = 4;
-
-/// What the pre-pass measured.
-#[derive(Clone, Debug, Serialize)]
-pub struct BounceEstimate {
-    /// The caller's cap (`BakeSettings::bounces`).
-    pub cap: u32,
-    /// Share of the light bounces past the chosen count may leave out.
-    pub budget: f32,
-    /// Bounces baked.
-    pub chosen: u32,
-    /// Mean image luminance brought by bounce 0 (direct), 1, …, cap.
-    pub energy: Vec<f64>,
-    /// Share of the measured light (bounces 0..=cap) in bounces chosen+1..=cap.
-    pub left_out: f64,
-    /// Paths traced.
-    pub paths: u64,
-}
 
 /// Runs the pre-pass for `ctx` (its own settings' seed, light samples and threads) and picks
 /// the bounce count for `cap` and `budget`.
@@ -77,22 +61,6 @@ pub fn estimate(ctx: &BakeContext, cap: u32, budget: f32) -> BounceEstimate {
         energy,
         left_out,
         paths,
-    }
-}
-
-/// The smallest n ≥ 1 (at most the cap, `energy.len() − 1`) whose bounces past n hold at most
-/// `budget` of the total, and that share.
-pub fn choose(energy: &[f64], budget: f32) -> (u32, f64) {
-    let cap = energy.len().saturating_sub(1);
-    let total: f64 = energy.iter().sum();
-    let mut n = cap.min(1);
-    loop {
-        let rest: f64 = energy[n + 1..].iter().sum();
-        let share = if total > 0.0 { rest / total } else { 0.0 };
-        if n >= cap || share <= budget as f64 {
-            return (n as u32, share);
-        }
-        n += 1;
     }
 }
 
@@ -146,21 +114,9 @@ fn row(ctx: &BakeContext, cap: u32, gx: u32, gy: u32, y: u32) -> Vec<f64> {
                     break;
                 }
                 let n = hit.shading_normal;
-                let region = &ctx.regions[hit.region as usize];
-                let Some((wi, pdf)) = sample_indirect(
-                    IndirectSampling::Mixture,
-                    &region.mixture,
-                    None,
-                    n,
-                    wo,
-                    &mut stream,
-                ) else {
+                let Some((wi, cos, pdf)) = continuation(ctx, &hit, wo, &mut stream) else {
                     break;
                 };
-                let cos = n.dot(wi);
-                if cos <= 0.0 || hit.geometric_normal.dot(wi) <= 0.0 || !(pdf > 0.0) {
-                    break;
-                }
                 throughput *= frozen_value(ctx, hit.region, hit.uv, n, wi, wo) * (cos / pdf);
                 if throughput == Rgb::ZERO {
                     break;
@@ -198,23 +154,5 @@ impl crate::bake::integrator::VertexBrdf for FrozenOnly<'_> {
         wo: glam::Vec3,
     ) -> Rgb {
         frozen_value(self.0.ctx, region, uv, n, wi, wo)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::choose;
-
-    #[test]
-    fn choose_keeps_the_first_bounce_and_stops_within_budget() {
-        // A geometric series of ratio ½: bounces past n hold ≈ 2^-n of ≈ 2, a share 2^-(n+1).
-        let energy: Vec<f64> = (0..=12).map(|k| 0.5f64.powi(k)).collect();
-        let (n, share) = choose(&energy, 0.01);
-        assert_eq!(n, 6, "share {share}");
-        assert!(share <= 0.01);
-        assert_eq!(choose(&energy, 0.9).0, 1, "never below one bounce");
-        assert_eq!(choose(&energy, 0.0).0, 12, "a zero budget takes the cap");
-        assert_eq!(choose(&[1.0, 0.0], 0.01).0, 1);
-        assert_eq!(choose(&[1.0], 0.01).0, 0, "cap 0 stays 0");
     }
 }

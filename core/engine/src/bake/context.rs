@@ -9,17 +9,15 @@ use std::sync::Arc;
 
 use crate::bake::guide::GuideField;
 use crate::bake::mixture::DirectionMixture;
-use crate::bake::settings::{BakeSettings, IndirectSampling};
-use crate::bake::signature::PathVertex;
+use crate::bake::settings::BakeSettings;
 use crate::bake::subsurface::{self, TranslucentRegion};
 use crate::brdf::{BasisConfig, BlinnPhong, BrdfBasis};
 use crate::bssrdf::{SssBasis, SubsurfaceInfo};
 use crate::geometry::{bvh::SceneGeometry, camera::CameraRays, lights::LightSet, texture::Texture};
+use crate::layer_key::PathVertex;
+use crate::options::{MAX_BASES, MAX_GROUPS};
 use crate::scene::{validate::validate_scene, validate::ValidationReport, Resolution, Scene};
 use crate::{RelumeError, Result};
-
-/// Most bases one region may use: bounds the per-vertex scratch arrays.
-pub const MAX_BASES: usize = 32;
 
 /// How a region reflects.
 #[derive(Clone)]
@@ -59,8 +57,8 @@ pub struct BakeContext {
     pub resolution: Resolution,
     pub settings: BakeSettings,
     pub clip_end: f32,
-    /// The guide maps of a guided bake (built by [`BakeContext::new`] when the settings ask
-    /// for [`IndirectSampling::Guided`]).
+    /// The guide maps of a guided bake (built by [`BakeContext::build_guide`] when the
+    /// settings ask for [`crate::options::IndirectSampling::Guided`]).
     pub guide: Option<GuideField>,
     /// Per scene region, its subsurface data when it is translucent (editable with a
     /// subsurface block or Subsurface Weight > 0).
@@ -70,46 +68,19 @@ pub struct BakeContext {
     pub eye_diffuse_slot: Vec<u32>,
     /// What the bounce pre-pass measured when the settings asked for the bounce count the
     /// scene needs ([`crate::bake::bounces`]); `None` when the count was taken as given.
-    pub bounce_estimate: Option<crate::bake::bounces::BounceEstimate>,
+    pub bounce_estimate: Option<crate::bake::bounce_budget::BounceEstimate>,
 }
 
 impl BakeContext {
-    /// Validates `scene` and prepares it for `settings`, with the guide pass of a guided bake.
-    pub fn new(scene: &Scene, settings: &BakeSettings) -> Result<(BakeContext, ValidationReport)> {
-        let progress = crate::bake::progress::Progress::new();
-        let (mut ctx, report) = Self::prepare(scene, settings, &progress)?;
-        ctx.build_guide(scene, &progress)?;
-        Ok((ctx, report))
-    }
-
-    /// Runs the guide pass when the settings ask for guided sampling (a first trace over the
-    /// image: seconds); stops with [`RelumeError::Cancelled`] when `progress` is cancelled.
-    pub fn build_guide(
-        &mut self,
-        scene: &Scene,
-        progress: &crate::bake::progress::Progress,
-    ) -> Result<()> {
-        // `self.settings.bounces` is the count the bounce pre-pass chose.
-        if self.settings.sampling == IndirectSampling::Guided && self.settings.bounces >= 1 {
-            let materials = scene
-                .regions
-                .iter()
-                .filter(|r| r.editable)
-                .map(|r| r.material.to_blinn_phong())
-                .collect();
-            progress.check()?;
-            self.guide = Some(GuideField::build(self, materials, progress)?);
-        }
-        Ok(())
-    }
-
-    /// [`Self::new`] without the guide pass ([`Self::build_guide`]), stopping with
-    /// [`RelumeError::Cancelled`] soon after `progress` is cancelled (the subsurface samples
-    /// take seconds).
-    pub fn prepare(
+    /// Validates `scene` and `settings`, builds (and shares between regions) the BRDF and
+    /// subsurface bases, lays out the slots, the lights, the BVH and the camera: everything
+    /// that traces nothing. The traced set-up steps (the light entering translucent regions,
+    /// the bounce pre-pass, the guide pass) follow in [`super::setup`]. Stops with
+    /// [`RelumeError::Cancelled`] soon after `progress` is cancelled.
+    pub fn lay_out(
         scene: &Scene,
         settings: &BakeSettings,
-        progress: &crate::bake::progress::Progress,
+        progress: &crate::progress::Progress,
     ) -> Result<(BakeContext, ValidationReport)> {
         settings.validate()?;
         let mut report = validate_scene(scene)?;
@@ -231,13 +202,13 @@ impl BakeContext {
             }
         }
         let lights = LightSet::new(scene, settings.light_grouping);
-        if lights.groups.len() > crate::bake::integrator::MAX_GROUPS {
+        if lights.groups.len() > MAX_GROUPS {
             return Err(RelumeError::invalid(
                 "light groups",
                 format!(
                     "{} groups (at most {}): group the lights in the scene file's light_groups",
                     lights.groups.len(),
-                    crate::bake::integrator::MAX_GROUPS
+                    MAX_GROUPS
                 ),
             ));
         }
@@ -254,7 +225,7 @@ impl BakeContext {
             .zip(&translucent)
             .map(|(r, t)| t.as_ref().map_or(r.first_slot, |t| t.eye_diffuse_slot))
             .collect();
-        let mut ctx = BakeContext {
+        let ctx = BakeContext {
             geometry,
             camera,
             lights,
@@ -264,29 +235,10 @@ impl BakeContext {
             settings: settings.clone(),
             clip_end,
             guide: None,
-            translucent: Vec::new(),
+            translucent,
             eye_diffuse_slot,
             bounce_estimate: None,
         };
-        if translucent.iter().any(|t| t.is_some()) {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(settings.threads)
-                .build()
-                .map_err(|e| RelumeError::invalid("threads", e.to_string()))?;
-            for (i, t) in translucent.iter_mut().enumerate() {
-                if let Some(t) = t {
-                    pool.install(|| subsurface::prepare_light(&ctx, scene, i, t, progress))?;
-                }
-            }
-        }
-        ctx.translucent = translucent;
-        progress.check()?;
-        if settings.bounce_budget > 0.0 && settings.bounces > 1 {
-            let estimate =
-                crate::bake::bounces::estimate(&ctx, settings.bounces, settings.bounce_budget);
-            ctx.settings.bounces = estimate.chosen;
-            ctx.bounce_estimate = Some(estimate);
-        }
         Ok((ctx, report))
     }
 

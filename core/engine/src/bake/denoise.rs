@@ -186,7 +186,7 @@ impl EyeFeatures {
     /// Filters `layers` in place with `iterations` À-trous steps (steps 1, 2, 4, …: a
     /// footprint of 2·(2^iterations − 1) + 1 pixels). Pixels with no weights keep their value.
     pub fn filter(&self, layers: &mut [&mut RawLayer], iterations: u32) {
-        let never = crate::bake::progress::Progress::new();
+        let never = crate::progress::Progress::new();
         let _ = self.filter_cancellable(layers, iterations, &never);
     }
 
@@ -196,7 +196,7 @@ impl EyeFeatures {
         &self,
         layers: &mut [&mut RawLayer],
         iterations: u32,
-        progress: &crate::bake::progress::Progress,
+        progress: &crate::progress::Progress,
     ) -> crate::Result<()> {
         for k in 0..iterations {
             progress.check()?;
@@ -248,7 +248,7 @@ impl EyeFeatures {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bake::signature::LayerKey;
+    use crate::layer_key::LayerKey;
 
     /// A `w`×`h` view of two walls meeting at the middle column: region 0 facing +Z on the
     /// left, region 1 facing +X on the right, one world pixel in the corner (0, 0) and a

@@ -15,8 +15,8 @@
 use serde::Serialize;
 
 use crate::bake::context::{BakeContext, RegionModel};
-use crate::bake::signature::{LayerKey, PathVertex};
 use crate::bssrdf::region_slot_coefficients;
+use crate::layer_key::{LayerKey, PathVertex};
 use crate::scene::Scene;
 use crate::Rgb;
 

@@ -17,8 +17,8 @@ use serde::Serialize;
 use super::context::BakeContext;
 use super::integrator::{trace_eye_sample, CountingTracer, PathSink};
 use super::vertex_brdf::BasisBrdf;
+use crate::options::Precision;
 use crate::scene::{validate::ValidationReport, Scene};
-use crate::stack::Precision;
 use crate::Rgb;
 
 /// Pixels the probe traces at most (on a regular grid).
@@ -86,7 +86,7 @@ pub struct RegionBasisCost {
 struct ProbeSink<'a> {
     reached: &'a mut [bool],
     rgb: &'a mut [bool],
-    layout: super::DenseLayout,
+    layout: super::layout::DenseLayout,
 }
 
 impl ProbeSink<'_> {
@@ -150,7 +150,7 @@ pub fn estimate(
                 let mut sink = ProbeSink {
                     reached: &mut reached,
                     rgb: &mut rgb,
-                    layout: super::DenseLayout::of(ctx),
+                    layout: super::layout::DenseLayout::of(ctx),
                 };
                 // Pixels take turns through the first samples of the sequence: a layer that
                 // only some strata of the stratified numbers reach is still seen.
@@ -276,7 +276,7 @@ pub fn estimate_bake(
     scene: &Scene,
     settings: &crate::bake::BakeSettings,
     passes: usize,
-    progress: &crate::bake::progress::Progress,
+    progress: &crate::progress::Progress,
 ) -> crate::Result<BakeEstimate> {
     settings.validate()?;
     let (ctx, _, prepared) = prepare_measured(scene, settings, progress)?;
@@ -288,7 +288,7 @@ pub fn estimate_bake(
 pub fn prepare_measured(
     scene: &Scene,
     settings: &crate::bake::BakeSettings,
-    progress: &crate::bake::progress::Progress,
+    progress: &crate::progress::Progress,
 ) -> crate::Result<(BakeContext, ValidationReport, Option<u64>)> {
     let before = crate::memory::current_rss_bytes();
     let (ctx, report) = BakeContext::prepare(scene, settings, progress)?;

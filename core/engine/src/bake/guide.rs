@@ -19,20 +19,14 @@
 //! The tree is built from the bake-time materials: editing a region's material afterwards
 //! leaves the guide slightly off for the new material — still unbiased, a little noisier.
 //!
+//! This file holds the guide itself; the pass that builds it is [`super::guide_pass`].
+//!
 //! The pass is deterministic (one task per tile, pixels in order, its own random stream), so
 //! a reference render with the same settings builds the same guide and traces the same paths
 //! as the bake.
 
-use rayon::prelude::*;
-use std::time::Instant;
-
-use crate::bake::context::BakeContext;
 use crate::bake::guide_tree::DirectionTree;
-use crate::bake::integrator::{guide_sample, CountingTracer};
 use crate::bake::settings::BakeSettings;
-use crate::bake::vertex_brdf::MaterialBrdf;
-use crate::brdf::BlinnPhong;
-use crate::Result;
 
 /// Fewest guide paths per pixel (3 rays each: eye, indirect, one shadow ray per light).
 pub const MIN_GUIDE_SAMPLES: u32 = 4;
@@ -40,21 +34,18 @@ pub const MIN_GUIDE_SAMPLES: u32 = 4;
 pub const MAX_GUIDE_SAMPLES: u32 = 32;
 
 /// Guide paths per pixel for `settings`: a quarter of the bake's indirect paths
-/// (spp × indirect samples / 4), clamped to [4, 32]. The pass then costs ≈ 12 % of a preview
-/// bake's rays (16 paths: 48 of 16 × (1 + 4 + 4 × (1 + 4)) = 400 a pixel), 5 % of a final
-/// bake's, 8 % of the paper's 16 × 4 × 1. More paths resolve more: on the ring's caustic at
-/// 16 × 4 × 4 (128²) the paper's variance was divided by 1.00, 1.49 and 2.55 with 4, 16 and
-/// 32 paths, on Cornell by 1.31, 1.64 and 1.73 (`tests/sampling_comparison.rs`).
+/// (spp × indirect samples / 4), clamped to [[`MIN_GUIDE_SAMPLES`], [`MAX_GUIDE_SAMPLES`]].
+/// A fixed share keeps the pass a small part of every bake's rays, while a bigger bake, whose
+/// indirect noise is lower, gets a finer guide; more paths resolve more of a concentrated
+/// light (docs/measurements.md, "Sampling", has the measured trade-off).
 pub fn guide_samples(settings: &BakeSettings) -> u32 {
     (settings.spp.saturating_mul(settings.indirect_samples) / 4)
         .clamp(MIN_GUIDE_SAMPLES, MAX_GUIDE_SAMPLES)
 }
 
 /// Side of a guide tile, pixels, for `samples` guide paths a pixel: 8 with ≥ 16 paths, else
-/// 16 — about 1 000 paths a tile. Locality is what pays: with 4 paths on the ring / Cornell
-/// scenes (128², 8 × 1 × 1), tiles of 32, 16 and 8 pixels divided the paper's variance by
-/// 1.02 / 1.34, 1.43 / 1.47 and 1.06 / 1.58; 8-pixel tiles need the paths to fill their
-/// trees (16 paths: 2.06 / 1.94 at 16 × 4 × 1, against 2.11 / 1.70 with 16-pixel tiles).
+/// 16, so that a tile gathers about a thousand paths. Locality is what pays, as long as the
+/// paths fill the trees: small tiles need many paths (docs/measurements.md, "Sampling").
 pub fn guide_tile(samples: u32) -> u32 {
     if samples >= 16 {
         8
@@ -66,17 +57,15 @@ pub fn guide_tile(samples: u32) -> u32 {
 /// Share of the indirect mixture drawn from the guide (the rest is cosine and lobes, which
 /// bound the weight where the guide is wrong).
 pub const GUIDE_WEIGHT: f32 = 0.5;
-/// Seed offset of the guide pass's random stream (the bake's own streams are untouched).
-const GUIDE_SEED: u64 = 0x6775_6964_655f_7061;
 
 /// The guide trees of every tile of an image, ready for sampling.
 #[derive(Clone, Debug)]
 pub struct GuideField {
     /// Tile side, pixels ([`guide_tile`]).
-    side: u32,
-    tiles_x: u32,
-    tiles_y: u32,
-    trees: Vec<Option<DirectionTree>>,
+    pub(super) side: u32,
+    pub(super) tiles_x: u32,
+    pub(super) tiles_y: u32,
+    pub(super) trees: Vec<Option<DirectionTree>>,
     /// Rays the guide pass traced.
     pub rays: u64,
     /// Wall time of the guide pass, seconds.
@@ -84,57 +73,6 @@ pub struct GuideField {
 }
 
 impl GuideField {
-    /// Runs the guide pass over `ctx`'s image with the bake-time `materials` (editable
-    /// regions, in editable order).
-    /// Stops early with [`crate::RelumeError::Cancelled`] when `progress` is cancelled.
-    pub fn build(
-        ctx: &BakeContext,
-        materials: Vec<BlinnPhong>,
-        progress: &crate::bake::progress::Progress,
-    ) -> Result<GuideField> {
-        let start = Instant::now();
-        let brdf = MaterialBrdf::new(ctx, materials, false)?;
-        let res = ctx.resolution;
-        let samples_per_pixel = guide_samples(&ctx.settings);
-        let side = guide_tile(samples_per_pixel);
-        let tiles_x = res.width.div_ceil(side);
-        let tiles_y = res.height.div_ceil(side);
-        let built: Vec<(Option<DirectionTree>, u64)> = (0..tiles_x * tiles_y)
-            .into_par_iter()
-            .map(|t| {
-                if progress.is_cancelled() {
-                    return (None, 0);
-                }
-                let (tx, ty) = (t % tiles_x, t / tiles_x);
-                let mut samples = Vec::new();
-                let mut tracer = CountingTracer::default();
-                let seed = ctx.settings.seed ^ GUIDE_SEED;
-                for py in ty * side..((ty + 1) * side).min(res.height) {
-                    for px in tx * side..((tx + 1) * side).min(res.width) {
-                        for s in 0..samples_per_pixel {
-                            if let Some(sample) =
-                                guide_sample(ctx, &brdf, &mut tracer, px, py, s, seed)
-                            {
-                                samples.push(sample);
-                            }
-                        }
-                    }
-                }
-                (DirectionTree::build(&samples), tracer.rays)
-            })
-            .collect();
-        progress.check()?;
-        let rays = built.iter().map(|(_, r)| r).sum();
-        Ok(GuideField {
-            side,
-            tiles_x,
-            tiles_y,
-            trees: built.into_iter().map(|(s, _)| s).collect(),
-            rays,
-            seconds: start.elapsed().as_secs_f64(),
-        })
-    }
-
     /// The tree of the tile holding pixel (`px`, `py`); `None` where the pass saw no
     /// indirect light there.
     #[inline]

@@ -36,13 +36,13 @@
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
 
-use crate::bake::context::{BakeContext, MAX_BASES};
+use crate::bake::context::BakeContext;
 use crate::bake::guide::GUIDE_WEIGHT;
 use crate::bake::guide_tree::DirectionTree;
 use crate::bake::mixture::DirectionMixture;
-use crate::bake::settings::IndirectSampling;
 use crate::geometry::bvh::SurfaceHit;
 use crate::geometry::sampling::{cosine_hemisphere, to_world, uniform_hemisphere, SampleStream};
+use crate::options::{IndirectSampling, MAX_BASES, MAX_GROUPS};
 use crate::Rgb;
 
 /// The BRDF values at a path vertex, one per slot of its region.
@@ -126,9 +126,6 @@ pub trait PathSink {
     #[inline]
     fn eye_hit(&mut self, _region: u32, _normal: Vec3, _position: Vec3) {}
 }
-
-/// Most light groups a bake keeps apart: bounds the per-vertex scratch arrays.
-pub const MAX_GROUPS: usize = 16;
 
 /// Ray queries, counted (and recordable for throughput measurements).
 pub trait Tracer {
@@ -403,21 +400,9 @@ fn frozen_tail<B: VertexBrdf, T: Tracer>(
     (first, count): (&mut u32, &mut usize),
 ) {
     let n = hit.shading_normal;
-    let region = &ctx.regions[hit.region as usize];
-    let Some((wi, pdf)) = sample_indirect(
-        IndirectSampling::Mixture,
-        &region.mixture,
-        None,
-        n,
-        wo,
-        stream,
-    ) else {
+    let Some((wi, cos, pdf)) = continuation(ctx, hit, wo, stream) else {
         return;
     };
-    let cos = n.dot(wi);
-    if cos <= 0.0 || hit.geometric_normal.dot(wi) <= 0.0 || !(pdf > 0.0) {
-        return;
-    }
     let groups = ctx.lights.groups.len();
     let mut radiance = [Rgb::ZERO; MAX_GROUPS];
     if !tail_radiance(ctx, brdf, tracer, hit, wi, stream, &mut radiance[..groups]) {
@@ -490,24 +475,12 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
             break;
         }
         let n = hit.shading_normal;
-        let region = &ctx.regions[hit.region as usize];
-        let Some((wi, pdf)) = sample_indirect(
-            IndirectSampling::Mixture,
-            &region.mixture,
-            None,
-            n,
-            wo,
-            stream,
-        ) else {
+        let Some((wi, cos, pdf)) = continuation(ctx, &hit, wo, stream) else {
             break;
         };
-        let cos = n.dot(wi);
-        if cos <= 0.0 || hit.geometric_normal.dot(wi) <= 0.0 || !(pdf > 0.0) {
-            break;
-        }
         let w = cos / pdf;
         throughput *= brdf.tail(hit.region, hit.uv, n, wi, wo) * w;
-        frozen *= crate::bake::vertex_brdf::frozen_value(ctx, hit.region, hit.uv, n, wi, wo) * w;
+        frozen *= crate::bake::frozen::frozen_value(ctx, hit.region, hit.uv, n, wi, wo) * w;
         bounce += 1;
         if bounce >= RR_START {
             let q = crate::luminance(frozen).clamp(RR_MIN_SURVIVAL, 1.0);
@@ -525,6 +498,35 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
         dir = wi;
     }
     any
+}
+
+/// The direction a path continues in from vertex `hit` (seen from `wo`) beyond the first
+/// bounce: one draw from the region's cosine-and-lobes mixture, kept only above both the
+/// shading and the geometric surface and with a positive pdf. Returns the direction, its
+/// cosine to the shading normal and its pdf. One function for the bake's frozen tail and
+/// the bounce pre-pass, so both consume the random stream alike.
+#[inline]
+pub(crate) fn continuation(
+    ctx: &BakeContext,
+    hit: &SurfaceHit,
+    wo: Vec3,
+    stream: &mut SampleStream,
+) -> Option<(Vec3, f32, f32)> {
+    let n = hit.shading_normal;
+    let region = &ctx.regions[hit.region as usize];
+    let (wi, pdf) = sample_indirect(
+        IndirectSampling::Mixture,
+        &region.mixture,
+        None,
+        n,
+        wo,
+        stream,
+    )?;
+    let cos = n.dot(wi);
+    if cos <= 0.0 || hit.geometric_normal.dot(wi) <= 0.0 || !(pdf > 0.0) {
+        return None;
+    }
+    Some((wi, cos, pdf))
 }
 
 /// Draws an indirect direction at a vertex with normal `n`: uniform (the paper), the

@@ -12,9 +12,10 @@
 //!   basis keeps a pdf within a factor 1/[`RANGE_SHARE`] = 10 of a lobe-only sampler's;
 //! - a fixed region samples its own BRDF: cosine and its one lobe, by the same luminance split.
 //!
-//! Measured against the earlier ½ cosine + ½ four range lobes (whatever the material) in
-//! `tests/sampling_comparison.rs`: the ring scene's diffuse floor (editable, Ks = 0) wasted
-//! half its directions on lobes and had 2.6× the variance of uniform sampling.
+//! Why per material: the earlier ½ cosine + ½ four range lobes (whatever the material)
+//! wasted half the directions of a diffuse region (editable, Ks = 0) on lobes, and did worse
+//! there than uniform sampling (`tests/sampling_comparison.rs`; the figure is in
+//! docs/measurements.md, "Figures that were in code comments").
 //!
 //! Every weight is fixed before the bake, and [`DirectionMixture::pdf`] evaluates the whole
 //! mixture for any direction, so the estimate is unbiased whatever the weights.

@@ -3,7 +3,7 @@
 //! A bake is a sum over eye samples, and every eye sample draws its random numbers from a
 //! counter-based stream indexed by (seed, pixel, sample) ([`crate::geometry::sampling`]), so
 //! partition `i` of `N` traces samples `[i·spp/N, (i+1)·spp/N)` exactly as a one-machine bake
-//! traces them. It writes a partial stack ([`crate::stack::partial`]): per layer the sums of
+//! traces them. It writes a partial stack ([`crate::bake::partial`]): per layer the sums of
 //! its samples in the aligned blocks of the canonical summation tree ([`super::blocks`]).
 //! Work that needs the whole frame runs once: the guide pass before the partitions
 //! ([`super::guide_file`]), and in [`merge`] the sum, the average, grey detection, the
@@ -21,8 +21,8 @@ use super::guide_file::GuideFile;
 use super::progress::{Progress, Stage};
 use super::settings::{BakeSettings, IndirectSampling};
 use super::{assemble, denoise, estimate, tiles, trace_range, BakeReport};
+use crate::bake::partial::{BlockInfo, PartialHeader, PartialStack, PARTIAL_FORMAT_VERSION};
 use crate::scene::{hash::scene_hash, Scene};
-use crate::stack::partial::{BlockInfo, PartialHeader, PartialStack, PARTIAL_FORMAT_VERSION};
 use crate::stack::TransferStack;
 use crate::{RelumeError, Result};
 
@@ -60,23 +60,7 @@ impl Partition {
     }
 }
 
-/// The settings as a farm compares them: threads and the memory budget cleared (they change
-/// no result), everything else as given.
-pub fn normalized(settings: &BakeSettings) -> BakeSettings {
-    BakeSettings {
-        threads: 0,
-        memory_budget: None,
-        ..settings.clone()
-    }
-}
-
-/// Hash (hex) of [`normalized`] settings and the engine version: parts, guide and merge
-/// must agree on it.
-pub fn settings_fingerprint(settings: &BakeSettings) -> String {
-    let mut bytes = serde_json::to_vec(&normalized(settings)).unwrap_or_default();
-    bytes.extend_from_slice(env!("CARGO_PKG_VERSION").as_bytes());
-    format!("{:016x}", crate::scene::hash::fnv1a(&bytes))
-}
+pub use super::settings::{normalized, settings_fingerprint};
 
 /// Bakes partition `partition` of `scene`: its eye samples, summed in the canonical tree.
 /// `guide` is the guide file of a guided bake (checked against the scene and settings);
@@ -356,12 +340,12 @@ pub fn merge_files(
 ) -> Result<(TransferStack, BakeReport)> {
     let headers = paths
         .iter()
-        .map(|p| Ok((p.clone(), crate::stack::partial::read_partial_header(p)?)))
+        .map(|p| Ok((p.clone(), crate::bake::partial::read_partial_header(p)?)))
         .collect::<Result<Vec<_>>>()?;
     merge_with(
         scene,
         headers,
-        |i| crate::stack::partial::read_partial(&paths[i]),
+        |i| crate::bake::partial::read_partial(&paths[i]),
         threads,
         progress,
     )

@@ -66,19 +66,17 @@ impl Preset {
     }
 
     /// The values this preset sets. Preview and final draw their indirect directions
-    /// guided (a guide pass of a quarter of their indirect paths: 16 a pixel for preview,
-    /// ≈ 12 % of its rays; 32 for final, ≈ 5 %): at 16 × 4 × 4 it divided the paper's
-    /// variance by 1.64 on Cornell and 1.49 on the ring's caustic where the plain mixture
-    /// gave 1.02 and 0.47, and matched it elsewhere (README, "Sampling"). Draft keeps the
-    /// mixture: at 4 × 2 × 2 even the smallest guide pass (4 paths) is ⅓ of its rays.
+    /// guided: their guide pass (a quarter of their indirect paths) is a small share of
+    /// their rays and pays for itself where light is concentrated. Draft keeps the mixture:
+    /// with its few samples even the smallest guide pass would be a large share of its rays.
     ///
-    /// Measured on the Cornell scene (README, "Presets"): the error of a relit image is Monte
-    /// Carlo noise far more than basis error (tolerance 0.03 costs 0.34 %, 0.01 costs 0.10 %),
-    /// and the noise is shared between the direct light at the eye vertex (light samples ×
-    /// eye samples) and the one indirect bounce (indirect samples × eye samples), which a
-    /// single indirect direction per eye sample leaves dominant. Indirect samples are cheaper
-    /// than eye samples (no camera ray, no direct light at the eye vertex), so the presets
-    /// spend on them: 16 × 4 × 4 lowers squared error × time 1.5–2.3× from 16 × 4 × 1.
+    /// The error of a relit image is Monte Carlo noise far more than basis error, and the
+    /// noise is shared between the direct light at the eye vertex (light samples × eye
+    /// samples) and the one indirect bounce (indirect samples × eye samples), which a single
+    /// indirect direction per eye sample leaves dominant. Indirect samples are cheaper than
+    /// eye samples (no camera ray, no direct light at the eye vertex), so the presets spend
+    /// on them. The figures behind these choices are in docs/measurements.md ("Presets",
+    /// "Sampling", and "Figures that were in code comments").
     pub fn values(self) -> PresetValues {
         match self {
             Preset::Draft => PresetValues {

@@ -7,11 +7,11 @@ use std::sync::Mutex;
 
 use crate::bake::context::BakeContext;
 use crate::bake::integrator::{trace_eye_sample, CountingTracer, PathSink};
-use crate::bake::progress::Progress;
 use crate::bake::settings::BakeSettings;
 use crate::bake::tiles::{run_tiles, tiles};
 use crate::bake::vertex_brdf::MaterialBrdf;
 use crate::brdf::BlinnPhong;
+use crate::progress::Progress;
 use crate::scene::Scene;
 use crate::{Result, Rgb};
 

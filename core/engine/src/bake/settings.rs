@@ -3,72 +3,8 @@
 use serde::{Deserialize, Serialize};
 
 use crate::brdf::BasisConfig;
+pub use crate::options::{Denoise, IndirectSampling, LightGrouping, Precision};
 use crate::scene::Resolution;
-
-use crate::stack::Precision;
-
-/// How indirect directions are drawn at the eye hit. Both are unbiased and share one sample
-/// set across all layers, so the layers' noise stays correlated.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum IndirectSampling {
-    /// Uniform over the hemisphere, as in the paper (pdf 1/2π).
-    Uniform,
-    /// A mixture: ½ cosine-weighted + ½ spread over Blinn–Phong lobes covering the region's
-    /// ns range (4 exponents, log-spaced), its pdf evaluated exactly.
-    Mixture,
-    /// The mixture plus a guide: a first pass records incoming indirect radiance per screen
-    /// tile ([`crate::bake::guide`]); half of the directions are drawn from that map, the
-    /// other half from the cosine + lobes mixture; pdf exact.
-    Guided,
-}
-
-impl IndirectSampling {
-    /// The name written in stack headers.
-    pub fn name(self) -> &'static str {
-        match self {
-            IndirectSampling::Uniform => "uniform",
-            IndirectSampling::Mixture => "mixture",
-            IndirectSampling::Guided => "guided",
-        }
-    }
-}
-
-/// Which lights share layers. Light groups make each group's strength and colour live at
-/// relight time; storage and relight cost grow with the number of groups.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "kebab-case")]
-pub enum LightGrouping {
-    /// All lights (and the world) in one set of layers.
-    #[default]
-    All,
-    /// One group per light, and one for the world.
-    PerLight,
-    /// The scene file's `light_groups` (Blender's light groups); lights in none share a
-    /// "default" group.
-    Scene,
-}
-
-/// How much of the bake's noise the stack's linear denoiser ([`crate::bake::denoise`]) takes
-/// out: À-trous iterations per kind of layer, 0 for none. Each iteration doubles the
-/// kernel's reach (5 iterations: 125 pixels across); the filter's weights come from the
-/// geometry only, so relighting stays exact with respect to the filtered stack, at the cost
-/// of bias where light changes faster than geometry.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
-pub struct Denoise {
-    /// Iterations on the layers lit directly at the eye vertex (shadows live here: keep small).
-    pub direct_iterations: u32,
-    /// Iterations on the one-bounce layers (smooth indirect light, most of the noise).
-    pub bounce_iterations: u32,
-}
-
-impl Denoise {
-    /// No filtering: the stack is the unbiased Monte Carlo estimate.
-    pub const OFF: Denoise = Denoise {
-        direct_iterations: 0,
-        bounce_iterations: 0,
-    };
-}
 
 /// Everything that controls a bake (and the reference render that mirrors it).
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -110,9 +46,10 @@ pub struct BakeSettings {
     #[serde(default = "default_subsurface_samples")]
     pub subsurface_samples: u32,
     /// Opening criterion θ of the subsurface octree: a cluster of samples is summed as one
-    /// point when its radius is ≤ θ × its distance (error ≈ θ²/2 of the far field; 0.15
-    /// keeps octree + PCA + f16 within 0.3 % of the brute-force sum in `tests/subsurface.rs`;
-    /// the gather costs ≈ 90 µs per eye hit there, most of a translucent bake).
+    /// point when its radius is ≤ θ × its distance (error ≈ θ²/2 of the far field). The
+    /// default keeps octree + PCA + f16 close to the brute-force sum (`tests/subsurface.rs`)
+    /// while the gather stays most of a translucent bake's cost rather than all of it
+    /// (docs/measurements.md, "Figures that were in code comments").
     #[serde(default = "default_subsurface_theta")]
     pub subsurface_theta: f32,
     /// The stack's denoiser; off by default (the presets turn it on).
@@ -241,3 +178,21 @@ pub const MAX_BOUNCES: u32 = 128;
 /// Blender's default Max Bounces (Cycles, `scene.cycles.max_bounces`): the cap the presets
 /// use when the caller gives none.
 pub const DEFAULT_BOUNCES: u32 = 12;
+
+/// The settings as a farm compares them: threads and the memory budget cleared (they change
+/// no result), everything else as given.
+pub fn normalized(settings: &BakeSettings) -> BakeSettings {
+    BakeSettings {
+        threads: 0,
+        memory_budget: None,
+        ..settings.clone()
+    }
+}
+
+/// Hash (hex) of [`normalized`] settings and the engine version: parts, guide and merge
+/// must agree on it.
+pub fn settings_fingerprint(settings: &BakeSettings) -> String {
+    let mut bytes = serde_json::to_vec(&normalized(settings)).unwrap_or_default();
+    bytes.extend_from_slice(env!("CARGO_PKG_VERSION").as_bytes());
+    format!("{:016x}", crate::scene::hash::fnv1a(&bytes))
+}

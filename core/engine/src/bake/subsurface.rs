@@ -6,22 +6,21 @@
 //! shadow rays — direct light only, from every light and the world, kept per light group.
 //! Light reaching the translucent surface after a bounce (the bake's `bounces = 1`) is **not**
 //! included in E′: it would need one set of subsurface layers per (bounce region, basis)
-//! pair to stay editable. The surface BRDF part of the region still gets its bounce.
+//! pair to stay editable. The surface BRDF part of the region still gets its bounce. The
+//! light is traced by [`super::subsurface_light`]; this file holds the region's data, its
+//! basis configuration and the gather at an eye hit.
 
 use glam::Vec3;
-use rayon::prelude::*;
 use std::sync::Arc;
 
-use crate::bake::context::BakeContext;
 use crate::bake::settings::BakeSettings;
 use crate::brdf::MaterialSpec;
 use crate::bssrdf::basis::{default_tolerance, SssBasis, SssBasisConfig};
 use crate::bssrdf::dipole::fresnel_transmittance;
 use crate::bssrdf::mapping::eta_of_ior;
-use crate::bssrdf::samples::{region_extent, sample_region, SurfacePoints};
+use crate::bssrdf::samples::{region_extent, SurfacePoints};
 use crate::bssrdf::tree::ScatterTree;
 use crate::bssrdf::SubsurfaceInfo;
-use crate::geometry::sampling::SampleStream;
 use crate::scene::{Region, Scene};
 use crate::{RelumeError, Result, Rgb};
 
@@ -104,81 +103,6 @@ pub fn basis_config(
         },
         samples,
     ))
-}
-
-/// Samples region `index`, gathers E′ at every sample and builds the octree; stops early
-/// with [`crate::RelumeError::Cancelled`] when `progress` is cancelled.
-pub fn prepare_light(
-    ctx: &BakeContext,
-    scene: &Scene,
-    index: usize,
-    t: &mut TranslucentRegion,
-    progress: &crate::bake::progress::Progress,
-) -> crate::Result<()> {
-    let settings = &ctx.settings;
-    progress.check()?;
-    t.points = sample_region(scene, index as u32, t.info.samples as usize, settings.seed);
-    progress.check()?;
-    let groups = ctx.lights.groups.len();
-    let light_samples = settings.light_samples.max(1);
-    let eta = t.eta;
-    let irradiance: Vec<Vec<Rgb>> = t
-        .points
-        .positions
-        .par_iter()
-        .enumerate()
-        .map(|(i, &p)| {
-            if progress.is_cancelled() {
-                // Discarded below: no allocation per remaining sample.
-                return Vec::new();
-            }
-            let mut e = vec![Rgb::ZERO; groups];
-            let n = t.points.normals[i];
-            let ng = t.points.geometric_normals[i];
-            let origin = ctx.geometry.offset(p, ng);
-            let mut stream = SampleStream::new(
-                settings.seed ^ 0x4952_5241_4449_414e,
-                (index as u64) << 32 | i as u64,
-                0,
-            );
-            let inv = 1.0 / light_samples as f32;
-            for emitter in 0..ctx.lights.len() {
-                let base = stream.branch();
-                for j in 0..light_samples {
-                    let (u1, u2) = base.child(j, light_samples).next2();
-                    let Some(s) = ctx.lights.sample(emitter, p, n, u1, u2) else {
-                        continue;
-                    };
-                    let cos = n.dot(s.wi);
-                    if cos <= 0.0 || ng.dot(s.wi) <= 0.0 || s.radiance_over_pdf == Rgb::ZERO {
-                        continue;
-                    }
-                    let tmax = if s.distance.is_finite() {
-                        s.distance * (1.0 - 1e-4)
-                    } else {
-                        f32::INFINITY
-                    };
-                    if ctx.geometry.occluded(origin, s.wi, tmax) {
-                        continue;
-                    }
-                    let ft = fresnel_transmittance(eta, cos as f64) as f32;
-                    e[ctx.lights.group_of(emitter)] += s.radiance_over_pdf * (cos * ft * inv);
-                }
-            }
-            e
-        })
-        .collect();
-    progress.check()?;
-    t.irradiance = irradiance.into_iter().flatten().collect();
-    let area = t.points.area_each as f32;
-    let power: Vec<Rgb> = t.irradiance.iter().map(|e| *e * area).collect();
-    t.tree = ScatterTree::build(
-        &t.points.positions,
-        &power,
-        groups,
-        settings.subsurface_theta,
-    );
-    Ok(())
 }
 
 /// Adds the subsurface layers of eye hit `x` (shading normal `n`, towards-eye `wo`) on

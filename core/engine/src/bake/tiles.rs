@@ -3,7 +3,7 @@
 
 use rayon::prelude::*;
 
-use crate::bake::progress::Progress;
+use crate::progress::Progress;
 use crate::scene::Resolution;
 use crate::{RelumeError, Result};
 

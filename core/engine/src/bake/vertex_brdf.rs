@@ -2,43 +2,14 @@
 //! (reference), and the basis reconstruction of given materials (projected reference).
 
 use glam::{Vec2, Vec3};
-use std::f32::consts::FRAC_1_PI;
 
-use crate::bake::context::{BakeContext, PreparedRegion, RegionModel, MAX_BASES};
+use crate::bake::context::{BakeContext, RegionModel};
+use crate::bake::frozen::{albedo_at, cos_half_angle};
+pub use crate::bake::frozen::{blinn_phong_value, frozen_value};
 use crate::bake::integrator::VertexBrdf;
-use crate::brdf::{blinn_phong::lobe, BlinnPhong};
+use crate::brdf::BlinnPhong;
+use crate::options::MAX_BASES;
 use crate::{RelumeError, Result, Rgb};
-
-#[inline]
-fn cos_half_angle(n: Vec3, wi: Vec3, wo: Vec3) -> f32 {
-    let h = (wi + wo).normalize_or_zero();
-    n.dot(h)
-}
-
-#[inline]
-fn albedo_at(region: &PreparedRegion, uv: Vec2) -> Rgb {
-    match &region.texture {
-        Some(t) => t.lookup(uv.x, uv.y),
-        None => Rgb::ONE,
-    }
-}
-
-/// The true Blinn–Phong value of `m` with the diffuse part scaled by `albedo`.
-#[inline]
-pub fn blinn_phong_value(m: &BlinnPhong, albedo: Rgb, cos_delta: f32) -> Rgb {
-    Rgb::from(m.kd) * albedo * FRAC_1_PI
-        + Rgb::from(m.ks) * lobe(m.ns as f64, cos_delta as f64) as f32
-}
-
-/// The bake-time BRDF value of scene region `region` (its [`PreparedRegion::frozen`]
-/// material, the diffuse part times its albedo texture): what the bake sees at vertices
-/// beyond the first bounce, and what picks Russian roulette there for bake and reference
-/// alike.
-#[inline]
-pub fn frozen_value(ctx: &BakeContext, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3) -> Rgb {
-    let r = &ctx.regions[region as usize];
-    blinn_phong_value(&r.frozen, albedo_at(r, uv), cos_half_angle(n, wi, wo))
-}
 
 /// The bake: every basis function of an editable region (the diffuse one times the albedo
 /// texture), or the whole fixed BRDF ρ̂.
@@ -80,7 +51,7 @@ impl VertexBrdf for BasisBrdf<'_> {
                 if r.texture.is_some() {
                     out[0] *= albedo_at(r, uv);
                 }
-                // The untextured constant slot of a textured region (see `BakeContext::new`).
+                // The untextured constant slot of a textured region (see `BakeContext::lay_out`).
                 if r.slot_count as usize > count {
                     out[count] = Rgb::splat(scratch[0]);
                 }

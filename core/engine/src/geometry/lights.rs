@@ -30,7 +30,7 @@ use super::env_sampling::EnvSampler;
 use super::environment::Environment;
 use super::sampling::{concentric_disk, cosine_hemisphere, frame, to_world, uniform_cone};
 use super::spherical_rect::SphericalRect;
-use crate::bake::settings::LightGrouping;
+use crate::options::LightGrouping;
 use crate::scene::{AreaShape, Light, Scene, World};
 use crate::Rgb;
 
@@ -59,13 +59,7 @@ enum Emitter {
         radiance_over_pdf: Rgb,
     },
     Area {
-        centre: Vec3,
-        u: Vec3,
-        v: Vec3,
-        normal: Vec3,
-        half_u: f32,
-        half_v: f32,
-        elliptic: bool,
+        shape: AreaPlane,
         radiance_times_area: Rgb,
         /// Surface area, m² (0 for a degenerate light, which then emits nothing).
         area: f32,
@@ -82,18 +76,48 @@ enum Emitter {
     World,
 }
 
+/// Where an area light lies: its centre, unit axes `u`, `v`, the normal it emits along (one
+/// side only), half sizes along the axes, and whether it is a disk or an ellipse (else a
+/// square or a rectangle). Shared by the light as sampled and the light as seen.
+#[derive(Clone, Copy, Debug)]
+struct AreaPlane {
+    centre: Vec3,
+    u: Vec3,
+    v: Vec3,
+    normal: Vec3,
+    half_u: f32,
+    half_v: f32,
+    elliptic: bool,
+}
+
+impl AreaPlane {
+    /// Whether a ray from `origin` along unit `dir` meets the light's front face before
+    /// distance `t_hit` (the light emits along `normal`, so the ray meets it head-on).
+    fn front_face_hit(&self, origin: Vec3, dir: Vec3, t_hit: f32) -> bool {
+        let denom = dir.dot(self.normal);
+        if !(denom < 0.0) {
+            return false;
+        }
+        let t = (self.centre - origin).dot(self.normal) / denom;
+        if !(t > 0.0 && t < t_hit) {
+            return false;
+        }
+        let q = origin + dir * t - self.centre;
+        let (a, b) = (q.dot(self.u) / self.half_u, q.dot(self.v) / self.half_v);
+        if self.elliptic {
+            a * a + b * b <= 1.0
+        } else {
+            a.abs() <= 1.0 && b.abs() <= 1.0
+        }
+    }
+}
+
 /// An emitter the camera sees directly ([`LightSet::seen_directly`]).
 #[derive(Clone, Debug)]
 enum Visible {
     /// A visible area light's front face.
     Area {
-        centre: Vec3,
-        u: Vec3,
-        v: Vec3,
-        normal: Vec3,
-        half_u: f32,
-        half_v: f32,
-        elliptic: bool,
+        shape: AreaPlane,
         radiance: Rgb,
         group: usize,
     },
@@ -129,9 +153,10 @@ struct Spot {
 pub enum WorldSampling {
     /// Cosine-weighted around the normal only (the reference for variance measurements).
     Cosine,
-    /// ½ hierarchical warping of the image's luminance + ½ cosine (the default): 66× lower
-    /// variance (RMSE 1.50 against 12.2) at 8 spp on assets/hdri.scene.json, a 0.015 sr sun
-    /// of radiance 2000 over a dim sky (see tests/env_sampling.rs).
+    /// ½ hierarchical warping of the image's luminance + ½ cosine (the default): far lower
+    /// variance than cosine alone where a small bright sun sits in a dim sky
+    /// (`tests/env_sampling.rs`; the figure is in docs/measurements.md, "Figures that were in
+    /// code comments").
     #[default]
     Mixture,
 }
@@ -347,34 +372,11 @@ impl LightSet {
         for vis in &self.visible {
             match vis {
                 Visible::Area {
-                    centre,
-                    u,
-                    v,
-                    normal,
-                    half_u,
-                    half_v,
-                    elliptic,
+                    shape,
                     radiance,
                     group,
                 } => {
-                    let denom = dir.dot(*normal);
-                    // Front face only: the light emits along `normal`, so the ray meets it
-                    // head-on (denom < 0).
-                    if !(denom < 0.0) {
-                        continue;
-                    }
-                    let t = (*centre - origin).dot(*normal) / denom;
-                    if !(t > 0.0 && t < t_hit) {
-                        continue;
-                    }
-                    let q = origin + dir * t - *centre;
-                    let (a, b) = (q.dot(*u) / half_u, q.dot(*v) / half_v);
-                    let inside = if *elliptic {
-                        a * a + b * b <= 1.0
-                    } else {
-                        a.abs() <= 1.0 && b.abs() <= 1.0
-                    };
-                    if inside {
+                    if shape.front_face_hit(origin, dir, t_hit) {
                         add(*group, *radiance);
                     }
                 }
@@ -508,13 +510,16 @@ impl LightSet {
                 })
             }
             Emitter::Area {
-                centre,
-                u,
-                v,
-                normal,
-                half_u,
-                half_v,
-                elliptic,
+                shape:
+                    AreaPlane {
+                        centre,
+                        u,
+                        v,
+                        normal,
+                        half_u,
+                        half_v,
+                        elliptic,
+                    },
                 radiance_times_area,
                 area,
             } => {
@@ -545,21 +550,10 @@ impl LightSet {
                     (2.0 * u1 - 1.0, 2.0 * u2 - 1.0)
                 };
                 let q = *centre + *u * (a * half_u) + *v * (b * half_v);
-                let d = q - p;
-                let dist2 = d.length_squared();
-                if !(dist2 > 0.0) {
-                    return None;
-                }
-                let dist = dist2.sqrt();
-                let wi = d / dist;
-                let cos_light = -wi.dot(*normal);
-                if cos_light <= 0.0 {
-                    return None;
-                }
-                Some(LightSample {
-                    wi,
-                    distance: dist,
-                    radiance_over_pdf: *radiance_times_area * (cos_light / dist2),
+                // One-sided emission.
+                sampled_by_area(p, q, *radiance_times_area, |wi| {
+                    let cos_light = -wi.dot(*normal);
+                    (!(cos_light <= 0.0)).then_some(cos_light)
                 })
             }
             Emitter::Mesh {
@@ -580,22 +574,10 @@ impl LightSet {
                 let su = u1.sqrt();
                 let (b1, b2) = (su * (1.0 - u2), su * u2);
                 let q = v0 + e1 * b1 + e2 * b2;
-                let d = q - p;
-                let dist2 = d.length_squared();
-                if !(dist2 > 0.0) {
-                    return None;
-                }
-                let dist = dist2.sqrt();
-                let wi = d / dist;
                 // Two-sided emission.
-                let cos_light = wi.dot(nl).abs();
-                if !(cos_light > 0.0) {
-                    return None;
-                }
-                Some(LightSample {
-                    wi,
-                    distance: dist,
-                    radiance_over_pdf: *radiance_times_area * (cos_light / dist2),
+                sampled_by_area(p, q, *radiance_times_area, |wi| {
+                    let cos_light = wi.dot(nl).abs();
+                    (cos_light > 0.0).then_some(cos_light)
                 })
             }
             Emitter::World => match (&self.world_sampler, self.world_sampling) {
@@ -656,6 +638,32 @@ fn sample_world_mixture(
     })
 }
 
+/// The sample from shading point `p` towards point `q` of an emitter sampled uniformly by
+/// area (an area light drawn on its surface, an emissive region): the area pdf 1/A turned
+/// into solid angle gives the weight L·A·cos θ_l/d². `cos_light` says how the emitter faces
+/// the direction towards it: cos θ_l, or `None` where it sends nothing that way.
+#[inline]
+fn sampled_by_area(
+    p: Vec3,
+    q: Vec3,
+    radiance_times_area: Rgb,
+    cos_light: impl FnOnce(Vec3) -> Option<f32>,
+) -> Option<LightSample> {
+    let d = q - p;
+    let dist2 = d.length_squared();
+    if !(dist2 > 0.0) {
+        return None;
+    }
+    let dist = dist2.sqrt();
+    let wi = d / dist;
+    let cos_light = cos_light(wi)?;
+    Some(LightSample {
+        wi,
+        distance: dist,
+        radiance_over_pdf: radiance_times_area * (cos_light / dist2),
+    })
+}
+
 /// The largest f32 below 1.
 const ONE_MINUS_EPS: f32 = 1.0 - f32::EPSILON / 2.0;
 
@@ -667,23 +675,11 @@ fn visible_emitter(light: &Light, tint: Rgb, group: usize, scene: &Scene) -> Opt
             ..
         } => match prepare(light, tint, scene)? {
             Emitter::Area {
-                centre,
-                u,
-                v,
-                normal,
-                half_u,
-                half_v,
-                elliptic,
+                shape,
                 radiance_times_area,
                 area,
             } if area > 0.0 => Some(Visible::Area {
-                centre,
-                u,
-                v,
-                normal,
-                half_u,
-                half_v,
-                elliptic,
+                shape,
                 radiance: radiance_times_area / area,
                 group,
             }),
@@ -828,13 +824,15 @@ fn prepare(light: &Light, tint: Rgb, scene: &Scene) -> Option<Emitter> {
             };
             // L = P/(π A); the area pdf is 1/A, so radiance/pdf (before cos/d²) is L·A = P/π.
             Some(Emitter::Area {
-                centre: Vec3::from(*position),
-                u,
-                v,
-                normal: -u.cross(v).normalize(),
-                half_u: 0.5 * sx,
-                half_v: 0.5 * sy,
-                elliptic,
+                shape: AreaPlane {
+                    centre: Vec3::from(*position),
+                    u,
+                    v,
+                    normal: -u.cross(v).normalize(),
+                    half_u: 0.5 * sx,
+                    half_v: 0.5 * sy,
+                    elliptic,
+                },
                 radiance_times_area: colour(color)
                     * (*power / PI)
                     * if area > 0.0 { 1.0 } else { 0.0 },

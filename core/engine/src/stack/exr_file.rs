@@ -2,9 +2,10 @@
 //!
 //! Layout (docs/design.md §3 "Stack file"):
 //! - one part, scanlines, ZIP (16 lines per block). ZIP is lossless; the lossy codecs
-//!   (B44, PXR24, DWA) are never used: B44A showed relative errors up to 5 on HDR edges.
-//!   ZIP costs ≈ 0.85 s per 46 MiB of f16 to write but reads at ≈ 0.1 s, and noise-free
-//!   data shrinks ~7× (STACK_NOTES).
+//!   (B44, PXR24, DWA) are never used: they lose HDR edges. ZIP is slower to write than to
+//!   read, which suits a file written once and loaded at every relight session, and it
+//!   shrinks noise-free data several times (docs/measurements.md, "Figures that were in
+//!   code comments").
 //! - one channel per layer and colour, named Blender-style `Layer.Pass.Channel`:
 //!   `{key.layer_name()}.Transfer.Y` for a grey layer, `.Transfer.R/G/B` for an RGB one, so
 //!   Blender shows every layer in its compositor and image editor. Channels are sorted by
@@ -33,10 +34,12 @@ use std::path::Path;
 use exr::prelude::{self as x, ReadChannels as _, ReadLayers as _, WritableImage as _};
 use serde::{Deserialize, Serialize};
 
-use super::{Layer, LayerSamples, Precision, StackHeader, TransferStack, STACK_FORMAT_VERSION};
-use crate::bake::signature::LayerKey;
+use super::{Layer, LayerSamples, StackHeader, TransferStack, STACK_FORMAT_VERSION};
 use crate::error::{RelumeError, Result};
 use crate::image_io::write_atomic_checked;
+use crate::layer_key::LayerKey;
+use crate::options::Precision;
+use crate::progress::Progress;
 
 /// Attribute: the [`StackHeader`] as JSON.
 pub const ATTR_HEADER: &str = "relume/header";
@@ -210,14 +213,14 @@ fn validate_for_write(path: &Path, stack: &TransferStack) -> Result<String> {
 /// read-only directory gives [`RelumeError::Io`]; an existing file at `path` survives any
 /// failure.
 pub fn write_stack(path: &Path, stack: &TransferStack) -> Result<u64> {
-    write_stack_cancellable(path, stack, &crate::bake::progress::Progress::new())
+    write_stack_cancellable(path, stack, &Progress::new())
 }
 
 /// Passes writes through while `progress` is not cancelled; after a cancel every write
 /// fails, which stops the OpenEXR encoder within one chunk.
 struct CancellableWriter<'a, W> {
     inner: W,
-    progress: &'a crate::bake::progress::Progress,
+    progress: &'a Progress,
 }
 
 impl<W> CancellableWriter<'_, W> {
@@ -260,7 +263,7 @@ impl<W: std::io::Seek> std::io::Seek for CancellableWriter<'_, W> {
 pub fn write_stack_cancellable(
     path: &Path,
     stack: &TransferStack,
-    progress: &crate::bake::progress::Progress,
+    progress: &Progress,
 ) -> Result<u64> {
     progress.check()?;
     let header_json = validate_for_write(path, stack)?;

@@ -4,27 +4,17 @@ pub mod bases;
 pub mod exr_file;
 #[doc(hidden)]
 pub mod hostile;
-pub mod partial;
 pub mod staleness;
 
 use serde::{Deserialize, Serialize};
 
-use crate::bake::signature::LayerKey;
 use crate::brdf::BasisConfig;
+use crate::layer_key::LayerKey;
+pub use crate::options::Precision;
 use crate::scene::{Camera, Light};
 
 /// Version of the stack file layout; a file with another version is refused.
 pub const STACK_FORMAT_VERSION: u32 = 1;
-
-/// Storage precision of layer samples.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Precision {
-    /// Half floats with a per-layer scale (see [`Layer::scale`]): half the memory and
-    /// bandwidth; relative rounding error ≤ 2⁻¹¹ per sample.
-    F16,
-    F32,
-}
 
 /// What a stack was baked from and how; stored in the file header and checked on load.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -53,10 +43,10 @@ pub struct StackHeader {
     /// `light_tint`; empty when all lights share the layers (keys with light group 0).
     #[serde(default)]
     pub light_groups: Vec<LightGroupInfo>,
-    /// The linear denoiser the bake applied ([`crate::bake::denoise`]); off in stacks
+    /// The linear denoiser the bake applied (the bake's `denoise` step); off in stacks
     /// written before it existed.
     #[serde(default)]
-    pub denoise: crate::bake::Denoise,
+    pub denoise: crate::options::Denoise,
 }
 
 /// A light group of a stack: its name and the colour factored out of its layers.

@@ -1,0 +1,311 @@
+//! From the traced sums to a stack, in named steps: average the sums into layers (grey where
+//! the three channels agree everywhere), denoise them, leave out the negligible ones,
+//! store them at the bake's precision, and write the header and the report.
+
+use rayon::prelude::*;
+use std::sync::Mutex;
+use std::time::Instant;
+
+use super::context::{basis_config_for, BakeContext};
+use super::denoise::EyeFeatures;
+use super::drop::{self, DropReport, RawLayer};
+use super::layout::layer_key;
+use super::report::BakeReport;
+use super::settings::BakeSettings;
+use crate::layer_key::LayerKey;
+use crate::options::{LightGrouping, Precision};
+use crate::progress::{Progress, Stage};
+use crate::scene::{hash::scene_hash, Scene};
+use crate::stack::{
+    Layer, LightGroupInfo, RegionInfo, StackHeader, TransferStack, STACK_FORMAT_VERSION,
+};
+use crate::Result;
+
+/// Turns the store (sums over `spp` eye samples) into a stack, the report of its layers, and
+/// the image at the bake-time materials (for the progressive error estimate).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn assemble(
+    ctx: &BakeContext,
+    scene: &Scene,
+    settings: &BakeSettings,
+    store: &[Mutex<Vec<f32>>],
+    eye_features: &EyeFeatures,
+    spp: u32,
+    pool: &rayon::ThreadPool,
+    width: usize,
+    height: usize,
+    progress: &Progress,
+    last_pass: bool,
+) -> Result<(TransferStack, BakeReport, Vec<f64>)> {
+    let assembly_start = Instant::now();
+    progress.set_stage(Stage::Assembly);
+    let layer_count = store.len();
+    let (mut reached, unreached) = average_layers(ctx, store, spp, pool, progress, last_pass)?;
+    let empty = unreached.len();
+    let denoise_start = Instant::now();
+    progress.set_stage(Stage::Denoising);
+    denoise_layers(settings, eye_features, &mut reached, pool, progress)?;
+    let denoise_seconds = denoise_start.elapsed().as_secs_f64();
+    progress.set_stage(Stage::Finishing);
+    let image = drop::bake_time_image(ctx, scene, &reached);
+    progress.check()?;
+    let (kept, drop_report) = drop::drop_negligible(
+        ctx,
+        scene,
+        reached,
+        &image,
+        &unreached,
+        settings.drop_budget as f64,
+    );
+    progress.check()?;
+    let mut layers = store_layers(kept, settings.precision, pool, progress)?;
+    let grey = layers.iter().filter(|l| l.channels == 1).count();
+    let rgb = layers.len() - grey;
+    if layers.is_empty() {
+        // Nothing reached the eye (no light, black world: validation warned). Keep one black
+        // layer so the stack is a valid file and relights to a black image.
+        layers.push(Layer::from_f32(
+            LayerKey::new(vec![]),
+            1,
+            &vec![0.0; width * height],
+            settings.precision,
+        ));
+    }
+    let header = stack_header(ctx, scene, settings, spp);
+    let stack = TransferStack { header, layers };
+    let counts = LayerCounts {
+        possible: layer_count,
+        grey,
+        rgb,
+        empty,
+    };
+    let assembly_seconds = assembly_start.elapsed().as_secs_f64();
+    let report = layer_report(
+        ctx,
+        &stack,
+        counts,
+        drop_report,
+        assembly_seconds,
+        denoise_seconds,
+    );
+    Ok((stack, report, image))
+}
+
+/// What one dense layer's sums became.
+enum Averaged {
+    Layer(RawLayer),
+    /// No path reached it.
+    Empty(LayerKey),
+    /// Cancelled before it was looked at.
+    Skipped,
+}
+
+/// Whole-image layers: averaged over the `spp` eye samples, grey when the three channels are
+/// bit-identical everywhere (the path met no colour), and the keys of those nothing
+/// reached. The last pass averages each accumulator in place (its sums are not needed
+/// again), so assembly adds no second full copy of the layers to the bake's peak memory.
+fn average_layers(
+    ctx: &BakeContext,
+    store: &[Mutex<Vec<f32>>],
+    spp: u32,
+    pool: &rayon::ThreadPool,
+    progress: &Progress,
+    last_pass: bool,
+) -> Result<(Vec<RawLayer>, Vec<LayerKey>)> {
+    let inv_spp = 1.0 / spp as f32;
+    let average = |(index, slot): (usize, &Mutex<Vec<f32>>)| -> Result<Averaged> {
+        if progress.is_cancelled() {
+            return Ok(Averaged::Skipped);
+        }
+        let mut sums = slot.lock().unwrap_or_else(|e| e.into_inner());
+        let key = layer_key(ctx, index);
+        if sums.is_empty() || sums.iter().all(|v| *v == 0.0) {
+            return Ok(Averaged::Empty(key));
+        }
+        let mut image: Vec<f32> = if last_pass {
+            std::mem::take(&mut *sums)
+        } else {
+            let mut copy = crate::memory::try_with_capacity(sums.len(), "an averaged layer")?;
+            copy.extend_from_slice(&sums);
+            copy
+        };
+        std::mem::drop(sums);
+        for v in image.iter_mut() {
+            *v *= inv_spp;
+        }
+        Ok(Averaged::Layer(grey_or_rgb(key, image)?))
+    };
+    let averaged: Vec<Result<Averaged>> =
+        pool.install(|| store.par_iter().enumerate().map(average).collect());
+    progress.check()?;
+    let mut reached = Vec::new();
+    let mut unreached = Vec::new();
+    for a in averaged {
+        match a? {
+            Averaged::Layer(l) => reached.push(l),
+            Averaged::Empty(k) => unreached.push(k),
+            Averaged::Skipped => return Err(crate::RelumeError::Cancelled),
+        }
+    }
+    Ok((reached, unreached))
+}
+
+/// One channel when the three are bit-identical at every pixel (Table 1's grey layers: the
+/// path met no colour), else the RGB image as it is.
+fn grey_or_rgb(key: LayerKey, image: Vec<f32>) -> Result<RawLayer> {
+    if image.chunks_exact(3).all(|c| c[0] == c[1] && c[1] == c[2]) {
+        let mut y = crate::memory::try_with_capacity(image.len() / 3, "a grey layer")?;
+        y.extend(image.chunks_exact(3).map(|c| c[0]));
+        Ok(RawLayer {
+            key,
+            channels: 1,
+            data: y,
+        })
+    } else {
+        Ok(RawLayer {
+            key,
+            channels: 3,
+            data: image,
+        })
+    }
+}
+
+/// Runs the settings' denoiser: its direct iterations on the layers lit at the eye vertex
+/// (one-vertex paths), its bounce iterations on the one-bounce layers.
+fn denoise_layers(
+    settings: &BakeSettings,
+    eye_features: &EyeFeatures,
+    reached: &mut [RawLayer],
+    pool: &rayon::ThreadPool,
+    progress: &Progress,
+) -> Result<()> {
+    pool.install(|| -> Result<()> {
+        for (vertices, iterations) in [
+            (1, settings.denoise.direct_iterations),
+            (2, settings.denoise.bounce_iterations),
+        ] {
+            let mut chosen: Vec<&mut RawLayer> = reached
+                .iter_mut()
+                .filter(|l| l.key.path.len() == vertices)
+                .collect();
+            eye_features.filter_cancellable(&mut chosen, iterations, progress)?;
+        }
+        Ok(())
+    })
+}
+
+/// The kept layers at the stored `precision` (f16 with a per-layer scale, or f32).
+fn store_layers(
+    kept: Vec<RawLayer>,
+    precision: Precision,
+    pool: &rayon::ThreadPool,
+    progress: &Progress,
+) -> Result<Vec<Layer>> {
+    pool.install(|| {
+        kept.into_par_iter()
+            .map(|l| {
+                if progress.is_cancelled() {
+                    None
+                } else {
+                    Some(Layer::from_f32(l.key, l.channels, &l.data, precision))
+                }
+            })
+            .collect::<Option<Vec<Layer>>>()
+    })
+    .ok_or(crate::RelumeError::Cancelled)
+}
+
+/// What the stack records of the bake: image, camera, sampling, the regions with their
+/// bases and subsurface layouts, the lights and their groups' tints, the scene's hash.
+fn stack_header(
+    ctx: &BakeContext,
+    scene: &Scene,
+    settings: &BakeSettings,
+    spp: u32,
+) -> StackHeader {
+    let res = ctx.resolution;
+    StackHeader {
+        format_version: STACK_FORMAT_VERSION,
+        width: res.width,
+        height: res.height,
+        camera: scene.camera.clone(),
+        spp,
+        light_samples: settings.light_samples,
+        bounces: ctx.settings.bounces,
+        sampling: settings.sampling.name().into(),
+        seed: settings.seed,
+        regions: scene
+            .regions
+            .iter()
+            .zip(&ctx.translucent)
+            .map(|(r, t)| RegionInfo {
+                subsurface: t.as_ref().map(|t| t.info.clone()),
+                ..RegionInfo::from_region(
+                    r,
+                    r.editable
+                        .then(|| basis_config_for(&settings.basis, r.ns_range)),
+                )
+            })
+            .collect(),
+        lights: scene.lights.clone(),
+        scene_hash: scene_hash(scene),
+        precision: settings.precision,
+        light_tint: ctx.lights.groups[0].tint.to_array(),
+        light_groups: if ctx.settings.light_grouping == LightGrouping::All {
+            Vec::new()
+        } else {
+            ctx.lights
+                .groups
+                .iter()
+                .map(|g| LightGroupInfo {
+                    name: g.name.clone(),
+                    tint: g.tint.to_array(),
+                })
+                .collect()
+        },
+        denoise: settings.denoise,
+    }
+}
+
+/// How many layers the slots allow and what became of them.
+struct LayerCounts {
+    possible: usize,
+    grey: usize,
+    rgb: usize,
+    empty: usize,
+}
+
+/// The report of the assembly; timing, ray and validation fields are filled in by the caller.
+fn layer_report(
+    ctx: &BakeContext,
+    stack: &TransferStack,
+    counts: LayerCounts,
+    drop_report: DropReport,
+    assembly_seconds: f64,
+    denoise_seconds: f64,
+) -> BakeReport {
+    let res = ctx.resolution;
+    BakeReport {
+        seconds: 0.0,
+        rays: 0,
+        setup_seconds: 0.0,
+        trace_seconds: 0.0,
+        assembly_seconds,
+        denoise_seconds,
+        rays_per_second: 0.0,
+        width: res.width,
+        height: res.height,
+        triangles: 0,
+        degenerate_triangles: 0,
+        warnings: Vec::new(),
+        layers_possible: counts.possible,
+        layers_grey: counts.grey,
+        layers_rgb: counts.rgb,
+        layers_empty: counts.empty,
+        sample_bytes: stack.sample_bytes(),
+        layers: drop_report,
+        estimate: None,
+        bounces: ctx.settings.bounces,
+        bounce_estimate: ctx.bounce_estimate.clone(),
+    }
+}

@@ -1,0 +1,42 @@
+//! The bake-time material at a path vertex: what the bake sees beyond the first bounce (the
+//! frozen tail) and what Russian roulette steers by, for the bake, the reference render and
+//! the bounce pre-pass alike. A leaf of the bake: the integrator and the three vertex BRDFs
+//! ([`super::vertex_brdf`]) both read it.
+
+use glam::{Vec2, Vec3};
+use std::f32::consts::FRAC_1_PI;
+
+use crate::bake::context::{BakeContext, PreparedRegion};
+use crate::brdf::{blinn_phong::lobe, BlinnPhong};
+use crate::Rgb;
+
+#[inline]
+pub(crate) fn cos_half_angle(n: Vec3, wi: Vec3, wo: Vec3) -> f32 {
+    let h = (wi + wo).normalize_or_zero();
+    n.dot(h)
+}
+
+#[inline]
+pub(crate) fn albedo_at(region: &PreparedRegion, uv: Vec2) -> Rgb {
+    match &region.texture {
+        Some(t) => t.lookup(uv.x, uv.y),
+        None => Rgb::ONE,
+    }
+}
+
+/// The true Blinn–Phong value of `m` with the diffuse part scaled by `albedo`.
+#[inline]
+pub fn blinn_phong_value(m: &BlinnPhong, albedo: Rgb, cos_delta: f32) -> Rgb {
+    Rgb::from(m.kd) * albedo * FRAC_1_PI
+        + Rgb::from(m.ks) * lobe(m.ns as f64, cos_delta as f64) as f32
+}
+
+/// The bake-time BRDF value of scene region `region` (its [`PreparedRegion::frozen`]
+/// material, the diffuse part times its albedo texture): what the bake sees at vertices
+/// beyond the first bounce, and what picks Russian roulette there for bake and reference
+/// alike.
+#[inline]
+pub fn frozen_value(ctx: &BakeContext, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3) -> Rgb {
+    let r = &ctx.regions[region as usize];
+    blinn_phong_value(&r.frozen, albedo_at(r, uv), cos_half_angle(n, wi, wo))
+}

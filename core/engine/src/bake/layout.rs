@@ -1,0 +1,62 @@
+//! Where each path signature sits among a bake's dense layer indices, and back: the one
+//! index arithmetic that the bake's tiles, the memory probe and the assembly share.
+
+use crate::bake::context::BakeContext;
+use crate::layer_key::LayerKey;
+use crate::options::LightGrouping;
+
+/// Where each path signature sits among a bake's dense layer indices: per light group the
+/// world, one layer per slot, one per (eye slot, bounce slot) pair ([`layer_key`] inverts
+/// it). Every sink that keeps layers densely (the bake's tiles, the memory probe) uses it.
+#[derive(Clone, Copy)]
+pub(crate) struct DenseLayout {
+    slots: usize,
+    /// Layers per light group.
+    per_group: usize,
+}
+
+impl DenseLayout {
+    pub(crate) fn of(ctx: &BakeContext) -> Self {
+        DenseLayout {
+            slots: ctx.slot_count(),
+            per_group: ctx.layers_per_group(),
+        }
+    }
+    #[inline]
+    pub(crate) fn world(self, group: usize) -> usize {
+        group * self.per_group
+    }
+    #[inline]
+    pub(crate) fn direct(self, group: usize, slot: u32) -> usize {
+        group * self.per_group + 1 + slot as usize
+    }
+    #[inline]
+    pub(crate) fn bounce(self, group: usize, eye: u32, bounce: u32) -> usize {
+        let s = self.slots;
+        group * self.per_group + 1 + s + eye as usize * s + bounce as usize
+    }
+}
+
+/// The key of dense layer index `layer` for `ctx`'s slots and light groups (light group
+/// g + 1 in the key when the bake keeps groups apart, 0 when all lights share the layers).
+pub fn layer_key(ctx: &BakeContext, layer: usize) -> LayerKey {
+    let per_group = ctx.layers_per_group();
+    let group = layer / per_group;
+    let mut key = path_key(ctx, layer % per_group);
+    if ctx.settings.light_grouping != LightGrouping::All {
+        key.light_group = group as u16 + 1;
+    }
+    key
+}
+
+fn path_key(ctx: &BakeContext, layer: usize) -> LayerKey {
+    let s = ctx.slot_count();
+    if layer == 0 {
+        LayerKey::new(vec![])
+    } else if layer <= s {
+        LayerKey::new(vec![ctx.slot_vertex[layer - 1]])
+    } else {
+        let pair = layer - 1 - s;
+        LayerKey::new(vec![ctx.slot_vertex[pair / s], ctx.slot_vertex[pair % s]])
+    }
+}

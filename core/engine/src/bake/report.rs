@@ -1,0 +1,58 @@
+//! What a bake reports: the whole bake ([`BakeReport`]) and each pass of a progressive one
+//! ([`PassReport`]), for the command line's JSON and the add-on's status.
+
+use serde::Serialize;
+
+use super::{bounce_budget, drop, estimate};
+
+/// What a bake did, for the command line's JSON and the add-on's status.
+#[derive(Clone, Debug, Serialize)]
+pub struct BakeReport {
+    /// Whole bake, wall clock.
+    pub seconds: f64,
+    /// Validation, basis and BVH build.
+    pub setup_seconds: f64,
+    /// Path tracing and layer assembly.
+    pub trace_seconds: f64,
+    /// Part of `trace_seconds` spent turning the accumulated images into layers.
+    pub assembly_seconds: f64,
+    /// Part of `assembly_seconds` spent denoising ([`denoise`]; 0 when the settings ask for none).
+    pub denoise_seconds: f64,
+    /// Rays per second of `trace_seconds`.
+    pub rays: u64,
+    pub rays_per_second: f64,
+    pub width: u32,
+    pub height: u32,
+    pub triangles: usize,
+    pub degenerate_triangles: usize,
+    pub warnings: Vec<String>,
+    /// Layers the slots allow (world + slots + slot pairs).
+    pub layers_possible: usize,
+    pub layers_grey: usize,
+    pub layers_rgb: usize,
+    /// Layers no path reached (e.g. a region never seen from another): not stored.
+    pub layers_empty: usize,
+    pub sample_bytes: usize,
+    /// Layers kept and left out, per region, and what leaving them out costs.
+    pub layers: drop::DropReport,
+    /// The memory forecast made before tracing (compare with the measured peak).
+    pub estimate: Option<estimate::BakeEstimate>,
+    /// Bounces baked (the header's `bounces`) and, when the settings asked for what the
+    /// scene needs, what the pre-pass measured ([`bounces`]).
+    pub bounces: u32,
+    pub bounce_estimate: Option<bounce_budget::BounceEstimate>,
+}
+
+/// One pass of a progressive bake.
+#[derive(Clone, Debug, Serialize)]
+pub struct PassReport {
+    pub pass: usize,
+    /// Eye samples per pixel so far.
+    pub spp: u32,
+    /// Seconds since the bake started, when this pass's stack was ready.
+    pub seconds: f64,
+    /// Estimated relative L2 noise of the image at the bake-time materials after this pass
+    /// (from the change since the previous pass: for cumulative sample counts n₋ < n, the
+    /// noise is ‖I − I₋‖·√(r/(1 − r)) with r = n₋/n); `None` for the first pass.
+    pub estimated_rel_error: Option<f64>,
+}
