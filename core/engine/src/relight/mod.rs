@@ -45,6 +45,7 @@
 pub mod bandwidth;
 pub(crate) mod kernels;
 mod packed;
+pub mod tiled_sum;
 
 use std::sync::Arc;
 

@@ -6,6 +6,7 @@ pub mod exr_file;
 pub mod hostile;
 pub mod partial;
 pub mod staleness;
+pub mod tiled;
 
 use serde::{Deserialize, Serialize};
 
