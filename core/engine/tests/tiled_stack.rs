@@ -564,3 +564,19 @@ fn other_versions_and_foreign_files_are_refused() {
         Err(RelumeError::Io { .. })
     ));
 }
+
+#[test]
+fn a_cancelled_write_leaves_the_old_file() {
+    use relume_engine::stack::tiled::file::write_tiled_cancellable;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("s.exr");
+    std::fs::write(&path, b"old").unwrap();
+    let tiled = TiledStack::from_dense(&synthetic(20, 18, Precision::F16, 17)).unwrap();
+    let progress = Progress::new();
+    progress.cancel();
+    assert!(matches!(
+        write_tiled_cancellable(&path, &tiled, &progress),
+        Err(RelumeError::Cancelled)
+    ));
+    assert_eq!(std::fs::read(&path).unwrap(), b"old");
+}
