@@ -18,7 +18,7 @@ pub mod build;
 pub mod file;
 pub mod validate;
 
-pub use build::TiledStackBuilder;
+pub use build::{TileRadiance, TiledStackBuilder};
 
 use super::{Precision, StackHeader};
 use crate::bake::signature::LayerKey;
