@@ -32,6 +32,7 @@ mod layer_sum;
 mod packed;
 mod shape;
 mod spans;
+pub mod tiled_sum;
 mod weight;
 
 pub use band_sum::BAND_ROWS;

@@ -5,6 +5,7 @@ pub mod exr_file;
 #[doc(hidden)]
 pub mod hostile;
 pub mod staleness;
+pub mod tiled;
 
 use serde::{Deserialize, Serialize};
 

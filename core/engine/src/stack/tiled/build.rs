@@ -1,0 +1,437 @@
+//! Making a [`TiledStack`]: from a dense stack (bit-exact, and back), or tile by tile from
+//! f32 radiance ([`TiledStackBuilder`], for a bake that finalises its tiles as it goes).
+
+use std::path::Path;
+use std::sync::Mutex;
+
+use half::f16;
+use rayon::prelude::*;
+
+use super::validate::{format_err, validate};
+use super::{
+    tile_rect, tiles_along, StackTile, TileLayer, TileRect, TileValues, TiledLayerInfo, TiledStack,
+    STACK_FORMAT_VERSION_TILED,
+};
+use crate::bake::signature::LayerKey;
+use crate::error::{RelumeError, Result};
+use crate::stack::{
+    Layer, LayerSamples, Precision, StackHeader, TransferStack, STACK_FORMAT_VERSION,
+};
+
+/// A stored sample whose bit pattern tells zero (and equality) exactly: the tiled stack
+/// drops only values whose bits are all zero and merges RGB to grey only where the three
+/// channels have the same bits, so converting back restores every bit (−0 included).
+trait Bits: Copy + Send + Sync {
+    fn bits(self) -> u32;
+}
+impl Bits for f16 {
+    fn bits(self) -> u32 {
+        self.to_bits() as u32
+    }
+}
+impl Bits for f32 {
+    fn bits(self) -> u32 {
+        self.to_bits()
+    }
+}
+
+/// Indices into a dense layer's samples of the pixels of `rect`, row-major.
+fn rect_pixels(rect: TileRect, width: u32) -> impl Iterator<Item = usize> {
+    (rect.y0..rect.y0 + rect.height).flat_map(move |y| {
+        (rect.x0..rect.x0 + rect.width).map(move |x| y as usize * width as usize + x as usize)
+    })
+}
+
+/// How layer samples `v` (`channels` interleaved) appear in `rect`: `None` when every bit is
+/// zero there, else the channels the tile needs (1 when an RGB layer is grey throughout).
+fn tile_channels<T: Bits>(v: &[T], channels: usize, rect: TileRect, width: u32) -> Option<u8> {
+    let mut non_zero = false;
+    let mut grey = true;
+    for p in rect_pixels(rect, width) {
+        let px = &v[p * channels..(p + 1) * channels];
+        non_zero |= px.iter().any(|s| s.bits() != 0);
+        if channels == 3 {
+            grey &= px[0].bits() == px[1].bits() && px[1].bits() == px[2].bits();
+        }
+    }
+    non_zero.then_some(if grey { 1 } else { channels as u8 })
+}
+
+/// Appends the values of `rect` from dense samples `v` (`channels` interleaved), keeping
+/// `keep` channels (1: the first of each pixel).
+fn copy_rect<T: Bits>(
+    out: &mut Vec<T>,
+    v: &[T],
+    channels: usize,
+    keep: usize,
+    rect: TileRect,
+    width: u32,
+) {
+    for p in rect_pixels(rect, width) {
+        out.extend_from_slice(&v[p * channels..p * channels + keep]);
+    }
+}
+
+/// One tile of `dense`: an entry per layer with a non-zero bit there.
+fn dense_tile(dense: &TransferStack, rect: TileRect) -> StackTile {
+    let width = dense.header.width;
+    let mut entries = Vec::new();
+    let mut values = TileValues::empty(dense.header.precision);
+    for (l, layer) in dense.layers.iter().enumerate() {
+        let c = layer.channels as usize;
+        let offset = values.len() as u32;
+        let stored = match (&layer.samples, &mut values) {
+            (LayerSamples::F16(v), TileValues::F16(out)) => tile_channels(v, c, rect, width)
+                .inspect(|&keep| copy_rect(out, v, c, keep as usize, rect, width)),
+            (LayerSamples::F32(v), TileValues::F32(out)) => tile_channels(v, c, rect, width)
+                .inspect(|&keep| copy_rect(out, v, c, keep as usize, rect, width)),
+            _ => unreachable!("precisions checked by from_dense"),
+        };
+        if let Some(channels) = stored {
+            entries.push(TileLayer {
+                layer: l as u32,
+                channels,
+                scale: layer.scale,
+                offset,
+            });
+        }
+    }
+    StackTile { entries, values }
+}
+
+impl TiledStack {
+    /// The tiled form of `dense`: per tile an entry for every layer with a non-zero value
+    /// there (stored grey where an RGB layer's three channels are equal throughout the
+    /// tile), values and scale copied bit for bit — no re-quantisation. Layer ids are the
+    /// dense layer order; a layer that is zero everywhere stays listed.
+    ///
+    /// Errors ([`RelumeError::StackFormat`]): a layer with other than 1 or 3 channels, a
+    /// sample count that is not width × height × channels, samples not in the header's
+    /// precision, or anything [`validate`] refuses (a non-finite value or scale, a
+    /// duplicate layer name).
+    pub fn from_dense(dense: &TransferStack) -> Result<TiledStack> {
+        let no_path = Path::new("");
+        let h = &dense.header;
+        let pixels = h.width as usize * h.height as usize;
+        for layer in &dense.layers {
+            let name = layer.key.layer_name();
+            if layer.channels != 1 && layer.channels != 3 {
+                return Err(format_err(
+                    no_path,
+                    format!("layer {name} has {} channels", layer.channels),
+                ));
+            }
+            if layer.samples.len() != pixels * layer.channels as usize {
+                return Err(format_err(
+                    no_path,
+                    format!(
+                        "layer {name} has {} samples; {}×{}×{} expected",
+                        layer.samples.len(),
+                        h.width,
+                        h.height,
+                        layer.channels
+                    ),
+                ));
+            }
+            let precision = match layer.samples {
+                LayerSamples::F16(_) => Precision::F16,
+                LayerSamples::F32(_) => Precision::F32,
+            };
+            if precision != h.precision {
+                return Err(format_err(
+                    no_path,
+                    format!(
+                        "layer {name} holds {precision:?} samples in a stack of precision {:?}",
+                        h.precision
+                    ),
+                ));
+            }
+        }
+        let count = tiles_along(h.width) as usize * tiles_along(h.height) as usize;
+        let tiles = (0..count)
+            .into_par_iter()
+            .map(|t| dense_tile(dense, tile_rect(h.width, h.height, t)))
+            .collect();
+        let stack = TiledStack {
+            header: StackHeader {
+                format_version: STACK_FORMAT_VERSION_TILED,
+                ..h.clone()
+            },
+            layers: dense
+                .layers
+                .iter()
+                .map(|l| TiledLayerInfo {
+                    key: l.key.clone(),
+                    channels: l.channels as u8,
+                    scale: l.scale,
+                })
+                .collect(),
+            tiles,
+        };
+        validate(no_path, &stack)?;
+        Ok(stack)
+    }
+
+    /// The dense stack (header with the dense format version, layers in id order): exactly
+    /// the stack [`from_dense`](Self::from_dense) was given. An entry whose scale differs
+    /// from its layer's (a [`TiledStackBuilder`] stack) is re-quantised to the layer's
+    /// scale. This expands every layer to a full frame: for tests and callers of the dense
+    /// layout only.
+    pub fn to_dense(&self) -> Result<TransferStack> {
+        let h = &self.header;
+        let pixels = h.width as usize * h.height as usize;
+        let mut layers = crate::memory::try_with_capacity(self.layers.len(), "dense layers")?;
+        for info in &self.layers {
+            let n = pixels * info.channels as usize;
+            let what = "a dense layer";
+            layers.push(Layer {
+                key: info.key.clone(),
+                channels: info.channels as u32,
+                scale: info.scale,
+                samples: match h.precision {
+                    Precision::F16 => LayerSamples::F16(crate::memory::try_zeroed(n, what)?),
+                    Precision::F32 => LayerSamples::F32(crate::memory::try_zeroed(n, what)?),
+                },
+            });
+        }
+        for (t, tile) in self.tiles.iter().enumerate() {
+            let rect = self.tile_rect(t);
+            for e in &tile.entries {
+                let layer: &mut Layer = &mut layers[e.layer as usize];
+                let same_scale = e.scale.to_bits() == layer.scale.to_bits();
+                let ratio = e.scale / layer.scale;
+                let (lc, ec) = (layer.channels as usize, e.channels as usize);
+                for (i, p) in rect_pixels(rect, h.width).enumerate() {
+                    for c in 0..lc {
+                        let src = e.offset as usize + i * ec + c.min(ec - 1);
+                        let dst = p * lc + c;
+                        match (&mut layer.samples, &tile.values) {
+                            (LayerSamples::F16(d), TileValues::F16(s)) => {
+                                d[dst] = if same_scale {
+                                    s[src]
+                                } else {
+                                    f16::from_f32(s[src].to_f32() * ratio)
+                                }
+                            }
+                            (LayerSamples::F32(d), TileValues::F32(s)) => {
+                                d[dst] = if same_scale { s[src] } else { s[src] * ratio }
+                            }
+                            _ => {
+                                return Err(format_err(
+                                    Path::new(""),
+                                    format!("tile {t} is not in the stack's precision"),
+                                ))
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        Ok(TransferStack {
+            header: StackHeader {
+                format_version: STACK_FORMAT_VERSION,
+                ..h.clone()
+            },
+            layers,
+        })
+    }
+}
+
+/// One layer's radiance over one tile, as a bake hands it to [`TiledStackBuilder::insert`].
+#[derive(Clone, Copy, Debug)]
+pub struct TileRadiance<'a> {
+    /// Layer id (position in the builder's layer list).
+    pub layer: u32,
+    /// 1 (grey) or 3 (RGB interleaved).
+    pub channels: u8,
+    /// The tile's pixels row-major, `channels` per pixel, unscaled radiance.
+    pub radiance: &'a [f32],
+}
+
+/// Collects a [`TiledStack`] tile by tile from threads finishing tiles in any order.
+/// Each tile is quantised on insertion, so only finished tiles in their stored form and
+/// the tiles in flight are in memory.
+pub struct TiledStackBuilder {
+    header: StackHeader,
+    layers: Vec<(LayerKey, u8)>,
+    tiles: Vec<Mutex<Option<StackTile>>>,
+}
+
+impl TiledStackBuilder {
+    /// A builder for a stack with `header` (size and precision; its format version is set
+    /// to the tiled one) and `layers` (key and channels, 1 or 3, per layer id).
+    pub fn new(header: StackHeader, layers: Vec<(LayerKey, u8)>) -> Result<TiledStackBuilder> {
+        crate::scene::Resolution {
+            width: header.width,
+            height: header.height,
+        }
+        .validate("stack resolution")?;
+        if let Some((key, c)) = layers.iter().find(|(_, c)| *c != 1 && *c != 3) {
+            return Err(RelumeError::invalid(
+                format!("layer {}", key.layer_name()),
+                format!("{c} channels; a layer has 1 (grey) or 3 (RGB)"),
+            ));
+        }
+        let count = tiles_along(header.width) as usize * tiles_along(header.height) as usize;
+        Ok(TiledStackBuilder {
+            header: StackHeader {
+                format_version: STACK_FORMAT_VERSION_TILED,
+                ..header
+            },
+            layers,
+            tiles: (0..count).map(|_| Mutex::new(None)).collect(),
+        })
+    }
+
+    /// Quantises and stores tile `tile` (raster order): an entry per layer of `layers`
+    /// with a non-zero value (stored grey where RGB channels are equal), each with its own
+    /// scale — f16: the largest magnitude maps to 2¹⁴ as in [`Layer::from_f32`]; f32: 1.
+    ///
+    /// Errors: a tile index out of range or inserted before, a layer id out of range or
+    /// given twice, channels other than 1 or the layer's, a radiance length other than
+    /// pixels × channels, a non-finite radiance.
+    pub fn insert(&self, tile: usize, layers: &[TileRadiance]) -> Result<()> {
+        let slot = self
+            .tiles
+            .get(tile)
+            .ok_or_else(|| RelumeError::IndexOutOfRange {
+                what: "tile of the stack".into(),
+                index: tile as u64,
+                len: self.tiles.len(),
+            })?;
+        let rect = tile_rect(self.header.width, self.header.height, tile);
+        let mut order: Vec<&TileRadiance> = layers.iter().collect();
+        order.sort_by_key(|r| r.layer);
+        let mut entries = Vec::with_capacity(order.len());
+        let mut values = TileValues::empty(self.header.precision);
+        let mut previous = None;
+        for r in order {
+            let what = || format!("layer {} of tile {tile}", r.layer);
+            let Some((_, layer_channels)) = self.layers.get(r.layer as usize) else {
+                return Err(RelumeError::IndexOutOfRange {
+                    what: what(),
+                    index: r.layer as u64,
+                    len: self.layers.len(),
+                });
+            };
+            if previous == Some(r.layer) {
+                return Err(RelumeError::invalid(what(), "given twice"));
+            }
+            previous = Some(r.layer);
+            if r.channels != 1 && r.channels != *layer_channels {
+                return Err(RelumeError::invalid(
+                    what(),
+                    format!("{} channels for a layer of {layer_channels}", r.channels),
+                ));
+            }
+            let c = r.channels as usize;
+            if r.radiance.len() != rect.pixels() * c {
+                return Err(RelumeError::invalid(
+                    what(),
+                    format!(
+                        "{} values; {} pixels × {c} channels expected",
+                        r.radiance.len(),
+                        rect.pixels()
+                    ),
+                ));
+            }
+            if r.radiance.iter().any(|v| !v.is_finite()) {
+                return Err(RelumeError::NonFinite {
+                    what: format!("radiance of {}", what()),
+                });
+            }
+            if r.radiance.iter().all(|&v| v == 0.0) {
+                continue;
+            }
+            let grey = c == 3
+                && r.radiance
+                    .chunks_exact(3)
+                    .all(|p| p[0] == p[1] && p[1] == p[2]);
+            let channels = if grey { 1 } else { c };
+            let offset = values.len() as u32;
+            let kept = r.radiance.chunks_exact(c).flat_map(|p| &p[..channels]);
+            let scale = match &mut values {
+                TileValues::F32(out) => {
+                    out.extend(kept);
+                    1.0
+                }
+                TileValues::F16(out) => {
+                    let max_abs = r.radiance.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+                    let scale = max_abs / 16384.0;
+                    let inv = 1.0 / scale;
+                    out.extend(kept.map(|v| f16::from_f32(v * inv)));
+                    scale
+                }
+            };
+            if !(scale.is_finite() && scale > 0.0) {
+                // Radiance so small that its scale underflows: nothing a relight could show.
+                values = truncate_values(values, offset as usize);
+                continue;
+            }
+            entries.push(TileLayer {
+                layer: r.layer,
+                channels: channels as u8,
+                scale,
+                offset,
+            });
+        }
+        let mut slot = slot.lock().unwrap_or_else(|p| p.into_inner());
+        if slot.is_some() {
+            return Err(RelumeError::invalid(
+                format!("tile {tile}"),
+                "inserted twice",
+            ));
+        }
+        *slot = Some(StackTile { entries, values });
+        Ok(())
+    }
+
+    /// The stack, once every tile was inserted. A layer's own scale (what
+    /// [`TiledStack::to_dense`] quantises to) is the largest of its entries' (1 when it has
+    /// none, and always for f32).
+    pub fn finish(self) -> Result<TiledStack> {
+        let mut tiles = Vec::with_capacity(self.tiles.len());
+        for (t, slot) in self.tiles.into_iter().enumerate() {
+            match slot.into_inner().unwrap_or_else(|p| p.into_inner()) {
+                Some(tile) => tiles.push(tile),
+                None => {
+                    return Err(RelumeError::invalid(
+                        "tiled stack",
+                        format!("tile {t} was never inserted"),
+                    ))
+                }
+            }
+        }
+        let mut scales = vec![0.0f32; self.layers.len()];
+        for tile in &tiles {
+            for e in &tile.entries {
+                let s = &mut scales[e.layer as usize];
+                *s = s.max(e.scale);
+            }
+        }
+        let stack = TiledStack {
+            header: self.header,
+            layers: self
+                .layers
+                .into_iter()
+                .zip(scales)
+                .map(|((key, channels), scale)| TiledLayerInfo {
+                    key,
+                    channels,
+                    scale: if scale > 0.0 { scale } else { 1.0 },
+                })
+                .collect(),
+            tiles,
+        };
+        validate(Path::new(""), &stack)?;
+        Ok(stack)
+    }
+}
+
+fn truncate_values(mut values: TileValues, len: usize) -> TileValues {
+    match &mut values {
+        TileValues::F16(v) => v.truncate(len),
+        TileValues::F32(v) => v.truncate(len),
+    }
+    values
+}

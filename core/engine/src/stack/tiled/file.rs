@@ -1,0 +1,713 @@
+//! The tiled stack as one OpenEXR file: stack format version
+//! [`STACK_FORMAT_VERSION_TILED`].
+//!
+//! Layout (three parts, scanlines, ZIP, written atomically like the dense file):
+//! - part `tiles`: one pixel per stack tile (`tiles_x × tiles_y`), channel `entries` (u32):
+//!   how many layers the tile holds — a map of the stack's sparsity that any EXR viewer
+//!   shows. It carries the Relume attributes, named as in the dense file
+//!   ([`ATTR_HEADER`] with format version 2, [`ATTR_FORMAT_VERSION`] = 2,
+//!   [`ATTR_SCENE_HASH`], [`ATTR_LAYERS`]: `[{name, channels, scale}, …]` per layer id).
+//! - part `entries`: the entry tables of all tiles back to back in raster order, one pixel
+//!   per entry, row-major in rows of up to [`ROW_WIDTH`] pixels (the last row padded with
+//!   zeros); channels `layer`, `channels`, `scale` (the f32's bits) and `offset`, all u32.
+//! - part `values`: the values of all tiles back to back, in rows of up to [`ROW_WIDTH`],
+//!   channel `value`, f16 or f32 per the stack's precision.
+//!
+//! Reading validates before trusting: the part and channel layout, every claimed size
+//! against the file's length and the memory budget before decoding, the entry count and
+//! value count the tables imply against the parts, then everything [`validate`] checks.
+//! Errors are the dense reader's: `StackForeign`, `StackVersion`, `StackTruncated`,
+//! `StackFormat` with a message naming what is wrong.
+
+use std::fs::File;
+use std::io::{BufReader, Seek, SeekFrom};
+use std::path::Path;
+
+use exr::prelude::{self as x, ReadChannels as _, ReadLayers as _, WritableImage as _};
+use serde::{Deserialize, Serialize};
+
+use super::validate::{format_err, validate};
+use super::{
+    StackTile, TileLayer, TileValues, TiledLayerInfo, TiledStack, STACK_FORMAT_VERSION_TILED,
+};
+use crate::bake::progress::Progress;
+use crate::bake::signature::LayerKey;
+use crate::error::{RelumeError, Result};
+use crate::image_io::write_atomic_checked;
+use crate::stack::exr_file::{
+    read_stack, ATTR_FORMAT_VERSION, ATTR_HEADER, ATTR_LAYERS, ATTR_SCENE_HASH,
+};
+use crate::stack::{Precision, StackHeader, STACK_FORMAT_VERSION};
+
+/// Longest row of the `entries` and `values` parts: wide enough that a big stack is a few
+/// hundred thousand rows, narrow enough that padding the last row costs nothing.
+pub const ROW_WIDTH: usize = 4096;
+
+const PART_TILES: &str = "tiles";
+const PART_ENTRIES: &str = "entries";
+const PART_VALUES: &str = "values";
+const CHANNEL_COUNT: &str = "entries";
+/// The entry channels, sorted by name as EXR stores them.
+const ENTRY_CHANNELS: [&str; 4] = ["channels", "layer", "offset", "scale"];
+const CHANNEL_VALUE: &str = "value";
+
+/// Most bytes of pixel data one byte of a compressed chunk can stand for (deflate peaks
+/// near 1032:1; the margin covers chunk headers), as in the dense reader.
+const MAX_COMPRESSION_RATIO: u64 = 1400;
+
+/// One entry of the layers attribute.
+#[derive(Serialize, Deserialize)]
+struct LayerEntry {
+    name: String,
+    channels: u8,
+    scale: f32,
+}
+
+/// Width and height of a part holding `n` values in rows of up to [`ROW_WIDTH`] (at least
+/// one pixel: an EXR part is never empty).
+fn rows_for(n: usize) -> (usize, usize) {
+    let width = n.clamp(1, ROW_WIDTH);
+    (width, n.div_ceil(width).max(1))
+}
+
+/// Passes writes through until `progress` is cancelled. (The dense writer has the same
+/// adapter, private to `exr_file.rs`; this one is its small equivalent.)
+struct CancellableWriter<'a, W> {
+    inner: W,
+    progress: &'a Progress,
+}
+
+impl<W> CancellableWriter<'_, W> {
+    fn check(&self) -> std::io::Result<()> {
+        if self.progress.is_cancelled() {
+            Err(std::io::Error::new(
+                std::io::ErrorKind::Interrupted,
+                "relume: write cancelled",
+            ))
+        } else {
+            Ok(())
+        }
+    }
+}
+
+impl<W: std::io::Write> std::io::Write for CancellableWriter<'_, W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.check()?;
+        self.inner.write(buf)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush()
+    }
+}
+
+impl<W: std::io::Seek> std::io::Seek for CancellableWriter<'_, W> {
+    fn seek(&mut self, pos: SeekFrom) -> std::io::Result<u64> {
+        self.check()?;
+        self.inner.seek(pos)
+    }
+}
+
+fn channel(name: &str, samples: x::FlatSamples) -> x::AnyChannel<x::FlatSamples> {
+    x::AnyChannel::new(x::Text::from_slice_unchecked(name.as_bytes()), samples)
+}
+
+fn part(
+    name: &str,
+    size: (usize, usize),
+    other: std::collections::HashMap<x::Text, x::AttributeValue>,
+    list: Vec<x::AnyChannel<x::FlatSamples>>,
+) -> x::Layer<x::AnyChannels<x::FlatSamples>> {
+    x::Layer::new(
+        size,
+        x::LayerAttributes {
+            layer_name: Some(x::Text::from(name)),
+            software_name: Some(x::Text::from_slice_unchecked(
+                concat!("Relume ", env!("CARGO_PKG_VERSION")).as_bytes(),
+            )),
+            other,
+            ..Default::default()
+        },
+        x::Encoding {
+            compression: x::Compression::ZIP16,
+            blocks: x::Blocks::ScanLines,
+            line_order: x::LineOrder::Increasing,
+        },
+        x::AnyChannels::sort(list.into_iter().collect()),
+    )
+}
+
+/// Writes `stack` to `path` (see the module doc) atomically — temp file, fsync, rename —
+/// and returns the bytes written. The stack is validated first ([`validate`]); an invalid
+/// one gives [`RelumeError::StackFormat`] and touches no file.
+pub fn write_tiled(path: &Path, stack: &TiledStack) -> Result<u64> {
+    write_tiled_cancellable(path, stack, &Progress::new())
+}
+
+/// [`write_tiled`] that stops with [`RelumeError::Cancelled`] when `progress` is
+/// cancelled before the rename, leaving an existing file at `path` as it was.
+pub fn write_tiled_cancellable(
+    path: &Path,
+    stack: &TiledStack,
+    progress: &Progress,
+) -> Result<u64> {
+    progress.check()?;
+    validate(path, stack)?;
+    encode(path, stack, progress)
+}
+
+/// Writes `stack` as [`write_tiled`] does but without [`validate`]: for the reader's
+/// tests and fuzzers, which need files whose tables lie. Not for stacks meant to be read.
+#[doc(hidden)]
+pub fn write_tiled_unchecked(path: &Path, stack: &TiledStack) -> Result<u64> {
+    encode(path, stack, &Progress::new())
+}
+
+fn encode(path: &Path, stack: &TiledStack, progress: &Progress) -> Result<u64> {
+    let h = &stack.header;
+    let header_json = serde_json::to_string(h)
+        .map_err(|e| format_err(path, format!("header does not serialise: {e}")))?;
+    if serde_json::from_str::<StackHeader>(&header_json)
+        .ok()
+        .as_ref()
+        != Some(h)
+    {
+        return Err(format_err(
+            path,
+            "header does not round-trip through JSON (a non-finite number in it?)",
+        ));
+    }
+    let layers: Vec<LayerEntry> = stack
+        .layers
+        .iter()
+        .map(|l| LayerEntry {
+            name: l.key.layer_name(),
+            channels: l.channels,
+            scale: l.scale,
+        })
+        .collect();
+    let layers_json = serde_json::to_string(&layers)
+        .map_err(|e| format_err(path, format!("layer list does not serialise: {e}")))?;
+
+    let entry_count = stack.entry_count();
+    let value_count: usize = stack.tiles.iter().map(|t| t.values.len()).sum();
+    let entry_size = rows_for(entry_count);
+    let value_size = rows_for(value_count);
+    let mut counts: Vec<u32> = stack.tiles.iter().map(|t| t.entries.len() as u32).collect();
+    // A validated stack has exactly this many tiles; the unchecked writer must not hand
+    // the encoder a part of another size.
+    counts.resize(stack.tile_count(), 0);
+    let mut table: [Vec<u32>; 4] = Default::default();
+    for column in &mut table {
+        column.reserve_exact(entry_size.0 * entry_size.1);
+    }
+    for e in stack
+        .tiles
+        .iter()
+        .take(stack.tile_count())
+        .flat_map(|t| &t.entries)
+    {
+        let [channels, layer, offset, scale] = &mut table;
+        channels.push(e.channels as u32);
+        layer.push(e.layer);
+        offset.push(e.offset);
+        scale.push(e.scale.to_bits());
+    }
+    for column in &mut table {
+        column.resize(entry_size.0 * entry_size.1, 0);
+    }
+    let padded_values = value_size.0 * value_size.1;
+    let values = match h.precision {
+        Precision::F16 => {
+            let mut v = crate::memory::try_with_capacity(padded_values, "the stack's values")?;
+            for t in &stack.tiles {
+                if let TileValues::F16(s) = &t.values {
+                    v.extend_from_slice(s);
+                }
+            }
+            v.resize(padded_values, half::f16::ZERO);
+            x::FlatSamples::F16(v)
+        }
+        Precision::F32 => {
+            let mut v = crate::memory::try_with_capacity(padded_values, "the stack's values")?;
+            for t in &stack.tiles {
+                if let TileValues::F32(s) = &t.values {
+                    v.extend_from_slice(s);
+                }
+            }
+            v.resize(padded_values, 0.0);
+            x::FlatSamples::F32(v)
+        }
+    };
+
+    let text = |s: &str| x::AttributeValue::Text(x::Text::from_slice_unchecked(s.as_bytes()));
+    let mut other = std::collections::HashMap::new();
+    other.insert(x::Text::from(ATTR_HEADER), text(&header_json));
+    other.insert(
+        x::Text::from(ATTR_FORMAT_VERSION),
+        x::AttributeValue::I32(STACK_FORMAT_VERSION_TILED as i32),
+    );
+    other.insert(x::Text::from(ATTR_SCENE_HASH), text(&h.scene_hash));
+    other.insert(x::Text::from(ATTR_LAYERS), text(&layers_json));
+
+    let [channels, layer, offset, scale] = table;
+    let parts = vec![
+        part(
+            PART_TILES,
+            (stack.tiles_x() as usize, stack.tiles_y() as usize),
+            other,
+            vec![channel(CHANNEL_COUNT, x::FlatSamples::U32(counts))],
+        ),
+        part(
+            PART_ENTRIES,
+            entry_size,
+            Default::default(),
+            [channels, layer, offset, scale]
+                .into_iter()
+                .zip(ENTRY_CHANNELS)
+                .map(|(v, name)| channel(name, x::FlatSamples::U32(v)))
+                .collect(),
+        ),
+        part(
+            PART_VALUES,
+            value_size,
+            Default::default(),
+            vec![channel(CHANNEL_VALUE, values)],
+        ),
+    ];
+    let image = x::Image::from_layers(
+        x::ImageAttributes::with_size((h.width as usize, h.height as usize)),
+        parts,
+    );
+    progress.check()?;
+    write_atomic_checked(
+        path,
+        |w| {
+            let writer = CancellableWriter { inner: w, progress };
+            image.write().to_buffered(writer).map_err(|e| match e {
+                _ if progress.is_cancelled() => RelumeError::Cancelled,
+                x::Error::Io(io) => RelumeError::io(path, io),
+                other => format_err(path, format!("OpenEXR write failed: {other}")),
+            })
+        },
+        || progress.check(),
+    )
+}
+
+/// Maps an exr error like the dense reader does (its mapping is private to
+/// `exr_file.rs`): missing bytes → `StackTruncated`, a wrong magic number →
+/// `StackForeign`, damaged pixel data → `StackTruncated`, the rest → `StackFormat`.
+fn map_exr_err(path: &Path, e: x::Error, in_pixels: bool) -> RelumeError {
+    let truncated = |m: String| RelumeError::StackTruncated {
+        path: path.to_path_buf(),
+        message: m,
+    };
+    match e {
+        x::Error::Io(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+            truncated(io.to_string())
+        }
+        x::Error::Io(io) => RelumeError::io(path, io),
+        x::Error::Invalid(m) if m == "reference to missing bytes" => {
+            truncated(format!("bytes missing ({m})"))
+        }
+        x::Error::Invalid(m) if m == "file identifier missing" => RelumeError::StackForeign {
+            path: path.to_path_buf(),
+            message: "not an OpenEXR file (wrong magic number)".into(),
+        },
+        x::Error::Invalid(m) if in_pixels => truncated(format!("pixel data: {m}")),
+        x::Error::Invalid(m) => format_err(path, format!("invalid OpenEXR meta data: {m}")),
+        x::Error::NotSupported(m) => format_err(path, format!("unsupported OpenEXR feature: {m}")),
+        x::Error::Aborted => format_err(path, "reading was aborted"),
+    }
+}
+
+fn text_attr(path: &Path, attrs: &x::LayerAttributes, name: &str) -> Result<Option<String>> {
+    match attrs.other.get(&x::Text::from(name)) {
+        None => Ok(None),
+        Some(x::AttributeValue::Text(t)) => String::from_utf8(t.as_slice().to_vec())
+            .map(Some)
+            .map_err(|_| format_err(path, format!("attribute {name} is not UTF-8 text"))),
+        Some(_) => Err(format_err(path, format!("attribute {name} is not text"))),
+    }
+}
+
+fn part_name(h: &exr::meta::header::Header) -> String {
+    h.own_attributes
+        .layer_name
+        .as_ref()
+        .map(|n| String::from_utf8_lossy(n.as_slice()).into_owned())
+        .unwrap_or_default()
+}
+
+/// Reads a stack file as a [`TiledStack`]: a version-2 file as it is stored; a version-1
+/// (dense) file through the dense reader ([`read_stack`]) and [`TiledStack::from_dense`] —
+/// that path holds the whole dense stack in memory once. Another version gives
+/// [`RelumeError::StackVersion`] (a rebake).
+pub fn read_tiled(path: &Path) -> Result<TiledStack> {
+    let file = File::open(path).map_err(|e| RelumeError::io(path, e))?;
+    let mut reader = BufReader::with_capacity(1 << 20, file);
+    let meta = x::MetaData::read_from_buffered(&mut reader, false)
+        .map_err(|e| map_exr_err(path, e, false))?;
+    let Some(first) = meta.headers.first() else {
+        return Err(format_err(path, "the file has no part"));
+    };
+    let attrs = &first.own_attributes;
+    let Some(header_json) = text_attr(path, attrs, ATTR_HEADER)? else {
+        return Err(RelumeError::StackForeign {
+            path: path.to_path_buf(),
+            message: format!("an OpenEXR image without the {ATTR_HEADER} attribute"),
+        });
+    };
+    let version = match attrs.other.get(&x::Text::from(ATTR_FORMAT_VERSION)) {
+        Some(x::AttributeValue::I32(v)) => *v,
+        Some(_) => {
+            return Err(format_err(
+                path,
+                format!("attribute {ATTR_FORMAT_VERSION} is not an i32"),
+            ))
+        }
+        None => {
+            return Err(format_err(
+                path,
+                format!("attribute {ATTR_FORMAT_VERSION} is missing"),
+            ))
+        }
+    };
+    if version == STACK_FORMAT_VERSION as i32 {
+        drop(reader);
+        return TiledStack::from_dense(&read_stack(path)?).map_err(|e| with_path(e, path));
+    }
+    if version != STACK_FORMAT_VERSION_TILED as i32 {
+        return Err(RelumeError::StackVersion {
+            path: path.to_path_buf(),
+            found: version.max(0) as u32,
+            supported: STACK_FORMAT_VERSION_TILED,
+        });
+    }
+    let header: StackHeader = serde_json::from_str(&header_json).map_err(|e| {
+        format_err(
+            path,
+            format!("attribute {ATTR_HEADER} is not a stack header: {e}"),
+        )
+    })?;
+    if header.format_version != STACK_FORMAT_VERSION_TILED {
+        return Err(format_err(
+            path,
+            format!(
+                "{ATTR_HEADER} says format version {} but {ATTR_FORMAT_VERSION} says {version}",
+                header.format_version
+            ),
+        ));
+    }
+    if text_attr(path, attrs, ATTR_SCENE_HASH)?.as_deref() != Some(&header.scene_hash) {
+        return Err(format_err(
+            path,
+            format!("attribute {ATTR_SCENE_HASH} is missing or differs from {ATTR_HEADER}"),
+        ));
+    }
+    crate::scene::Resolution {
+        width: header.width,
+        height: header.height,
+    }
+    .validate("stack resolution")
+    .map_err(|e| format_err(path, e.to_string()))?;
+    let layers_json = text_attr(path, attrs, ATTR_LAYERS)?
+        .ok_or_else(|| format_err(path, format!("attribute {ATTR_LAYERS} is missing")))?;
+    let layer_entries: Vec<LayerEntry> = serde_json::from_str(&layers_json).map_err(|e| {
+        format_err(
+            path,
+            format!("attribute {ATTR_LAYERS} is not a layer list: {e}"),
+        )
+    })?;
+    let mut layers = Vec::with_capacity(layer_entries.len());
+    for e in layer_entries {
+        let key = LayerKey::parse(&e.name).ok_or_else(|| {
+            format_err(
+                path,
+                format!("layer name {:?} is not a path signature", e.name),
+            )
+        })?;
+        layers.push(TiledLayerInfo {
+            key,
+            channels: e.channels,
+            scale: e.scale,
+        });
+    }
+
+    check_claims_against_file(path, &meta, &reader)?;
+    check_layout(path, &header, &meta)?;
+
+    reader
+        .seek(SeekFrom::Start(0))
+        .map_err(|e| RelumeError::io(path, e))?;
+    let image = x::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .all_layers()
+        .all_attributes()
+        .pedantic()
+        .from_buffered(reader)
+        .map_err(|e| map_exr_err(path, e, true))?;
+    let mut parts = image.layer_data.into_iter();
+    let (Some(tiles_part), Some(entries_part), Some(values_part)) =
+        (parts.next(), parts.next(), parts.next())
+    else {
+        return Err(format_err(path, "the file lost a part while decoding"));
+    };
+    let counts = u32_channels(path, tiles_part)?.pop().unwrap_or_default();
+    let table = u32_channels(path, entries_part)?;
+    let [channels, layer, offset, scale] = <[Vec<u32>; 4]>::try_from(table)
+        .map_err(|_| format_err(path, "the entries part lost a channel"))?;
+    let values = values_part
+        .channel_data
+        .list
+        .into_iter()
+        .next()
+        .map(|c| c.sample_data)
+        .ok_or_else(|| format_err(path, "the values part has no channel"))?;
+
+    let stack = assemble(
+        path,
+        header,
+        layers,
+        &counts,
+        [&channels, &layer, &offset, &scale],
+        values,
+    )?;
+    validate(path, &stack)?;
+    Ok(stack)
+}
+
+/// Puts `path` into an error raised without one (from a conversion in memory).
+fn with_path(e: RelumeError, path: &Path) -> RelumeError {
+    match e {
+        RelumeError::StackFormat { message, .. } => format_err(path, message),
+        other => other,
+    }
+}
+
+fn u32_channels(
+    path: &Path,
+    part: x::Layer<x::AnyChannels<x::FlatSamples>>,
+) -> Result<Vec<Vec<u32>>> {
+    part.channel_data
+        .list
+        .into_iter()
+        .map(|c| match c.sample_data {
+            x::FlatSamples::U32(v) => Ok(v),
+            _ => Err(format_err(path, "a table channel is not u32")),
+        })
+        .collect()
+}
+
+/// The parts, their names, sizes and channels, before any pixel is decoded.
+fn check_layout(path: &Path, header: &StackHeader, meta: &x::MetaData) -> Result<()> {
+    let names: Vec<String> = meta.headers.iter().map(part_name).collect();
+    if names != [PART_TILES, PART_ENTRIES, PART_VALUES] {
+        return Err(format_err(
+            path,
+            format!(
+                "parts {names:?}; a tiled stack has {PART_TILES}, {PART_ENTRIES}, {PART_VALUES}"
+            ),
+        ));
+    }
+    let channels = |h: &exr::meta::header::Header| -> Vec<(String, x::SampleType)> {
+        h.channels
+            .list
+            .iter()
+            .map(|c| {
+                (
+                    String::from_utf8_lossy(c.name.as_slice()).into_owned(),
+                    c.sample_type,
+                )
+            })
+            .collect()
+    };
+    let value_type = match header.precision {
+        Precision::F16 => x::SampleType::F16,
+        Precision::F32 => x::SampleType::F32,
+    };
+    let expected = [
+        vec![(CHANNEL_COUNT.to_string(), x::SampleType::U32)],
+        ENTRY_CHANNELS
+            .iter()
+            .map(|n| (n.to_string(), x::SampleType::U32))
+            .collect(),
+        vec![(CHANNEL_VALUE.to_string(), value_type)],
+    ];
+    for ((h, name), want) in meta.headers.iter().zip(&names).zip(&expected) {
+        if channels(h) != *want {
+            return Err(format_err(
+                path,
+                format!(
+                    "part {name} has channels {:?}; expected {want:?}",
+                    channels(h)
+                ),
+            ));
+        }
+        if h.deep {
+            return Err(format_err(path, format!("part {name} is deep data")));
+        }
+    }
+    let tiles = meta.headers[0].layer_size;
+    let (tx, ty) = (
+        super::tiles_along(header.width) as usize,
+        super::tiles_along(header.height) as usize,
+    );
+    if (tiles.width(), tiles.height()) != (tx, ty) {
+        return Err(format_err(
+            path,
+            format!(
+                "part {PART_TILES} is {}×{}; {}×{} pixels need {tx}×{ty} tiles",
+                tiles.width(),
+                tiles.height(),
+                header.width,
+                header.height
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// What the parts claim against the file's length (no compression makes a few KiB into
+/// gigabytes) and, decoded plus assembled (≈ twice the pixel data), against the memory
+/// budget ([`crate::memory::check_budget`]), before anything of that size is allocated.
+fn check_claims_against_file(
+    path: &Path,
+    meta: &x::MetaData,
+    reader: &BufReader<File>,
+) -> Result<()> {
+    let file_len = reader
+        .get_ref()
+        .metadata()
+        .map_err(|e| RelumeError::io(path, e))?
+        .len();
+    let mut raw = 0u64;
+    for h in &meta.headers {
+        let bytes_per_pixel: u64 = h
+            .channels
+            .list
+            .iter()
+            .map(|c| match c.sample_type {
+                x::SampleType::F16 => 2u64,
+                x::SampleType::F32 | x::SampleType::U32 => 4,
+            })
+            .sum();
+        let part = crate::memory::checked_product(
+            "the stack's pixel data",
+            &[
+                h.layer_size.width() as u64,
+                h.layer_size.height() as u64,
+                bytes_per_pixel,
+            ],
+        )?;
+        let ratio = if h.compression == x::Compression::Uncompressed {
+            1
+        } else {
+            MAX_COMPRESSION_RATIO
+        };
+        if part > file_len.saturating_mul(ratio) {
+            return Err(RelumeError::StackTruncated {
+                path: path.to_path_buf(),
+                message: format!(
+                    "part {} claims {} of pixel data, more than a file of {} can hold at any compression ratio",
+                    part_name(h),
+                    crate::memory::human_bytes(part),
+                    crate::memory::human_bytes(file_len)
+                ),
+            });
+        }
+        raw = raw.saturating_add(part);
+    }
+    crate::memory::check_budget(
+        &format!("loading the stack {}", path.display()),
+        raw.saturating_mul(2),
+        None,
+    )
+}
+
+/// The tiles from the decoded tables: counts per tile, the entry columns, the values.
+/// Checks what slicing needs (counts and value totals against the parts, channels 1 or 3);
+/// [`validate`] checks the rest.
+fn assemble(
+    path: &Path,
+    header: StackHeader,
+    layers: Vec<TiledLayerInfo>,
+    counts: &[u32],
+    [channels, layer, offset, scale]: [&[u32]; 4],
+    values: x::FlatSamples,
+) -> Result<TiledStack> {
+    let entry_total: u64 = counts.iter().map(|&c| c as u64).sum();
+    let table_len = channels.len() as u64;
+    if entry_total > table_len || table_len - entry_total >= ROW_WIDTH as u64 {
+        return Err(format_err(
+            path,
+            format!(
+                "the tiles count {entry_total} entries but part {PART_ENTRIES} holds {table_len}"
+            ),
+        ));
+    }
+    let value_len = values.len() as u64;
+    let mut tiles: Vec<StackTile> =
+        crate::memory::try_with_capacity(counts.len(), "the stack's tiles")?;
+    let mut next_entry = 0usize;
+    let mut next_value = 0u64;
+    for (t, &count) in counts.iter().enumerate() {
+        let pixels = super::tile_rect(header.width, header.height, t).pixels() as u64;
+        let mut entries = Vec::with_capacity(count as usize);
+        let mut tile_values = 0u64;
+        for k in next_entry..next_entry + count as usize {
+            let c = channels[k];
+            if c != 1 && c != 3 {
+                return Err(format_err(
+                    path,
+                    format!("tile {t}: an entry has {c} channels; 1 (grey) or 3 (RGB)"),
+                ));
+            }
+            tile_values += pixels * c as u64;
+            entries.push(TileLayer {
+                layer: layer[k],
+                channels: c as u8,
+                scale: f32::from_bits(scale[k]),
+                offset: offset[k],
+            });
+        }
+        next_entry += count as usize;
+        let range = next_value..next_value + tile_values;
+        if range.end > value_len {
+            return Err(format_err(
+                path,
+                format!(
+                    "tile {t}: its entries need values up to {} but part {PART_VALUES} holds {value_len}",
+                    range.end
+                ),
+            ));
+        }
+        let range = range.start as usize..range.end as usize;
+        let tile_values = match &values {
+            x::FlatSamples::F16(v) => TileValues::F16(v[range.clone()].to_vec()),
+            x::FlatSamples::F32(v) => TileValues::F32(v[range.clone()].to_vec()),
+            x::FlatSamples::U32(_) => {
+                return Err(format_err(path, format!("part {PART_VALUES} holds u32")))
+            }
+        };
+        next_value = range.end as u64;
+        tiles.push(StackTile {
+            entries,
+            values: tile_values,
+        });
+    }
+    if value_len - next_value >= ROW_WIDTH as u64 {
+        return Err(format_err(
+            path,
+            format!(
+                "the entries need {next_value} values but part {PART_VALUES} holds {value_len}"
+            ),
+        ));
+    }
+    Ok(TiledStack {
+        header,
+        layers,
+        tiles,
+    })
+}
