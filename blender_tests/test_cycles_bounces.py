@@ -30,6 +30,7 @@ import numpy as np
 import pytest
 from support import cycles as cy
 from support.scene_import import import_scene
+from support.scenes import add_camera_and_black_world
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 RES = 64
@@ -153,21 +154,7 @@ def _room_with_window(resolution: int):
     # Local −Z → (0, −0.766, −0.643): into the room through the window, down at 40°.
     sun_obj.rotation_euler = (math.radians(-50.0), 0.0, 0.0)
     scene.collection.objects.link(sun_obj)
-    cam_data = bpy.data.cameras.new("Cam")
-    cam_data.lens = 18
-    cam = bpy.data.objects.new("Cam", cam_data)
-    cam.location = (0.3, -1.8, 1.4)
-    cam.rotation_euler = (math.radians(78), 0.0, math.radians(8))
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-    scene.render.resolution_x = resolution
-    scene.render.resolution_y = resolution
-    scene.render.resolution_percentage = 100
-    world = bpy.data.worlds.new("World")
-    world.use_nodes = True
-    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
-    scene.world = world
-    bpy.context.view_layer.update()
+    add_camera_and_black_world(scene, resolution, 18, (0.3, -1.8, 1.4), (78, 0, 8))
 
 
 def test_room_lit_by_a_sun_through_a_window_at_default_bounces(addon, prefs, blend_dir, results_file):

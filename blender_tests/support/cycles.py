@@ -38,6 +38,8 @@ import time
 import bpy
 import numpy as np
 
+from support.scenes import add_camera_and_black_world
+
 #: Light-path limits `configure_cycles(bounces=None)` leaves at Blender's defaults.
 BOUNCE_SETTINGS = ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces",
                    "volume_bounces", "transparent_max_bounces")
@@ -207,21 +209,7 @@ def open_scene(resolution: int) -> bpy.types.Scene:
     _mesh_object("Wall", [(-s, 1.5, 0), (s, 1.5, 0), (s, 1.5, 2.5), (-s, 1.5, 2.5)], [(0, 1, 2, 3)], wall)
     verts, faces = _uv_sphere((0.0, 0.0, 0.5), 0.5)
     _mesh_object("Sphere", verts, faces, ball, smooth=True)
-    cam_data = bpy.data.cameras.new("Cam")
-    cam_data.lens = 35
-    cam = bpy.data.objects.new("Cam", cam_data)
-    cam.location = (0.0, -4.5, 2.2)
-    cam.rotation_euler = (math.radians(68), 0.0, 0.0)
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-    scene.render.resolution_x = resolution
-    scene.render.resolution_y = resolution
-    scene.render.resolution_percentage = 100
-    world = bpy.data.worlds.new("World")
-    world.use_nodes = True
-    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
-    scene.world = world
-    bpy.context.view_layer.update()
+    add_camera_and_black_world(scene, resolution, 35, (0.0, -4.5, 2.2), (68, 0, 0))
     return scene
 
 

@@ -62,21 +62,7 @@ def box_scene(resolution: int = 48, light_power: float = 60.0):
     light = bpy.data.objects.new("Key", light_data)
     light.location = (0.0, 0.0, 1.95)
     scene.collection.objects.link(light)
-    cam_data = bpy.data.cameras.new("Cam")
-    cam_data.lens = 30
-    cam = bpy.data.objects.new("Cam", cam_data)
-    cam.location = (0.0, -3.6, 1.0)
-    cam.rotation_euler = (math.radians(90), 0.0, 0.0)
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-    scene.render.resolution_x = resolution
-    scene.render.resolution_y = resolution
-    scene.render.resolution_percentage = 100
-    world = bpy.data.worlds.new("World")
-    world.use_nodes = True
-    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
-    scene.world = world
-    bpy.context.view_layer.update()
+    add_camera_and_black_world(scene, resolution, 30, (0.0, -3.6, 1.0), (90, 0, 0))
     return scene
 
 
@@ -103,3 +89,24 @@ def save_and_reopen(addon) -> dict:
     addon.runtime.RUNTIME.live.unload()
     bpy.ops.wm.open_mainfile(filepath=path)
     return addon.api.status()
+
+
+def add_camera_and_black_world(scene, resolution: int, lens: float, location, rotation_deg):
+    """A camera "Cam" (focal length `lens` mm, at `location`, Euler XYZ `rotation_deg` in
+    degrees) made the scene's camera, a square `resolution`² render, and a black world: the
+    framing every test scene here shares."""
+    cam_data = bpy.data.cameras.new("Cam")
+    cam_data.lens = lens
+    cam = bpy.data.objects.new("Cam", cam_data)
+    cam.location = location
+    cam.rotation_euler = tuple(math.radians(a) for a in rotation_deg)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    scene.render.resolution_x = resolution
+    scene.render.resolution_y = resolution
+    scene.render.resolution_percentage = 100
+    world = bpy.data.worlds.new("World")
+    world.use_nodes = True
+    world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    scene.world = world
+    bpy.context.view_layer.update()
