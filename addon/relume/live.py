@@ -30,15 +30,21 @@ def request_stale_check() -> None:
         bpy.app.timers.register(_deferred_stale_check, first_interval=0.5)
 
 
-def _affects_bake(update, stack) -> bool:
+def _affects_bake(update, editable: set[str]) -> bool:
+    """Whether one depsgraph update may change what the bake saw.
+
+    An edit of an editable material also tags the objects and meshes that use it, for
+    shading only: those updates carry no transform or geometry change and are not a reason
+    for a stale check (a full export), which would otherwise run on every slider step.
+    Objects, meshes and curves count when they moved or their geometry changed (vertices,
+    modifiers, material slots); collections when their members or visibility changed.
+    """
     idt = update.id
     if isinstance(idt, bpy.types.Material):
-        editable = set(stack.editable_regions)
         return not (idt.name in editable and idt.relume.editable)
-    if isinstance(idt, bpy.types.Object):
+    if isinstance(idt, (bpy.types.Object, bpy.types.Mesh, bpy.types.Curve, bpy.types.Collection)):
         return update.is_updated_transform or update.is_updated_geometry
-    return isinstance(idt, (bpy.types.Mesh, bpy.types.Light, bpy.types.Camera, bpy.types.World,
-                            bpy.types.Curve))
+    return isinstance(idt, (bpy.types.Light, bpy.types.Camera, bpy.types.World))
 
 
 @persistent
@@ -46,6 +52,7 @@ def on_depsgraph_update(scene, depsgraph) -> None:
     live = RUNTIME.live
     if live.stack is None:
         return
+    editable = set(live.stack.editable_regions)
     material_changed = False
     stale_suspect = False
     for update in depsgraph.updates:
@@ -54,7 +61,7 @@ def on_depsgraph_update(scene, depsgraph) -> None:
             continue
         if isinstance(idt, (bpy.types.Material, bpy.types.ShaderNodeTree)):
             material_changed = True
-        if _affects_bake(update, live.stack):
+        if not stale_suspect and _affects_bake(update, editable):
             stale_suspect = True
     if stale_suspect:
         request_stale_check()

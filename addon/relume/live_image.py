@@ -53,8 +53,11 @@ def relight_now(force: bool = False) -> bool:
     RUNTIME.live.relight_error = None
     if outcome is None:
         return False
+    t_upload = time.perf_counter()
     write_image(outcome.image)
-    RUNTIME.live.last_latency_ms = (time.perf_counter() - t0) * 1e3
+    t_end = time.perf_counter()
+    RUNTIME.live.last_upload_ms = (t_end - t_upload) * 1e3
+    RUNTIME.live.last_latency_ms = (t_end - t0) * 1e3
     _redraw_image_editors()
     return True
 

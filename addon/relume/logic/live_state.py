@@ -37,8 +37,12 @@ class LiveState:
         self.applied: dict[str, RegionParams] = {}
         #: Light group → (strength, (r, g, b)) last sent to the relighter.
         self.applied_gains: dict[str, tuple] = {}
+        #: Timings of the last live relight (`live_image.relight_now`), for the panel and
+        #: the edit-latency benchmark: the whole call, the relight alone (as Python sees
+        #: it) and the copy of its pixels into the Blender image.
         self.last_latency_ms: float | None = None
         self.last_relight_ms: float | None = None
+        self.last_upload_ms: float | None = None
 
     @property
     def ready(self) -> bool:

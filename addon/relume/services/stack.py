@@ -6,7 +6,7 @@ import os
 
 import bpy
 
-from ..live_image import on_stack_loaded, relight_now
+from ..live_image import IMAGE_NAME, on_stack_loaded, relight_now
 from ..prefs import get_prefs
 from ..runtime import RUNTIME
 from ..stack_location import stack_location
@@ -42,7 +42,10 @@ def check_stale(context=None) -> str | None:
     except Exception as e:  # an export that fails cannot match the stack either
         live.stale_reason = f"the scene cannot be exported: {e}"
         return live.stale_reason
+    was_stale = live.stale_reason is not None
     live.check(result.scene)
     if live.stale_reason is None:
-        relight_now(force=True)
+        # Back from stale (or the image was deleted): the image shows nothing current, so
+        # relight every region. Otherwise only what changed, as a slider edit would.
+        relight_now(force=was_stale or bpy.data.images.get(IMAGE_NAME) is None)
     return live.stale_reason
