@@ -20,8 +20,20 @@ from .scene_values import current_gains, current_params, sync_light_groups
 IMAGE_NAME = "Relume"
 
 
+def _bottom_first(pixels: np.ndarray) -> np.ndarray:
+    """`pixels` with its rows reversed (Blender's order), as the contiguous float32 array
+    `foreach_set` copies from at memory speed. Written into one buffer kept for the session
+    (`RUNTIME.upload_buffer`), so an edit allocates nothing the size of the frame."""
+    buf = RUNTIME.upload_buffer
+    if buf is None or buf.shape != pixels.shape:
+        buf = RUNTIME.upload_buffer = np.empty(pixels.shape, np.float32)
+    np.copyto(buf, pixels[::-1])
+    return buf
+
+
 def write_image(pixels: np.ndarray) -> bpy.types.Image:
-    """Put an (h, w, 4) bottom-row-first float image into the "Relume" image."""
+    """Put an (h, w, 4) top-row-first float image (the relighter's order) into the "Relume"
+    image."""
     h, w = pixels.shape[0], pixels.shape[1]
     img = bpy.data.images.get(IMAGE_NAME)
     if img is not None and (img.size[0] != w or img.size[1] != h or not img.is_float):
@@ -32,7 +44,7 @@ def write_image(pixels: np.ndarray) -> bpy.types.Image:
         # Older colour-management configs name it "Linear"; float images default to it.
         with contextlib.suppress(TypeError):
             img.colorspace_settings.name = "Linear Rec.709"
-    img.pixels.foreach_set(np.ascontiguousarray(pixels, dtype=np.float32).ravel())
+    img.pixels.foreach_set(_bottom_first(pixels).ravel())
     img.update()
     return img
 

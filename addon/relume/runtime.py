@@ -19,6 +19,8 @@ class Runtime:
         self.light_names: list[str] = []  # the last export's lights, in scene order
         self.stale_check_pending = False
         self.relight_timer_registered = False
+        #: The relit pixels in Blender's row order, reused by every write of the image.
+        self.upload_buffer = None
         self.last_status = ""
         self.estimate: dict | None = None  # the last `api.estimate()`: cost before a bake
 

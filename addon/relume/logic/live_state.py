@@ -20,7 +20,7 @@ from .region_params import RegionParams
 
 @dataclass
 class RelightOutcome:
-    image: object  # numpy (h, w, 4) float32, bottom row first (Blender's order)
+    image: object  # numpy (h, w, 4) float32, top row first (the relighter's own order)
     changed: list
     relight_ms: float
 
@@ -149,6 +149,9 @@ class LiveState:
         if not changed and not force:
             return None
         t0 = time.perf_counter()
-        image = self.relighter.relight(flip_y=True)
+        # Rows top first: the relighter hands out its image as it holds it, and the one copy
+        # into Blender's bottom-first order is made where the image is written
+        # (`live_image.write_image`), as a block copy of whole rows.
+        image = self.relighter.relight()
         self.last_relight_ms = (time.perf_counter() - t0) * 1e3
         return RelightOutcome(image=image, changed=changed, relight_ms=self.last_relight_ms)

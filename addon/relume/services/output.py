@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 
 import bpy
+import numpy as np
 
 from ..live_image import write_image
 from ..runtime import RUNTIME
@@ -13,8 +14,9 @@ from . import stack as stack_service
 from .errors import BakeError
 
 
-def relight(context=None):
-    """Relight with the current material values; returns the (h, w, 4) image (bottom row first)."""
+def _relit_top_first(context=None):
+    """Relight with the current material values, write the "Relume" image, and return the
+    relit (h, w, 4) image with its rows top first (the relighter's order)."""
     live = RUNTIME.live
     if live.stack is None and not stack_service.load_stack(context):
         raise BakeError(f"no usable Relume stack: {live.load_error or 'not baked yet'}")
@@ -25,18 +27,22 @@ def relight(context=None):
     return outcome.image
 
 
+def relight(context=None):
+    """Relight with the current material values; returns the (h, w, 4) image (bottom row first)."""
+    return np.ascontiguousarray(_relit_top_first(context)[::-1])
+
+
 def render(filepath: str, context=None, check_stale: bool = True) -> str:
     """Write the relit image to `filepath` (.exr: linear float; .png: sRGB 8-bit)."""
     import relume
 
     if check_stale and RUNTIME.live.stack is not None and stack_service.check_stale(context) is not None:
         raise BakeError(f"the Relume stack is stale: {RUNTIME.live.stale_reason}")
-    image = relight(context)
+    top_first = _relit_top_first(context)
     path = bpy.path.abspath(filepath)
     folder = os.path.dirname(path)
     if folder:
         os.makedirs(folder, exist_ok=True)
-    top_first = image[::-1]
     if path.lower().endswith(".png"):
         relume.write_png(path, top_first)
     elif path.lower().endswith(".exr"):
