@@ -39,6 +39,13 @@ enum Command {
     Basis(commands::basis::Args),
     /// Bake every preset on the scenes and measure error against time: table and chart.
     Report(commands::report::Args),
+    /// What a stack file holds: layers possible and stored, tile entries, stored bytes
+    /// against the dense layout's.
+    Info {
+        stack: std::path::PathBuf,
+        #[arg(long)]
+        json: bool,
+    },
     /// Benchmarks that print figures.
     #[command(subcommand)]
     Bench(commands::bench::Bench),
@@ -54,6 +61,7 @@ fn main() {
         Command::Compare(a) => commands::compare::run(a),
         Command::Basis(a) => commands::basis::run(a),
         Command::Report(a) => commands::report::run(a),
+        Command::Info { stack, json } => commands::info::run(&stack, json),
         Command::Bench(b) => commands::bench::run(b),
     };
     if let Err(e) = result {

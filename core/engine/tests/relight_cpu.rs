@@ -238,7 +238,11 @@ fn zero_rows_and_columns_are_skipped_and_correct() {
     assert_close(&img, &reference(&stack, &coefs), 2e-6, "sparse layers");
     let s = r.last_stats();
     assert_eq!(s.layers_summed, 3, "the all-zero layer is not summed");
-    assert_eq!(s.bytes_read, 7 * 37 * 2 + 3 * 45 * 3 * 4 + 37 * 45 * 2);
+    // The tiled layout reads whole 16×16 tiles of the layers present there (the dense
+    // layout's row spans are gone): the bytes of the three summed layers' entries.
+    let per_layer = r.stack().layer_bytes();
+    assert_eq!(per_layer[0], 0, "the all-zero layer is stored nowhere");
+    assert_eq!(s.bytes_read, per_layer.iter().sum::<usize>());
 
     // Interior zeros do not shrink a span; a single isolated value does define one.
     let mut v = vec![0.0f32; W * H];
@@ -265,8 +269,9 @@ fn zero_rows_and_columns_are_skipped_and_correct() {
         &img[4 * (20 * W + 44)..4 * (20 * W + 44) + 4],
         &[3.0, 6.0, 9.0, 1.0]
     );
-    // Row 10's span [5, 41) widens to [0, 45), row 20's [44, 45) to [40, 45).
-    assert_eq!(r.last_stats().bytes_read, (45 * 4) + (5 * 4));
+    // Tiled layout: the tiles holding a value are read whole, the others not at all —
+    // (0,0) [16×16], (2,0) [13×16] and (2,1) [13×16] (the right column is 45 − 32 wide).
+    assert_eq!(r.last_stats().bytes_read, (16 * 16 + 13 * 16 + 13 * 16) * 4);
 }
 
 #[test]

@@ -30,7 +30,7 @@ pub use device::{choose_device, DeviceChoice, DeviceKind, DevicePreference};
 pub use error::GpuError;
 pub use kernel::GpuOptions;
 pub use relight::{GpuRelighter, GpuTimings};
-pub use relighter::Relighter;
+pub use relighter::{Relighter, StackSource};
 /// The engine's shape of a stack and its checks, shared with the CPU relight.
 pub use relume_engine::relight::StackShape;
 

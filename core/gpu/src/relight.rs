@@ -84,6 +84,7 @@ impl LayerSum for KernelSum {
 
 /// The relight context of one stack on one GPU: build once per loaded stack.
 pub struct GpuRelighter {
+    stack: Arc<TransferStack>,
     book: RelightBookkeeping,
     sum: KernelSum,
 }
@@ -96,12 +97,13 @@ impl GpuRelighter {
         adapter: &wgpu::Adapter,
         options: GpuOptions,
     ) -> Result<GpuRelighter, GpuError> {
-        let book = RelightBookkeeping::new(stack)?;
-        let kernel = Kernel::new(adapter, book.stack(), options)?;
+        let book = RelightBookkeeping::new(&stack)?;
+        let kernel = Kernel::new(adapter, &stack, options)?;
         let (width, height) = book.shape().size();
         let mut image = vec![0.0f32; width * height * 4];
         image.chunks_exact_mut(4).for_each(|p| p[3] = 1.0);
         Ok(GpuRelighter {
+            stack,
             book,
             sum: KernelSum {
                 kernel,
@@ -151,7 +153,7 @@ impl GpuRelighter {
     }
 
     pub fn stack(&self) -> &Arc<TransferStack> {
-        self.book.stack()
+        &self.stack
     }
 
     /// The current image: RGBA f32, rows top-down, alpha 1 (black before the first relight).

@@ -14,6 +14,7 @@
 use std::sync::Arc;
 
 use relume_engine::relight::{CpuRelighter, RelightStats};
+use relume_engine::stack::tiled::TiledStack;
 use relume_engine::stack::TransferStack;
 use relume_engine::Rgb;
 
@@ -27,9 +28,30 @@ enum Engine {
     Cpu(Box<CpuRelighter>),
 }
 
+/// A stack to relight, in either layout. Loaders hand over the tiled layout
+/// (`read_tiled`); the dense one is accepted for tests and older callers.
+pub enum StackSource {
+    Tiled(Arc<TiledStack>),
+    Dense(Arc<TransferStack>),
+}
+
+impl From<Arc<TiledStack>> for StackSource {
+    fn from(s: Arc<TiledStack>) -> Self {
+        StackSource::Tiled(s)
+    }
+}
+
+impl From<Arc<TransferStack>> for StackSource {
+    fn from(s: Arc<TransferStack>) -> Self {
+        StackSource::Dense(s)
+    }
+}
+
 /// A relighter on the device chosen for a [`DevicePreference`].
 pub struct Relighter {
     engine: Engine,
+    /// The stack in the tiled layout (the CPU's, and what a fall-back starts from).
+    tiled: Arc<TiledStack>,
     preference: DevicePreference,
     reason: String,
     fallback: Option<String>,
@@ -43,37 +65,73 @@ impl Relighter {
     /// Chooses the device for `preference` and builds the relighter of `stack` on it.
     ///
     /// Errors: `Gpu` without a usable GPU; a stack the relight refuses (either device).
-    pub fn new(stack: Arc<TransferStack>, preference: DevicePreference) -> Result<Self, GpuError> {
+    pub fn new(
+        stack: impl Into<StackSource>,
+        preference: DevicePreference,
+    ) -> Result<Self, GpuError> {
         Self::with_options(stack, preference, GpuOptions::default())
     }
 
     /// [`new`](Self::new) with options for the GPU context.
+    ///
+    /// The GPU kernel still sums the dense layout: a tiled stack bound for the GPU is
+    /// expanded once ([`TiledStack::to_dense`]) for the upload, and the host keeps both
+    /// layouts while the GPU relights. The CPU relights the tiled layout only.
     pub fn with_options(
-        stack: Arc<TransferStack>,
+        stack: impl Into<StackSource>,
         preference: DevicePreference,
         options: GpuOptions,
     ) -> Result<Self, GpuError> {
         let choice = choose_device(preference)?;
+        let (tiled, dense) = match stack.into() {
+            StackSource::Tiled(t) => (t, None),
+            StackSource::Dense(d) => {
+                // The checks in the dense layout's words before the conversion.
+                let cpu = CpuRelighter::new(d.clone())?;
+                (cpu.stack().clone(), Some(d))
+            }
+        };
+        let cpu = |tiled: &Arc<TiledStack>| -> Result<Engine, GpuError> {
+            Ok(Engine::Cpu(Box::new(CpuRelighter::from_tiled(
+                tiled.clone(),
+            )?)))
+        };
         let (engine, fallback) = match &choice.adapter {
-            None => (Engine::Cpu(Box::new(CpuRelighter::new(stack)?)), None),
-            Some(adapter) => match GpuRelighter::new(stack.clone(), adapter, options) {
-                Ok(g) => (Engine::Gpu(Box::new(g)), None),
-                Err(e @ GpuError::Engine(_)) => return Err(e),
-                Err(e) if preference == DevicePreference::Auto => {
-                    let why = format!("CPU: the GPU could not be used ({e})");
-                    (Engine::Cpu(Box::new(CpuRelighter::new(stack)?)), Some(why))
+            None => (cpu(&tiled)?, None),
+            Some(adapter) => {
+                let dense = match dense {
+                    Some(d) => d,
+                    None => {
+                        // The stack's own checks first, in the CPU's words.
+                        CpuRelighter::from_tiled(tiled.clone())?;
+                        Arc::new(tiled.to_dense()?)
+                    }
+                };
+                match GpuRelighter::new(dense, adapter, options) {
+                    Ok(g) => (Engine::Gpu(Box::new(g)), None),
+                    Err(e @ GpuError::Engine(_)) => return Err(e),
+                    Err(e) if preference == DevicePreference::Auto => {
+                        let why = format!("CPU: the GPU could not be used ({e})");
+                        (cpu(&tiled)?, Some(why))
+                    }
+                    Err(e) => return Err(e),
                 }
-                Err(e) => return Err(e),
-            },
+            }
         };
         Ok(Relighter {
             engine,
+            tiled,
             preference,
             reason: fallback.clone().unwrap_or(choice.reason),
             fallback,
             coefs: None,
             gains: None,
         })
+    }
+
+    /// The stack relit, in the tiled layout.
+    pub fn stack(&self) -> &Arc<TiledStack> {
+        &self.tiled
     }
 
     /// Which device relights now.
@@ -196,11 +254,10 @@ impl Relighter {
     /// image is recomputed there. (The relighter does it by itself in `auto` mode when the
     /// GPU fails; a caller that forced the GPU may do it after an error.)
     pub fn fall_back_to_cpu(&mut self, why: &str) -> Result<(), GpuError> {
-        let stack = match &self.engine {
-            Engine::Cpu(_) => return Ok(()),
-            Engine::Gpu(g) => g.stack().clone(),
-        };
-        let mut cpu = CpuRelighter::new(stack)?;
+        if let Engine::Cpu(_) = &self.engine {
+            return Ok(());
+        }
+        let mut cpu = CpuRelighter::from_tiled(self.tiled.clone())?;
         if let Some(coefs) = &self.coefs {
             cpu.relight(coefs)?;
             if let Some(gains) = &self.gains {

@@ -19,7 +19,7 @@ use relume_engine::brdf::{
 };
 use relume_engine::materials::{LightGroupEdit, LiveMaterials};
 use relume_engine::stack::bases::StackBases;
-use relume_engine::stack::TransferStack;
+use relume_engine::stack::tiled::TiledStack;
 use relume_engine::RelumeError;
 use relume_gpu::{DevicePreference, GpuError, Relighter as Engine};
 
@@ -39,7 +39,7 @@ struct State {
 /// Relights one stack live.
 #[pyclass(module = "relume", frozen)]
 pub struct Relighter {
-    stack: Arc<TransferStack>,
+    stack: Arc<TiledStack>,
     bases: StackBases,
     state: Mutex<State>,
 }
@@ -254,6 +254,21 @@ impl Relighter {
     }
 
     /// Wall time of the last relight() inside Rust, in milliseconds (sums and the copy out).
+    /// Bytes of stored values of the stack relit (its tiles' non-zero layers).
+    #[getter]
+    fn stored_bytes(&self) -> usize {
+        self.stack.sample_bytes()
+    }
+    /// Bytes the dense layout (every layer a full frame) would hold for the same layers.
+    #[getter]
+    fn dense_bytes(&self) -> usize {
+        self.stack.dense_sample_bytes()
+    }
+    /// Number of (tile, layer) entries of the stack relit.
+    #[getter]
+    fn tile_entries(&self) -> usize {
+        self.stack.entry_count()
+    }
     #[getter]
     fn last_ms(&self) -> f64 {
         self.lock().last_ms

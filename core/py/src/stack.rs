@@ -6,9 +6,8 @@ use std::sync::Arc;
 
 use pyo3::prelude::*;
 use relume_engine::scene::hash::scene_hash;
-use relume_engine::stack::exr_file::read_stack;
 use relume_engine::stack::staleness::scene_differences;
-use relume_engine::stack::TransferStack;
+use relume_engine::stack::tiled::{file::read_tiled, TiledStack};
 use serde_json::json;
 
 use crate::errors::{new_err, IntoPy};
@@ -16,10 +15,11 @@ use crate::guard::{guard, guard_detached};
 use crate::json::to_py;
 use crate::scene::Scene;
 
-/// A loaded transfer stack (all layers in memory; share it between relighters).
+/// A loaded transfer stack in the tiled layout (per 16×16 tile only the layers present
+/// there; all in memory; share it between relighters). Version 1 files are converted.
 #[pyclass(module = "relume", frozen)]
 pub struct Stack {
-    pub(crate) inner: Arc<TransferStack>,
+    pub(crate) inner: Arc<TiledStack>,
     path: PathBuf,
     file_bytes: u64,
 }
@@ -34,7 +34,7 @@ impl Stack {
         let p = path.clone();
         let (stack, file_bytes) = guard_detached(py, "Stack.load", move || {
             let bytes = std::fs::metadata(&p).map(|m| m.len()).unwrap_or(0);
-            read_stack(&p).map(|s| (s, bytes))
+            read_tiled(&p).map(|s| (s, bytes))
         })?
         .py_err(py)?;
         Ok(Stack {
@@ -93,11 +93,37 @@ impl Stack {
     fn layer_count(&self) -> usize {
         self.inner.layers.len()
     }
-    /// Bytes of layer samples in memory (what a full relight reads).
+    /// Bytes of layer samples in memory (what a full relight reads): the stored bytes.
     #[getter]
     fn bytes(&self) -> usize {
         self.inner.sample_bytes()
     }
+    /// Bytes of stored values (the tiles' non-zero layers), as `bytes`.
+    #[getter]
+    fn stored_bytes(&self) -> usize {
+        self.inner.sample_bytes()
+    }
+    /// Bytes the dense layout (every layer a full frame) would hold for the same layers.
+    #[getter]
+    fn dense_bytes(&self) -> usize {
+        self.inner.dense_sample_bytes()
+    }
+    /// Bytes of the whole stack in memory: values, tile tables, layer information.
+    #[getter]
+    fn memory_bytes(&self) -> usize {
+        self.inner.memory_bytes()
+    }
+    /// Number of (tile, layer) entries stored.
+    #[getter]
+    fn tile_entries(&self) -> usize {
+        self.inner.entry_count()
+    }
+    /// Number of layers present in at least one tile (of `layer_count` listed).
+    #[getter]
+    fn stored_layer_count(&self) -> usize {
+        self.inner.stored_layer_count()
+    }
+
     /// Size of the file it was loaded from.
     #[getter]
     fn file_bytes(&self) -> u64 {
@@ -167,12 +193,14 @@ impl Stack {
 
     fn __repr__(&self) -> String {
         format!(
-            "<relume.Stack {} {}×{}, {} layers, {:.1} MB>",
+            "<relume.Stack {} {}×{}, {} layers, {} tile entries, {:.1} MB (dense {:.1} MB)>",
             self.path.display(),
             self.inner.header.width,
             self.inner.header.height,
             self.inner.layers.len(),
-            self.inner.sample_bytes() as f64 / 1e6
+            self.inner.entry_count(),
+            self.inner.sample_bytes() as f64 / 1e6,
+            self.inner.dense_sample_bytes() as f64 / 1e6
         )
     }
 }

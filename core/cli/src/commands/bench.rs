@@ -11,7 +11,10 @@ use relume_engine::bake::bench::bench_bake;
 use relume_engine::materials::{resolve_materials, MaterialsFile};
 use relume_engine::relight::{bandwidth::measure_read_bandwidth, CpuRelighter};
 use relume_engine::scene::file::load_scene;
-use relume_engine::stack::{bases::StackBases, exr_file::read_stack, TransferStack};
+use relume_engine::stack::{
+    bases::StackBases,
+    tiled::{file::read_tiled, TiledStack},
+};
 use relume_engine::{RelumeError, Rgb};
 use relume_gpu::{DeviceKind, GpuOptions, Relighter};
 use serde_json::json;
@@ -76,7 +79,7 @@ pub fn run(bench: Bench) -> Result<(), RelumeError> {
 }
 
 /// Names of the stack's editable regions, in editable order (the order of the coefficients).
-fn editable_region_names(stack: &TransferStack) -> Vec<String> {
+fn editable_region_names(stack: &TiledStack) -> Vec<String> {
     stack
         .header
         .regions
@@ -91,13 +94,19 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
+fn minimum(v: &[f64]) -> f64 {
+    v.iter().copied().fold(f64::INFINITY, f64::min)
+}
+
 fn bench_relight(
     path: &std::path::Path,
     repeats: usize,
     device: Device,
     json: bool,
 ) -> Result<(), RelumeError> {
-    let stack = read_stack(path)?;
+    let t = Instant::now();
+    let stack = read_tiled(path)?;
+    let load_ms = t.elapsed().as_secs_f64() * 1e3;
     let materials = resolve_materials(&stack.header.regions, &MaterialsFile::default())?;
     let coefs = StackBases::from_header(&stack.header)?.coefficients(&materials)?;
     let editable_names = editable_region_names(&stack);
@@ -118,7 +127,8 @@ fn bench_relight(
         }
         debug_assert_eq!(chosen.device(), DeviceKind::Cpu);
     }
-    let figures = cpu_relight_figures(stack, repeats, &reason)?;
+    let mut figures = cpu_relight_figures(stack, repeats, &reason)?;
+    figures["load_ms"] = json!(load_ms);
     print_figures(&figures, json);
     Ok(())
 }
@@ -127,19 +137,23 @@ fn bench_relight(
 /// median full relight over `repeats`, one incremental edit per editable region, and the
 /// memory-bandwidth bound. `reason` says why the CPU was chosen.
 pub fn cpu_relight_figures(
-    stack: Arc<TransferStack>,
+    stack: Arc<TiledStack>,
     repeats: usize,
     reason: &str,
 ) -> Result<serde_json::Value, RelumeError> {
     let repeats = repeats.max(1);
     let stack_bytes = stack.sample_bytes();
+    let stack_memory = stack.memory_bytes();
+    let dense_bytes = stack.dense_sample_bytes();
+    let tile_entries = stack.entry_count();
     let (width, height, layers) = (stack.header.width, stack.header.height, stack.layers.len());
     let editable_names = editable_region_names(&stack);
     let materials = resolve_materials(&stack.header.regions, &MaterialsFile::default())?;
     let bases = StackBases::from_header(&stack.header)?;
     let coefs = bases.coefficients(&materials)?;
-    let mut relighter = CpuRelighter::new(stack)?;
+    let mut relighter = CpuRelighter::from_tiled(stack)?;
     relighter.relight(&coefs)?;
+    let relight_own = relighter.own_bytes();
     let mut full = Vec::with_capacity(repeats);
     let mut full_bytes = 0;
     for i in 0..repeats {
@@ -206,6 +220,7 @@ pub fn cpu_relight_figures(
     }
     let bandwidth = measure_read_bandwidth((256usize << 20).max(2 * stack_bytes), 5);
     let bound_ms = full_bytes as f64 / (bandwidth * 1e9) * 1e3;
+    let full_min_ms = minimum(&full);
     let full_ms = median(full);
     // The fastest single-region edit (NaN when the stack has no editable region).
     let incremental_ms = per_region
@@ -221,7 +236,14 @@ pub fn cpu_relight_figures(
         "height": height,
         "layers": layers,
         "stack_sample_bytes": stack_bytes,
+        "stack_memory_bytes": stack_memory,
+        "dense_equivalent_sample_bytes": dense_bytes,
+        "tile_entries": tile_entries,
+        "relighter_own_bytes": relight_own,
+        "relight_memory_bytes": stack_memory + relight_own,
+        "relight_memory_over_stack": (stack_memory + relight_own) as f64 / stack_memory.max(1) as f64,
         "full_ms": full_ms,
+        "full_min_ms": full_min_ms,
         "full_bytes_read": full_bytes,
         "fastest_incremental_ms": incremental_ms,
         "incremental_per_region": per_region,
@@ -229,6 +251,7 @@ pub fn cpu_relight_figures(
         "bandwidth_gb_s": bandwidth,
         "bandwidth_bound_ms": bound_ms,
         "full_over_bound": full_ms / bound_ms,
+        "full_min_over_bound": full_min_ms / bound_ms,
         "fastest_incremental_over_full": incremental_ms / full_ms,
     });
     Ok(figures)

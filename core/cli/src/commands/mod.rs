@@ -5,6 +5,7 @@ pub mod basis;
 pub mod bench;
 pub mod compare;
 pub mod farm;
+pub mod info;
 pub mod merge;
 pub mod reference;
 pub mod relight;

@@ -10,8 +10,7 @@ use relume_engine::materials::{
 };
 use relume_engine::scene::{file::load_scene, hash::scene_hash};
 use relume_engine::stack::{
-    bases::StackBases,
-    exr_file::{check_scene_hash, read_stack},
+    bases::StackBases, exr_file::check_scene_hash, tiled::file::read_tiled,
 };
 use relume_engine::RelumeError;
 use relume_gpu::{DevicePreference, GpuError, Relighter};
@@ -88,7 +87,7 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
         relume_engine::output_path::refuse_output_over_inputs(out, &inputs)?;
     }
     let t = Instant::now();
-    let stack = read_stack(&args.stack)?;
+    let stack = read_tiled(&args.stack)?;
     let load_seconds = t.elapsed().as_secs_f64();
     if let Some(scene_path) = &args.scene {
         check_scene_hash(&stack.header, &scene_hash(&load_scene(scene_path)?))?;

@@ -11,14 +11,14 @@
 //! which keeps the drift below ≈ 64 · 6·10⁻⁸ ≈ 4·10⁻⁶ of the pixel's terms — a hundred times
 //! under the f16 quantisation of the layers themselves (2⁻¹¹ ≈ 4.9·10⁻⁴).
 
-use std::sync::Arc;
-
-use crate::stack::TransferStack;
+use crate::bake::signature::LayerKey;
+use crate::stack::tiled::TiledStack;
+use crate::stack::{StackHeader, TransferStack};
 use crate::{RelumeError, Result, Rgb};
 
 use super::layer_sum::{LayerSum, RelightStats};
 use super::shape::StackShape;
-use super::weight::{group_factors, layer_weight};
+use super::weight::{group_factors_of, layer_weight};
 
 /// Every this many incremental edits, [`RelightBookkeeping::relight_region`] re-sums
 /// everything to bound float drift (see the module notes: ≈ 4·10⁻⁶ relative at most).
@@ -26,7 +26,13 @@ pub const FULL_RESUM_EVERY: usize = 64;
 
 /// The weights of one stack's layers for the current materials and light gains.
 pub struct RelightBookkeeping {
-    stack: Arc<TransferStack>,
+    /// The stack's header (its light tints and groups).
+    header: StackHeader,
+    /// Per layer id, its key.
+    keys: Vec<LayerKey>,
+    /// Per layer id, the scale the sum's samples need (the dense layer's scale; 1 for a
+    /// tiled stack, whose entries carry their own scales and the sum applies them).
+    scales: Vec<f32>,
     shape: StackShape,
     /// Coefficients of the current image.
     coefs: Vec<Vec<Rgb>>,
@@ -44,13 +50,44 @@ pub struct RelightBookkeeping {
 }
 
 impl RelightBookkeeping {
-    /// Checks the stack ([`StackShape::new`]) and starts with no image.
-    pub fn new(stack: Arc<TransferStack>) -> Result<Self> {
-        let shape = StackShape::new(&stack)?;
-        let group_factors = group_factors(&stack, None)?;
-        let n_layers = stack.layers.len();
+    /// Checks a dense stack ([`StackShape::new`]) and starts with no image. The weights
+    /// handed to the sum include each layer's scale.
+    pub fn new(stack: &TransferStack) -> Result<Self> {
+        let shape = StackShape::new(stack)?;
+        Self::with_layers(
+            stack.header.clone(),
+            stack
+                .layers
+                .iter()
+                .map(|l| (l.key.clone(), l.scale))
+                .collect(),
+            shape,
+        )
+    }
+
+    /// Checks a tiled stack ([`StackShape::from_tiled`]) and starts with no image. The
+    /// weights handed to the sum leave out the scales: each tile entry has its own.
+    pub fn from_tiled(stack: &TiledStack) -> Result<Self> {
+        let shape = StackShape::from_tiled(stack)?;
+        Self::with_layers(
+            stack.header.clone(),
+            stack.layers.iter().map(|l| (l.key.clone(), 1.0)).collect(),
+            shape,
+        )
+    }
+
+    fn with_layers(
+        header: StackHeader,
+        layers: Vec<(LayerKey, f32)>,
+        shape: StackShape,
+    ) -> Result<Self> {
+        let (keys, scales): (Vec<LayerKey>, Vec<f32>) = layers.into_iter().unzip();
+        let group_factors = group_factors_of(&header, keys.iter(), None)?;
+        let n_layers = keys.len();
         Ok(RelightBookkeeping {
-            stack,
+            header,
+            keys,
+            scales,
             shape,
             coefs: Vec::new(),
             weights: vec![Rgb::ZERO; n_layers],
@@ -62,9 +99,27 @@ impl RelightBookkeeping {
         })
     }
 
-    /// The stack being relit.
-    pub fn stack(&self) -> &Arc<TransferStack> {
-        &self.stack
+    /// The header of the stack being relit.
+    pub fn header(&self) -> &StackHeader {
+        &self.header
+    }
+
+    /// Number of layers (ids `0..layer_count`).
+    pub fn layer_count(&self) -> usize {
+        self.keys.len()
+    }
+
+    /// Bytes this bookkeeping holds on the heap beyond the header (keys, weights, layer
+    /// lists): part of a relighter's memory besides the stack and the image.
+    pub fn heap_bytes(&self) -> usize {
+        let rgb = std::mem::size_of::<Rgb>();
+        let keys: usize = self
+            .keys
+            .iter()
+            .map(|k| std::mem::size_of::<LayerKey>() + std::mem::size_of_val(&k.path[..]))
+            .sum();
+        let lists: usize = self.shape.region_layers.iter().map(|l| l.len() * 4).sum();
+        keys + self.scales.len() * 4 + (self.weights.len() + self.effective.len()) * rgb + lists
     }
 
     /// Its size, editable regions and their layers.
@@ -99,7 +154,7 @@ impl RelightBookkeeping {
         sum: &mut S,
         gains: &[Rgb],
     ) -> std::result::Result<(), S::Error> {
-        self.group_factors = group_factors(&self.stack, Some(gains))?;
+        self.group_factors = group_factors_of(&self.header, self.keys.iter(), Some(gains))?;
         if !self.has_image {
             return Err(RelumeError::invalid(
                 "light group gains",
@@ -136,12 +191,11 @@ impl RelightBookkeeping {
         }
         let layers = &self.shape.region_layers[region];
         for &l in layers {
-            let layer = &self.stack.layers[l as usize];
-            let new = layer_weight(&layer.key, &self.coefs)
-                * self.group_factors[layer.key.light_group as usize];
+            let key = &self.keys[l as usize];
+            let new = layer_weight(key, &self.coefs) * self.group_factors[key.light_group as usize];
             let delta = new - self.weights[l as usize];
             self.weights[l as usize] = new;
-            self.effective[l as usize] = delta * layer.scale;
+            self.effective[l as usize] = delta * self.scales[l as usize];
         }
         match sum.incremental(layers, &self.effective) {
             Ok(stats) => {
@@ -160,11 +214,10 @@ impl RelightBookkeeping {
 
     /// Recomputes every weight from `self.coefs` and re-sums every layer.
     fn full_sum<S: LayerSum>(&mut self, sum: &mut S) -> std::result::Result<(), S::Error> {
-        for (l, layer) in self.stack.layers.iter().enumerate() {
-            let w = layer_weight(&layer.key, &self.coefs)
-                * self.group_factors[layer.key.light_group as usize];
+        for (l, key) in self.keys.iter().enumerate() {
+            let w = layer_weight(key, &self.coefs) * self.group_factors[key.light_group as usize];
             self.weights[l] = w;
-            self.effective[l] = w * layer.scale;
+            self.effective[l] = w * self.scales[l];
         }
         self.has_image = false;
         let stats = sum.full(&self.effective)?;

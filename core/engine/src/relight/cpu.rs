@@ -1,26 +1,31 @@
-//! [`CpuRelighter`]: the relight bookkeeping paired with the CPU's band sum.
+//! [`CpuRelighter`]: the relight bookkeeping paired with the CPU's tiled sum.
 
 use std::sync::Arc;
 
-use crate::stack::TransferStack;
-use crate::{Result, Rgb};
+use crate::stack::tiled::TiledStack;
+use crate::stack::{LayerSamples, Precision, TransferStack};
+use crate::{RelumeError, Result, Rgb};
 
-use super::band_sum::BandSum;
 use super::bookkeeping::RelightBookkeeping;
+use super::cpu_sum::TiledLayerSum;
 use super::kernels::Kernels;
 use super::layer_sum::{LayerSum, RelightStats};
 
-/// The CPU relighter of one stack. Build it once per loaded stack (the build scans every
-/// sample, ≈ the cost of one relight), then call [`relight`](Self::relight) and
-/// [`relight_region`](Self::relight_region) per edit.
+/// The CPU relighter of one stack, summing the tiled layout ([`TiledStack`]) it shares with
+/// the loader through an `Arc`: it keeps no copy of the samples. Build it once per loaded
+/// stack, then call [`relight`](Self::relight) and [`relight_region`](Self::relight_region)
+/// per edit.
 pub struct CpuRelighter {
     book: RelightBookkeeping,
-    sum: BandSum,
+    sum: TiledLayerSum,
 }
 
 impl CpuRelighter {
-    /// Checks the stack, prepares the per-editable-region layer lists, and packs the
-    /// non-zero row spans of every layer.
+    /// The relighter of a dense stack, for callers that hold one (tests, older code): the
+    /// stack is checked, then converted once to the tiled layout
+    /// ([`TiledStack::from_dense`]), which the relighter keeps instead. The dense stack is
+    /// not retained; while the caller keeps its `Arc` both layouts are in memory, so
+    /// loaders should read the tiled layout directly and use [`from_tiled`](Self::from_tiled).
     ///
     /// Errors: a layer whose sample count is not width·height·channels, whose channel
     /// count is not 1 or 3, whose key names an editable region or a light group the header
@@ -29,11 +34,48 @@ impl CpuRelighter {
         Self::with_kernels(stack, Kernels::detect())
     }
 
+    /// The relighter of a tiled stack (as [`crate::stack::tiled::file::read_tiled`] or a
+    /// bake gives it), shared, not copied.
+    ///
+    /// Errors: a layer whose channel count is not 1 or 3, whose key names an editable
+    /// region or a light group the header does not have, a non-finite layer scale, a tile
+    /// table that does not match the header's size.
+    pub fn from_tiled(stack: Arc<TiledStack>) -> Result<Self> {
+        Self::tiled_with_kernels(stack, Kernels::detect())
+    }
+
     pub(crate) fn with_kernels(stack: Arc<TransferStack>, kernels: Kernels) -> Result<Self> {
-        let book = RelightBookkeeping::new(stack)?;
-        let (width, height) = book.shape().size();
-        let sum = BandSum::new(book.stack(), width, height, kernels)?;
+        // The shape and finiteness first, so a bad dense stack is refused in the words of
+        // the dense layout (layer, pixel) rather than of its tiles.
+        RelightBookkeeping::new(&stack)?;
+        check_finite_samples(&stack)?;
+        let tiled = match uniform_precision(&stack) {
+            None => TiledStack::from_dense(&stack)?,
+            Some(f32_copy) => TiledStack::from_dense(&f32_copy)?,
+        };
+        Self::tiled_with_kernels(Arc::new(tiled), kernels)
+    }
+
+    fn tiled_with_kernels(stack: Arc<TiledStack>, kernels: Kernels) -> Result<Self> {
+        let book = RelightBookkeeping::from_tiled(&stack)?;
+        if stack.tiles.len() != stack.tile_count() {
+            return Err(RelumeError::invalid(
+                "tiled stack",
+                format!(
+                    "{} tiles; its size needs {}",
+                    stack.tiles.len(),
+                    stack.tile_count()
+                ),
+            ));
+        }
+        let sum = TiledLayerSum::new(stack, kernels)?;
         Ok(CpuRelighter { book, sum })
+    }
+
+    /// Bytes the relighter holds besides the stack it shares: the image, the layer weights
+    /// and lists. A relight's memory is this plus [`TiledStack::memory_bytes`].
+    pub fn own_bytes(&self) -> usize {
+        std::mem::size_of::<Self>() + self.book.heap_bytes() + self.sum.heap_bytes()
     }
 
     /// Number of editable regions (those of `stack.header.regions` with `editable`).
@@ -54,9 +96,10 @@ impl CpuRelighter {
         self.book.shape().size()
     }
 
-    /// The stack being relit.
-    pub fn stack(&self) -> &Arc<TransferStack> {
-        self.book.stack()
+    /// The stack being relit (tiled; a dense stack given to [`new`](Self::new) was
+    /// converted).
+    pub fn stack(&self) -> &Arc<TiledStack> {
+        self.sum.stack()
     }
 
     /// The current image: RGBA f32, rows top-down, alpha 1 (black before the first relight).
@@ -96,4 +139,52 @@ impl CpuRelighter {
         self.book.relight_region(&mut self.sum, region, coefs)?;
         Ok(self.sum.image())
     }
+}
+
+/// Every sample of a dense stack is finite; the error names the layer, pixel and channel.
+fn check_finite_samples(stack: &TransferStack) -> Result<()> {
+    let width = stack.header.width as usize;
+    for layer in &stack.layers {
+        let bad = match &layer.samples {
+            LayerSamples::F16(v) => v.iter().position(|x| !x.is_finite()),
+            LayerSamples::F32(v) => v.iter().position(|x| !x.is_finite()),
+        };
+        if let Some(i) = bad {
+            let ch = layer.channels.max(1) as usize;
+            let pixel = i / ch;
+            return Err(RelumeError::NonFinite {
+                what: format!(
+                    "layer {}, pixel ({}, {}) channel {}",
+                    layer.key.layer_name(),
+                    pixel % width.max(1),
+                    pixel / width.max(1),
+                    i % ch
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// A dense stack may mix f16 and f32 layers (or disagree with its header's precision) where
+/// the tiled layout holds one precision: such a stack is copied with every layer in f32
+/// (f16 → f32 is exact, so the relight is unchanged). `None` when it already agrees.
+fn uniform_precision(stack: &TransferStack) -> Option<TransferStack> {
+    let agrees = |l: &crate::stack::Layer| {
+        matches!(
+            (&l.samples, stack.header.precision),
+            (LayerSamples::F16(_), Precision::F16) | (LayerSamples::F32(_), Precision::F32)
+        )
+    };
+    if stack.layers.iter().all(agrees) {
+        return None;
+    }
+    let mut copy = stack.clone();
+    copy.header.precision = Precision::F32;
+    for layer in &mut copy.layers {
+        if let LayerSamples::F16(v) = &layer.samples {
+            layer.samples = LayerSamples::F32(v.iter().map(|x| x.to_f32()).collect());
+        }
+    }
+    Some(copy)
 }

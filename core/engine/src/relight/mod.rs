@@ -15,32 +15,30 @@
 //! - `layer_sum`: the [`LayerSum`] trait a device implements (full sum, incremental add).
 //! - `bookkeeping`: [`RelightBookkeeping`], coefficients → weights, the layers an edit
 //!   touches, the periodic full re-sum; shared by the CPU and the GPU relighters.
-//! - `band_sum`, `spans`, `packed`, `kernels`: the CPU's sum (row bands, non-zero spans,
-//!   the packed rows, the SIMD inner loops).
+//! - [`tiled_sum`]: the CPU's sum over a [`crate::stack::tiled::TiledStack`] (per tile, only
+//!   the layers present there); `kernels`: its SIMD inner loops.
+//! - `cpu_sum`: that sum as the CPU's [`LayerSum`], with its image.
 //! - `cpu`: [`CpuRelighter`], the bookkeeping over the CPU sum.
 //! - [`bandwidth`]: how fast this machine reads memory, the floor under any relight.
 //!
 //! The sum is memory-bound; how the CPU sum reads each needed sample once is in
-//! `band_sum.rs`, and measured figures are in `docs/measurements.md`.
+//! `cpu_sum.rs`, and measured figures are in `docs/measurements.md`.
 
-mod band_sum;
 pub mod bandwidth;
 mod bookkeeping;
 mod cpu;
+mod cpu_sum;
 pub(crate) mod kernels;
 mod layer_sum;
-mod packed;
 mod shape;
-mod spans;
 pub mod tiled_sum;
 mod weight;
 
-pub use band_sum::BAND_ROWS;
 pub use bookkeeping::{RelightBookkeeping, FULL_RESUM_EVERY};
 pub use cpu::CpuRelighter;
 pub use layer_sum::{LayerSum, RelightStats};
 pub use shape::StackShape;
-pub use weight::{group_factors, layer_weight};
+pub use weight::{group_factors, group_factors_of, layer_weight};
 
 #[cfg(test)]
 mod tests;

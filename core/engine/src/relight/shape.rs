@@ -5,10 +5,12 @@
 //! the other refuses too, in the same words. (Sample finiteness is checked where each
 //! relighter reads the samples: its span scan on the CPU, its packing on the GPU.)
 
-use crate::stack::TransferStack;
+use crate::bake::signature::LayerKey;
+use crate::stack::tiled::TiledStack;
+use crate::stack::{StackHeader, TransferStack};
 use crate::{RelumeError, Result, Rgb};
 
-use super::weight::group_factors;
+use super::weight::group_factors_of;
 
 /// The shape of a stack as the relight sees it.
 #[derive(Clone, Debug)]
@@ -24,17 +26,55 @@ pub struct StackShape {
 }
 
 impl StackShape {
-    /// Checks every layer and maps layers to the editable regions they depend on.
+    /// Checks every layer of a dense stack and maps layers to the editable regions they
+    /// depend on.
     ///
     /// Errors: a layer whose channel count is not 1 or 3, whose sample count is not
     /// width·height·channels, whose scale is not finite, whose key names an editable region
     /// the header does not have or a light group it does not have; a light tint that is not
     /// a finite non-negative colour.
     pub fn new(stack: &TransferStack) -> Result<StackShape> {
-        let width = stack.header.width as usize;
-        let height = stack.header.height as usize;
-        let editable_names: Vec<String> = stack
-            .header
+        let (width, height) = (stack.header.width as usize, stack.header.height as usize);
+        for layer in &stack.layers {
+            let expect = width * height * layer.channels as usize;
+            if (layer.channels == 1 || layer.channels == 3) && layer.samples.len() != expect {
+                return Err(RelumeError::invalid(
+                    format!("layer {}", layer.key.layer_name()),
+                    format!(
+                        "{} samples, expected {width}×{height}×{} = {expect}",
+                        layer.samples.len(),
+                        layer.channels
+                    ),
+                ));
+            }
+        }
+        Self::from_layers(
+            &stack.header,
+            stack.layers.iter().map(|l| (&l.key, l.channels, l.scale)),
+        )
+    }
+
+    /// The shape of a tiled stack: its header and per-layer information (the tiles' own
+    /// structure was checked when the stack was built or read). Errors as [`Self::new`]
+    /// on the keys, channels, scales and light groups.
+    pub fn from_tiled(stack: &TiledStack) -> Result<StackShape> {
+        Self::from_layers(
+            &stack.header,
+            stack
+                .layers
+                .iter()
+                .map(|l| (&l.key, l.channels as u32, l.scale)),
+        )
+    }
+
+    /// The checks shared by both layouts, on `(key, channels, scale)` per layer id.
+    fn from_layers<'a>(
+        header: &StackHeader,
+        layers: impl Iterator<Item = (&'a LayerKey, u32, f32)> + Clone,
+    ) -> Result<StackShape> {
+        let width = header.width as usize;
+        let height = header.height as usize;
+        let editable_names: Vec<String> = header
             .regions
             .iter()
             .filter(|r| r.editable)
@@ -43,34 +83,20 @@ impl StackShape {
         let n_edit = editable_names.len();
         let mut basis_counts = vec![0usize; n_edit];
         let mut region_layers: Vec<Vec<u32>> = vec![Vec::new(); n_edit];
-        for (i, layer) in stack.layers.iter().enumerate() {
-            let name = layer.key.layer_name();
-            if layer.channels != 1 && layer.channels != 3 {
+        for (i, (key, channels, scale)) in layers.clone().enumerate() {
+            let name = key.layer_name();
+            if channels != 1 && channels != 3 {
                 return Err(RelumeError::invalid(
                     format!("layer {name}"),
-                    format!(
-                        "{} channels; a layer has 1 (grey) or 3 (RGB)",
-                        layer.channels
-                    ),
+                    format!("{channels} channels; a layer has 1 (grey) or 3 (RGB)"),
                 ));
             }
-            let expect = width * height * layer.channels as usize;
-            if layer.samples.len() != expect {
-                return Err(RelumeError::invalid(
-                    format!("layer {name}"),
-                    format!(
-                        "{} samples, expected {width}×{height}×{} = {expect}",
-                        layer.samples.len(),
-                        layer.channels
-                    ),
-                ));
-            }
-            if !layer.scale.is_finite() {
+            if !scale.is_finite() {
                 return Err(RelumeError::NonFinite {
                     what: format!("scale of layer {name}"),
                 });
             }
-            for v in &layer.key.path {
+            for v in &key.path {
                 if let Some((region, basis)) = v.slot() {
                     let r = region as usize;
                     if r >= n_edit {
@@ -88,7 +114,7 @@ impl StackShape {
             }
         }
         // The light tints and every layer's light group, checked once here.
-        group_factors(stack, None)?;
+        group_factors_of(header, layers.map(|(k, _, _)| k), None)?;
         Ok(StackShape {
             width,
             height,

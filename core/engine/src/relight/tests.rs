@@ -63,13 +63,24 @@ fn simd_and_portable_paths_agree() {
         vec![e(1, 2), PathVertex::Fixed],
     ];
     let mut layers = Vec::new();
+    let mut names = std::collections::HashSet::new();
     let mut x = 12345u32;
     for (i, k) in keys.iter().enumerate() {
-        for (ch, prec) in [
+        for (j, (ch, prec)) in [
             (1u32, Precision::F16),
             (3, Precision::F32),
             (3, Precision::F16),
-        ] {
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            // Layer names are unique in a stack: the variants differ by trailing fixed
+            // vertices, which weigh 1.
+            let mut key = k.clone();
+            key.extend(std::iter::repeat_n(PathVertex::Fixed, j));
+            if !names.insert(LayerKey::new(key.clone()).layer_name()) {
+                continue;
+            }
             let vals: Vec<f32> = (0..(w * h * ch) as usize)
                 .map(|j| {
                     x ^= x << 13;
@@ -83,7 +94,7 @@ fn simd_and_portable_paths_agree() {
                     }
                 })
                 .collect();
-            layers.push(Layer::from_f32(LayerKey::new(k.clone()), ch, &vals, prec));
+            layers.push(Layer::from_f32(LayerKey::new(key), ch, &vals, prec));
         }
     }
     let stack = Arc::new(TransferStack {

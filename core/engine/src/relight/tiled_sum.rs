@@ -90,8 +90,18 @@ fn check_shapes(stack: &TiledStack, weights_len: usize, out: &[f32]) -> Result<(
 /// If the stack's tables do not fit its values — impossible for a stack that passed
 /// [`crate::stack::tiled::validate::validate`], as every constructor and the reader check.
 pub fn full(stack: &TiledStack, weights: &[Rgb], out: &mut [f32]) -> Result<()> {
+    full_with(stack, weights, out, Kernels::detect())
+}
+
+/// [`full`] with the inner loops of `kernels`.
+pub(crate) fn full_with(
+    stack: &TiledStack,
+    weights: &[Rgb],
+    out: &mut [f32],
+    kernels: Kernels,
+) -> Result<()> {
     check_shapes(stack, weights.len(), out)?;
-    sum(stack, out, true, |tile, add| {
+    sum(stack, out, true, kernels, |tile, add| {
         for (k, e) in tile.entries.iter().enumerate() {
             let w = weights[e.layer as usize];
             if w != Rgb::ZERO {
@@ -106,6 +116,16 @@ pub fn full(stack: &TiledStack, weights: &[Rgb], out: &mut [f32]) -> Result<()> 
 /// `changed` (the change of those layers' weights since `out` was summed), reading only
 /// their entries. Errors on a layer id out of range; panics as [`full`] does.
 pub fn incremental(stack: &TiledStack, changed: &[(u32, Rgb)], out: &mut [f32]) -> Result<()> {
+    incremental_with(stack, changed, out, Kernels::detect())
+}
+
+/// [`incremental`] with the inner loops of `kernels`.
+pub(crate) fn incremental_with(
+    stack: &TiledStack,
+    changed: &[(u32, Rgb)],
+    out: &mut [f32],
+    kernels: Kernels,
+) -> Result<()> {
     check_shapes(stack, stack.layers.len(), out)?;
     let mut changed: Vec<(u32, Rgb)> = changed
         .iter()
@@ -124,7 +144,7 @@ pub fn incremental(stack: &TiledStack, changed: &[(u32, Rgb)], out: &mut [f32]) 
     }
     // Layer order, as the full sum adds them.
     changed.sort_by_key(|(l, _)| *l);
-    sum(stack, out, false, |tile, add| {
+    sum(stack, out, false, kernels, |tile, add| {
         for (l, delta) in &changed {
             if let Ok(k) = tile.entries.binary_search_by_key(l, |e| e.layer) {
                 add(k, *delta);
@@ -144,14 +164,14 @@ struct Accumulators {
 
 /// Runs `select(tile, add)` for every tile, where `add(entry, weight)` adds
 /// `weight · entry` into the tile's accumulators, then adds the accumulators into `out`
-/// (after setting it to (0, 0, 0, 1) when `reset`).
-fn sum<F>(stack: &TiledStack, out: &mut [f32], reset: bool, select: F)
+/// (after setting it to (0, 0, 0, 1) when `reset`; without `reset`, a tile where nothing
+/// was added is left untouched).
+fn sum<F>(stack: &TiledStack, out: &mut [f32], reset: bool, kernels: Kernels, select: F)
 where
     F: Fn(&StackTile, &mut dyn FnMut(usize, Rgb)) + Sync,
 {
     let width = stack.header.width as usize;
     let tiles_x = stack.tiles_x() as usize;
-    let kernels = Kernels::detect();
     let band = (STACK_TILE as usize * width * 4).max(4);
     out.par_chunks_mut(band).enumerate().for_each(|(ty, rows)| {
         let mut acc = Box::new(Accumulators {
@@ -170,7 +190,9 @@ where
             acc.g[..n].fill(0.0);
             acc.b[..n].fill(0.0);
             acc.rgb[..3 * n].fill(0.0);
+            let mut added = false;
             select(tile, &mut |k, w| {
+                added = true;
                 let e = tile.entries[k];
                 let w = (w * e.scale).to_array();
                 let start = e.offset as usize;
@@ -196,6 +218,9 @@ where
                     }
                 }
             });
+            if !reset && !added {
+                continue;
+            }
             let tw = rect.width as usize;
             for dy in 0..rect.height as usize {
                 let row = &mut rows[(dy * width + rect.x0 as usize) * 4..][..tw * 4];

@@ -4,7 +4,7 @@
 //! relighters both use them (through [`super::RelightBookkeeping`]).
 
 use crate::bake::signature::LayerKey;
-use crate::stack::TransferStack;
+use crate::stack::{StackHeader, TransferStack};
 use crate::{RelumeError, Result, Rgb};
 
 /// The weight of a layer: the product of the coefficients along its path, per RGB channel.
@@ -32,7 +32,15 @@ pub fn layer_weight(key: &LayerKey, coefs: &[Vec<Rgb>]) -> Rgb {
 /// is not finite, a factor that is not a finite non-negative colour, a layer that names a
 /// light group the header does not have.
 pub fn group_factors(stack: &TransferStack, gains: Option<&[Rgb]>) -> Result<Vec<Rgb>> {
-    let header = &stack.header;
+    group_factors_of(&stack.header, stack.layers.iter().map(|l| &l.key), gains)
+}
+
+/// [`group_factors`] for any layout: the header and every layer's key, in layer order.
+pub fn group_factors_of<'a>(
+    header: &StackHeader,
+    mut keys: impl Iterator<Item = &'a LayerKey>,
+    gains: Option<&[Rgb]>,
+) -> Result<Vec<Rgb>> {
     if let Some(gains) = gains {
         let groups = &header.light_groups;
         if gains.len() != groups.len() {
@@ -69,17 +77,13 @@ pub fn group_factors(stack: &TransferStack, gains: Option<&[Rgb]>) -> Result<Vec
             message: format!("light group factor {bad} is not a finite non-negative colour"),
         });
     }
-    if let Some(l) = stack
-        .layers
-        .iter()
-        .find(|l| l.key.light_group as usize >= factors.len())
-    {
+    if let Some(key) = keys.find(|k| k.light_group as usize >= factors.len()) {
         return Err(RelumeError::StackFormat {
             path: Default::default(),
             message: format!(
                 "layer {} names light group {} of {}",
-                l.key.layer_name(),
-                l.key.light_group,
+                key.layer_name(),
+                key.light_group,
                 header.light_groups.len()
             ),
         });

@@ -184,6 +184,44 @@ impl TiledStack {
     pub fn sample_bytes(&self) -> usize {
         self.tiles.iter().map(|t| t.values.bytes()).sum()
     }
+    /// Bytes the stack occupies in memory: its values, its tile tables and per-layer
+    /// information (the header and allocator slack aside). What a relighter sharing it
+    /// counts as the stack.
+    pub fn memory_bytes(&self) -> usize {
+        use std::mem::size_of;
+        let tiles = self.tiles.len() * size_of::<StackTile>()
+            + self.entry_count() * size_of::<TileLayer>()
+            + self.sample_bytes();
+        let layers: usize = self
+            .layers
+            .iter()
+            .map(|l| size_of::<TiledLayerInfo>() + std::mem::size_of_val(&l.key.path[..]))
+            .sum();
+        tiles + layers
+    }
+    /// Bytes of samples the dense layout ([`super::TransferStack`]) would hold for the same
+    /// layers: every layer a full frame of its channels in the stack's precision.
+    pub fn dense_sample_bytes(&self) -> usize {
+        let value_bytes = match self.header.precision {
+            Precision::F16 => 2,
+            Precision::F32 => 4,
+        };
+        let pixels = self.header.width as usize * self.header.height as usize;
+        self.layers
+            .iter()
+            .map(|l| pixels * l.channels as usize * value_bytes)
+            .sum()
+    }
+    /// Number of layers present in at least one tile (of the `layers.len()` listed).
+    pub fn stored_layer_count(&self) -> usize {
+        let mut seen = vec![false; self.layers.len()];
+        for e in self.tiles.iter().flat_map(|t| &t.entries) {
+            if let Some(s) = seen.get_mut(e.layer as usize) {
+                *s = true;
+            }
+        }
+        seen.iter().filter(|&&s| s).count()
+    }
     /// Number of (tile, layer) entries.
     pub fn entry_count(&self) -> usize {
         self.tiles.iter().map(|t| t.entries.len()).sum()
