@@ -77,8 +77,14 @@ impl Relighter {
         let image = st.engine.image();
         let (w, _) = st.engine.size();
         let out = if flip_y {
+            // Row by row into one buffer of the right size: element-wise collecting through
+            // an iterator chain grew the vector by doubling and cost as much as the relight.
             let row = w * 4;
-            image.rchunks_exact(row).flatten().copied().collect()
+            let mut flipped = Vec::with_capacity(image.len());
+            for r in image.rchunks_exact(row) {
+                flipped.extend_from_slice(r);
+            }
+            flipped
         } else {
             image.to_vec()
         };

@@ -8,11 +8,11 @@ use half::f16;
 use rayon::prelude::*;
 
 use super::validate::{format_err, validate};
-use super::{
+use super::layout::{
     tile_rect, tiles_along, StackTile, TileLayer, TileRect, TileValues, TiledLayerInfo, TiledStack,
     STACK_FORMAT_VERSION_TILED,
 };
-use crate::bake::signature::LayerKey;
+use crate::layer_key::LayerKey;
 use crate::error::{RelumeError, Result};
 use crate::stack::{
     Layer, LayerSamples, Precision, StackHeader, TransferStack, STACK_FORMAT_VERSION,

@@ -27,11 +27,11 @@ use exr::prelude::{self as x, ReadChannels as _, ReadLayers as _, WritableImage 
 use serde::{Deserialize, Serialize};
 
 use super::validate::{format_err, validate};
-use super::{
+use super::layout::{
     StackTile, TileLayer, TileValues, TiledLayerInfo, TiledStack, STACK_FORMAT_VERSION_TILED,
 };
-use crate::bake::progress::Progress;
-use crate::bake::signature::LayerKey;
+use crate::progress::Progress;
+use crate::layer_key::LayerKey;
 use crate::error::{RelumeError, Result};
 use crate::image_io::write_atomic_checked;
 use crate::stack::exr_file::{
@@ -551,8 +551,8 @@ fn check_layout(path: &Path, header: &StackHeader, meta: &x::MetaData) -> Result
     }
     let tiles = meta.headers[0].layer_size;
     let (tx, ty) = (
-        super::tiles_along(header.width) as usize,
-        super::tiles_along(header.height) as usize,
+        super::layout::tiles_along(header.width) as usize,
+        super::layout::tiles_along(header.height) as usize,
     );
     if (tiles.width(), tiles.height()) != (tx, ty) {
         return Err(format_err(
@@ -653,7 +653,7 @@ fn assemble(
     let mut next_entry = 0usize;
     let mut next_value = 0u64;
     for (t, &count) in counts.iter().enumerate() {
-        let pixels = super::tile_rect(header.width, header.height, t).pixels() as u64;
+        let pixels = super::layout::tile_rect(header.width, header.height, t).pixels() as u64;
         let mut entries = Vec::with_capacity(count as usize);
         let mut tile_values = 0u64;
         for k in next_entry..next_entry + count as usize {

@@ -4,7 +4,7 @@
 use std::collections::HashSet;
 use std::path::Path;
 
-use super::{TileValues, TiledStack, STACK_FORMAT_VERSION_TILED};
+use super::layout::{TileValues, TiledStack, STACK_FORMAT_VERSION_TILED};
 use crate::error::{RelumeError, Result};
 
 pub(crate) fn format_err(path: &Path, message: impl Into<String>) -> RelumeError {
