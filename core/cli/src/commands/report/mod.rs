@@ -457,7 +457,7 @@ fn measure_preset(
             bake_to_file(&scene, &settings, 1, &path, &p, |_, _| {})
         })?
     };
-    let stack = Arc::new(baked.stack);
+    let stack = Arc::new(baked.stack.to_dense()?);
     let materials = resolve_materials(&stack.header.regions, &MaterialsFile::default())?;
     let coefs = StackBases::from_header(&stack.header)?.coefficients(&materials)?;
     let mut relighter = CpuRelighter::new(stack.clone())?;
