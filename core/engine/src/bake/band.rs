@@ -29,3 +29,26 @@ pub fn default_band_rows(width: u32, threads: usize) -> usize {
         .div_ceil(tiles_along(width).max(1) as usize)
         .max(1)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_apron_covers_the_larger_filter_footprint() {
+        let apron = |direct, bounce| {
+            apron_rows(&Denoise {
+                direct_iterations: direct,
+                bounce_iterations: bounce,
+            })
+        };
+        assert_eq!(apron(0, 0), 0);
+        // Footprint radii 2·(2^k − 1): 2, 6, 14, 30, 62 pixels.
+        assert_eq!(apron(1, 0), 1);
+        assert_eq!(apron(1, 3), 1);
+        assert_eq!(apron(4, 2), 2);
+        assert_eq!(apron(1, 5), 4);
+        assert!(default_band_rows(40, 3) >= 2);
+        assert_eq!(default_band_rows(1920, 8), 1);
+    }
+}
