@@ -5,9 +5,9 @@
 //! in flight, not layers × frame.
 //!
 //! The denoiser ([`super::denoise`]) is a fixed linear operator whose weights depend only
-//! on the eye features, with a footprint of [`footprint_radius`] pixels. A tile row is
-//! filtered on a window of `apron` tile rows above and below it, `apron · 16` ≥ that radius,
-//! whose cut edges are treated like the image's: the row's output is then exactly what the
+//! on the eye features, with a footprint of [`super::denoise::footprint_radius`] pixels. A
+//! tile row is filtered on a window of `apron` tile rows above and below it
+//! ([`super::band`]; `apron · 16` ≥ that radius), whose cut edges are treated like the image's: the row's output is then exactly what the
 //! whole-frame filter gives (errors from a cut edge travel at most the radius inwards), so
 //! this bake makes the same stack, bit for bit, as the dense path that filters full frames
 //! (a progressive bake's, a farm merge's).
