@@ -18,8 +18,9 @@ pub fn apron_rows(denoise: &Denoise) -> usize {
 }
 
 /// Tile rows a band traces at once when the caller does not say: enough tiles to keep
-/// `threads` busy.
-pub fn default_band_rows(width: u32, threads: usize) -> usize {
+/// `threads` busy, and at least twice the `apron` (the rows of a band are finalised on one
+/// denoiser window, which reads `apron` more rows on each side).
+pub fn default_band_rows(width: u32, threads: usize, apron: usize) -> usize {
     let threads = if threads == 0 {
         rayon::current_num_threads()
     } else {
@@ -27,6 +28,7 @@ pub fn default_band_rows(width: u32, threads: usize) -> usize {
     };
     (2 * threads)
         .div_ceil(tiles_along(width).max(1) as usize)
+        .max(2 * apron)
         .max(1)
 }
 
@@ -48,7 +50,8 @@ mod tests {
         assert_eq!(apron(1, 3), 1);
         assert_eq!(apron(4, 2), 2);
         assert_eq!(apron(1, 5), 4);
-        assert!(default_band_rows(40, 3) >= 2);
-        assert_eq!(default_band_rows(1920, 8), 1);
+        assert!(default_band_rows(40, 3, 0) >= 2);
+        assert_eq!(default_band_rows(1920, 8, 0), 1);
+        assert_eq!(default_band_rows(1920, 8, 2), 4);
     }
 }

@@ -160,12 +160,12 @@ fn streaming_peak(ctx: &BakeContext, c: &StreamingCosts) -> (u64, u64) {
     let tiles_x = super::super::stack::tiled::tiles_along(res.width) as u64;
     let tiles_y = super::super::stack::tiled::tiles_along(res.height).max(1) as u64;
     let apron = super::band::apron_rows(&ctx.settings.denoise) as u64;
-    let band = super::band::default_band_rows(res.width, c.threads as usize) as u64;
+    let band = super::band::default_band_rows(res.width, c.threads as usize, apron as usize) as u64;
     let rows_held = (band + 2 * apron + 1).min(tiles_y);
     let per_tile_traced = (c.entries.div_ceil(c.tiles.max(1))) * tile_px * 12
         + tile_px * super::denoise::FEATURE_STRIDE as u64 * 4;
     let traced = rows_held * tiles_x * per_tile_traced;
-    let window_px = res.width as u64 * ((2 * apron + 1) * super::tiles::TILE as u64);
+    let window_px = res.width as u64 * ((2 * apron + band) * super::tiles::TILE as u64);
     let window = if apron > 0 {
         // Each worker's layer window, the weights of both filters, the window's features
         // (and their records while built).
@@ -174,7 +174,7 @@ fn streaming_peak(ctx: &BakeContext, c: &StreamingCosts) -> (u64, u64) {
         0
     };
     // The row being stored: its layers in f32 RGB on their way to the builder.
-    let row_out = tiles_x * c.entries.div_ceil(c.tiles.max(1)) * tile_px * 12;
+    let row_out = band * tiles_x * c.entries.div_ceil(c.tiles.max(1)) * tile_px * 12;
     let tracing = stack + traced + c.tile_buffers + window + row_out;
     let write = stack * 2;
     (stack, c.geometry + tracing.max(write))

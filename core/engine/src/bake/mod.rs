@@ -204,7 +204,13 @@ fn run_passes(
     };
     if passes.len() == 1 {
         let band = band_rows.unwrap_or_else(|| {
-            pool.install(|| band::default_band_rows(res.width, settings.threads))
+            pool.install(|| {
+                band::default_band_rows(
+                    res.width,
+                    settings.threads,
+                    band::apron_rows(&settings.denoise),
+                )
+            })
         });
         let trace_start = Instant::now();
         let streamed =

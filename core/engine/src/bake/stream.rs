@@ -158,7 +158,7 @@ pub(crate) fn bake_streaming(
         .collect();
     let brdf = BasisBrdf { ctx };
     let mut rows: Vec<Option<Vec<TracedTile>>> = (0..ty).map(|_| None).collect();
-    let (mut traced, mut next) = (0usize, 0usize);
+    let (mut traced, mut next, mut freed) = (0usize, 0usize, 0usize);
     let mut held_rows = 0usize;
     let mut peak = 0usize;
     let mut denoise_seconds = 0.0;
@@ -198,13 +198,20 @@ pub(crate) fn bake_streaming(
             continue;
         }
         let started = Instant::now();
+        // Every row whose window is traced is finalised on one window: the filter runs over
+        // the apron rows once per band, not once per row.
+        let last = if traced == ty {
+            ty - 1
+        } else {
+            traced - 1 - apron
+        };
         let window = Window {
             ctx,
             settings,
             rows: &rows,
             lo: next.saturating_sub(apron),
-            hi: (next + apron).min(ty - 1),
-            centre: next,
+            hi: (last + apron).min(ty - 1),
+            centre: (next, last),
             width,
             height,
             path_len: &path_len,
@@ -218,13 +225,14 @@ pub(crate) fn bake_streaming(
             tally.add(rect, t);
         }
         peak = peak.max(tally.stored_bytes() + held_rows + transient);
-        // Row r serves the rows up to r + apron: those up to `next` are done.
-        if next >= apron {
-            if let Some(row) = rows[next - apron].take() {
+        // Row r serves the rows up to r + apron: those up to `last` are done.
+        while freed + apron <= last {
+            if let Some(row) = rows[freed].take() {
                 held_rows -= row.iter().map(TracedTile::bytes).sum::<usize>();
             }
+            freed += 1;
         }
-        next += 1;
+        next = last + 1;
     }
     drop(rows);
     progress.check()?;
@@ -244,14 +252,14 @@ pub(crate) fn bake_streaming(
     })
 }
 
-/// The traced rows `lo..=hi` around the tile row `centre` being finalised.
+/// The traced rows `lo..=hi` around the tile rows `centre` (first, last) being finalised.
 struct Window<'a> {
     ctx: &'a BakeContext,
     settings: &'a BakeSettings,
     rows: &'a [Option<Vec<TracedTile>>],
     lo: usize,
     hi: usize,
-    centre: usize,
+    centre: (usize, usize),
     width: usize,
     height: usize,
     path_len: &'a [usize],
@@ -342,7 +350,9 @@ impl Window<'_> {
         progress: &Progress,
     ) -> Result<(Vec<(TileRect, TileTally)>, usize)> {
         self.stage(progress, Stage::Assembly);
-        let centre = self.row(self.centre);
+        let centre: Vec<&TracedTile> = (self.centre.0..=self.centre.1)
+            .flat_map(|r| self.row(r).iter())
+            .collect();
         // Every layer present in the window may reach the centre row once filtered.
         let mut ids: Vec<u32> = (self.lo..=self.hi)
             .flat_map(|r| self.row(r).iter())
@@ -430,10 +440,9 @@ impl Window<'_> {
             centre
                 .par_iter()
                 .zip(inputs.into_par_iter())
-                .enumerate()
-                .map(|(col, (t, inputs))| {
+                .map(|(t, inputs)| {
                     progress.check()?;
-                    let index = self.centre * tx + col;
+                    let index = (t.rect.y0 / TILE) as usize * tx + (t.rect.x0 / TILE) as usize;
                     Ok((
                         t.rect,
                         finalise_tile(builder, index, t.rect, inputs, weights, false)?,
