@@ -8,21 +8,26 @@ use std::time::Instant;
 
 use super::context::{basis_config_for, BakeContext};
 use super::denoise::EyeFeatures;
-use super::drop::{self, DropReport, RawLayer};
+use super::drop::RawLayer;
+use super::finalise::{
+    builder_for, finalise_dense, finish_stack, layer_weights, Finished, LayerFacts, StackTally,
+};
 use super::layout::layer_key;
 use super::report::BakeReport;
 use super::settings::BakeSettings;
 use crate::layer_key::LayerKey;
-use crate::options::{LightGrouping, Precision};
+use crate::options::LightGrouping;
 use crate::progress::{Progress, Stage};
 use crate::scene::{hash::scene_hash, Scene};
-use crate::stack::{
-    Layer, LightGroupInfo, RegionInfo, StackHeader, TransferStack, STACK_FORMAT_VERSION,
-};
+use crate::stack::tiled::TiledStack;
+use crate::stack::{LightGroupInfo, RegionInfo, StackHeader, STACK_FORMAT_VERSION};
 use crate::Result;
 
-/// Turns the store (sums over `spp` eye samples) into a stack, the report of its layers, and
-/// the image at the bake-time materials (for the progressive error estimate).
+/// Turns the store (sums over `spp` eye samples, full-frame layers: a progressive bake's
+/// passes, a farm's merge) into a tiled stack, the report of its layers, and — when
+/// `keep_image` — the image at the bake-time materials (for the progressive error
+/// estimate). The layers are averaged and denoised as full frames (this path's memory
+/// stays dense), then cut into tiles by the same [`finalise_tile`] as the streaming bake.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn assemble(
     ctx: &BakeContext,
@@ -32,70 +37,61 @@ pub(crate) fn assemble(
     eye_features: &EyeFeatures,
     spp: u32,
     pool: &rayon::ThreadPool,
-    width: usize,
-    height: usize,
     progress: &Progress,
     last_pass: bool,
-) -> Result<(TransferStack, BakeReport, Vec<f64>)> {
+    keep_image: bool,
+) -> Result<(TiledStack, BakeReport, Option<Vec<f64>>)> {
     let assembly_start = Instant::now();
     progress.set_stage(Stage::Assembly);
-    let layer_count = store.len();
-    let (mut reached, unreached) = average_layers(ctx, store, spp, pool, progress, last_pass)?;
-    let empty = unreached.len();
+    let res = ctx.resolution;
+    let (mut reached, facts) = average_layers(ctx, store, spp, pool, progress, last_pass)?;
     let denoise_start = Instant::now();
     progress.set_stage(Stage::Denoising);
-    denoise_layers(settings, eye_features, &mut reached, pool, progress)?;
+    {
+        let mut raw: Vec<&mut RawLayer> = reached.iter_mut().map(|(_, l)| l).collect();
+        denoise_layers(settings, eye_features, &mut raw, pool, progress)?;
+    }
     let denoise_seconds = denoise_start.elapsed().as_secs_f64();
     progress.set_stage(Stage::Finishing);
-    let image = drop::bake_time_image(ctx, scene, &reached);
+    let builder = builder_for(ctx, stack_header(ctx, scene, settings, spp))?;
+    let weights = layer_weights(ctx, scene);
+    let pixels = res.width as usize * res.height as usize;
+    let mut tally = StackTally::new(
+        store.len(),
+        res.width as usize,
+        pixels,
+        settings.precision,
+        keep_image,
+    );
+    let layers: Vec<(u32, u8, &[f32])> = reached
+        .iter()
+        .map(|(i, l)| (*i as u32, l.channels as u8, &l.data[..]))
+        .collect();
+    finalise_dense(
+        &builder, &layers, res.width, res.height, &weights, &mut tally, pool, progress,
+    )?;
+    drop(layers);
+    drop(reached);
     progress.check()?;
-    let (kept, drop_report) = drop::drop_negligible(
+    let finished = finish_stack(
         ctx,
-        scene,
-        reached,
-        &image,
-        &unreached,
+        builder,
+        tally,
+        &facts,
+        &weights,
         settings.drop_budget as f64,
-    );
-    progress.check()?;
-    let mut layers = store_layers(kept, settings.precision, pool, progress)?;
-    let grey = layers.iter().filter(|l| l.channels == 1).count();
-    let rgb = layers.len() - grey;
-    if layers.is_empty() {
-        // Nothing reached the eye (no light, black world: validation warned). Keep one black
-        // layer so the stack is a valid file and relights to a black image.
-        layers.push(Layer::from_f32(
-            LayerKey::new(vec![]),
-            1,
-            &vec![0.0; width * height],
-            settings.precision,
-        ));
-    }
-    let header = stack_header(ctx, scene, settings, spp);
-    let stack = TransferStack { header, layers };
-    let counts = LayerCounts {
-        possible: layer_count,
-        grey,
-        rgb,
-        empty,
-    };
+    )?;
     let assembly_seconds = assembly_start.elapsed().as_secs_f64();
-    let report = layer_report(
-        ctx,
-        &stack,
-        counts,
-        drop_report,
-        assembly_seconds,
-        denoise_seconds,
-    );
+    let image = finished.image.clone();
+    let (stack, report) = layer_report(ctx, finished, assembly_seconds, denoise_seconds);
     Ok((stack, report, image))
 }
 
 /// What one dense layer's sums became.
 enum Averaged {
-    Layer(RawLayer),
+    Layer(usize, RawLayer),
     /// No path reached it.
-    Empty(LayerKey),
+    Empty,
     /// Cancelled before it was looked at.
     Skipped,
 }
@@ -111,7 +107,7 @@ fn average_layers(
     pool: &rayon::ThreadPool,
     progress: &Progress,
     last_pass: bool,
-) -> Result<(Vec<RawLayer>, Vec<LayerKey>)> {
+) -> Result<(Vec<(usize, RawLayer)>, LayerFacts)> {
     let inv_spp = 1.0 / spp as f32;
     let average = |(index, slot): (usize, &Mutex<Vec<f32>>)| -> Result<Averaged> {
         if progress.is_cancelled() {
@@ -120,7 +116,7 @@ fn average_layers(
         let mut sums = slot.lock().unwrap_or_else(|e| e.into_inner());
         let key = layer_key(ctx, index);
         if sums.is_empty() || sums.iter().all(|v| *v == 0.0) {
-            return Ok(Averaged::Empty(key));
+            return Ok(Averaged::Empty);
         }
         let mut image: Vec<f32> = if last_pass {
             std::mem::take(&mut *sums)
@@ -133,21 +129,28 @@ fn average_layers(
         for v in image.iter_mut() {
             *v *= inv_spp;
         }
-        Ok(Averaged::Layer(grey_or_rgb(key, image)?))
+        Ok(Averaged::Layer(index, grey_or_rgb(key, image)?))
     };
     let averaged: Vec<Result<Averaged>> =
         pool.install(|| store.par_iter().enumerate().map(average).collect());
     progress.check()?;
     let mut reached = Vec::new();
-    let mut unreached = Vec::new();
+    let mut facts = LayerFacts {
+        reached: vec![false; store.len()],
+        coloured: vec![false; store.len()],
+    };
     for a in averaged {
         match a? {
-            Averaged::Layer(l) => reached.push(l),
-            Averaged::Empty(k) => unreached.push(k),
+            Averaged::Layer(i, l) => {
+                facts.reached[i] = true;
+                facts.coloured[i] = l.channels == 3;
+                reached.push((i, l));
+            }
+            Averaged::Empty => {}
             Averaged::Skipped => return Err(crate::RelumeError::Cancelled),
         }
     }
-    Ok((reached, unreached))
+    Ok((reached, facts))
 }
 
 /// One channel when the three are bit-identical at every pixel (Table 1's grey layers: the
@@ -172,10 +175,10 @@ fn grey_or_rgb(key: LayerKey, image: Vec<f32>) -> Result<RawLayer> {
 
 /// Runs the settings' denoiser: its direct iterations on the layers lit at the eye vertex
 /// (one-vertex paths), its bounce iterations on the one-bounce layers.
-fn denoise_layers(
+pub(crate) fn denoise_layers(
     settings: &BakeSettings,
     eye_features: &EyeFeatures,
-    reached: &mut [RawLayer],
+    reached: &mut [&mut RawLayer],
     pool: &rayon::ThreadPool,
     progress: &Progress,
 ) -> Result<()> {
@@ -187,6 +190,7 @@ fn denoise_layers(
             let mut chosen: Vec<&mut RawLayer> = reached
                 .iter_mut()
                 .filter(|l| l.key.path.len() == vertices)
+                .map(|l| &mut **l)
                 .collect();
             eye_features.filter_cancellable(&mut chosen, iterations, progress)?;
         }
@@ -194,30 +198,9 @@ fn denoise_layers(
     })
 }
 
-/// The kept layers at the stored `precision` (f16 with a per-layer scale, or f32).
-fn store_layers(
-    kept: Vec<RawLayer>,
-    precision: Precision,
-    pool: &rayon::ThreadPool,
-    progress: &Progress,
-) -> Result<Vec<Layer>> {
-    pool.install(|| {
-        kept.into_par_iter()
-            .map(|l| {
-                if progress.is_cancelled() {
-                    None
-                } else {
-                    Some(Layer::from_f32(l.key, l.channels, &l.data, precision))
-                }
-            })
-            .collect::<Option<Vec<Layer>>>()
-    })
-    .ok_or(crate::RelumeError::Cancelled)
-}
-
 /// What the stack records of the bake: image, camera, sampling, the regions with their
 /// bases and subsurface layouts, the lights and their groups' tints, the scene's hash.
-fn stack_header(
+pub(crate) fn stack_header(
     ctx: &BakeContext,
     scene: &Scene,
     settings: &BakeSettings,
@@ -267,25 +250,17 @@ fn stack_header(
     }
 }
 
-/// How many layers the slots allow and what became of them.
-struct LayerCounts {
-    possible: usize,
-    grey: usize,
-    rgb: usize,
-    empty: usize,
-}
-
-/// The report of the assembly; timing, ray and validation fields are filled in by the caller.
-fn layer_report(
+/// The stack and the report of its assembly; timing, ray and validation fields are filled
+/// in by the caller.
+pub(crate) fn layer_report(
     ctx: &BakeContext,
-    stack: &TransferStack,
-    counts: LayerCounts,
-    drop_report: DropReport,
+    finished: Finished,
     assembly_seconds: f64,
     denoise_seconds: f64,
-) -> BakeReport {
+) -> (TiledStack, BakeReport) {
     let res = ctx.resolution;
-    BakeReport {
+    let stack = finished.stack;
+    let report = BakeReport {
         seconds: 0.0,
         rays: 0,
         setup_seconds: 0.0,
@@ -298,14 +273,19 @@ fn layer_report(
         triangles: 0,
         degenerate_triangles: 0,
         warnings: Vec::new(),
-        layers_possible: counts.possible,
-        layers_grey: counts.grey,
-        layers_rgb: counts.rgb,
-        layers_empty: counts.empty,
-        sample_bytes: stack.sample_bytes(),
-        layers: drop_report,
+        layers_possible: finished.possible,
+        layers_grey: finished.grey,
+        layers_rgb: finished.rgb,
+        layers_empty: finished.empty,
+        sample_bytes: finished.dense_bytes,
+        tile_entries: stack.entry_count(),
+        stored_bytes: stack.sample_bytes(),
+        dense_bytes: finished.dense_bytes,
+        peak_accounted_bytes: 0,
+        layers: finished.drop,
         estimate: None,
         bounces: ctx.settings.bounces,
         bounce_estimate: ctx.bounce_estimate.clone(),
-    }
+    };
+    (stack, report)
 }

@@ -35,10 +35,11 @@
 //!
 //! The cost: a pixel keeps a stack of up to ≈ log2(spp) partial records while its samples
 //! are traced (one record per level, [`PixelTree`]), and each sample adds one record's worth
-//! of additions (amortised: the tree has one inner node per sample). The store keeps one
-//! full-frame image per block: one block for a one-pass bake (folded in the tile), and
+//! of additions (amortised: the tree has one inner node per sample). A one-pass bake folds
+//! each pixel's tree in the tile and keeps no store ([`super::stream`]: the tree's root is
+//! all it needs). The store of the dense path keeps one full-frame image per block:
 //! popcount(samples so far) blocks between the passes of a progressive bake
-//! ([`super::doubling_passes`] of a power-of-two `spp` keeps one).
+//! ([`super::doubling_passes`] of a power-of-two `spp` keeps one), a partition's blocks.
 
 use std::ops::Range;
 use std::sync::Mutex;

@@ -81,12 +81,29 @@ impl EyeFeatures {
         }
     }
 
-    /// Turns the per-pixel records of `spp` eye samples into features.
+    /// Turns the per-pixel records of `spp` eye samples of the whole frame into features.
     pub fn from_sums(ctx: &BakeContext, sums: &[f32], spp: u32) -> EyeFeatures {
         let (width, height) = (
             ctx.resolution.width as usize,
             ctx.resolution.height as usize,
         );
+        Self::from_window_sums(ctx, sums, spp, (0, 0), (width, height))
+    }
+
+    /// Features of a window of the frame: `sums` holds the records of the `size.0 × size.1`
+    /// pixels whose top-left pixel is `origin` (global coordinates: camera rays and
+    /// footprints are the frame's). The filter treats the window's edges like the image's,
+    /// so on a window its output is exact at pixels farther than the filter's footprint
+    /// radius ([`footprint_radius`]) from every edge that is not the image's: a streaming
+    /// bake filters a band of tile rows and keeps its centre.
+    pub fn from_window_sums(
+        ctx: &BakeContext,
+        sums: &[f32],
+        spp: u32,
+        origin: (usize, usize),
+        size: (usize, usize),
+    ) -> EyeFeatures {
+        let (width, height) = size;
         let n = width * height;
         let mut region = vec![None; n];
         let mut normal = vec![Vec3::ZERO; n];
@@ -114,7 +131,10 @@ impl EyeFeatures {
                 continue;
             }
             let x = Vec3::new(s[6], s[7], s[8]) / hits;
-            let (px, py) = ((p % width) as f32 + 0.5, (p / width) as f32 + 0.5);
+            let (px, py) = (
+                (origin.0 + p % width) as f32 + 0.5,
+                (origin.1 + p / width) as f32 + 0.5,
+            );
             let (o1, d1) = ctx.camera.ray(px, py);
             let (o2, d2) = ctx.camera.ray(px + 1.0, py);
             let t = (x - o1).length();
@@ -198,51 +218,77 @@ impl EyeFeatures {
         iterations: u32,
         progress: &crate::progress::Progress,
     ) -> crate::Result<()> {
-        for k in 0..iterations {
-            progress.check()?;
-            let step = 1usize << k;
-            let w = self.weights(step);
-            layers.par_iter_mut().for_each(|layer| {
-                if progress.is_cancelled() {
-                    return;
-                }
-                let c = layer.channels as usize;
-                let src = &layer.data;
-                // A region on which the layer is zero stays zero (weights never cross
-                // regions): skip its pixels. Pair layers live on one eye region each.
-                let mut live = vec![false; self.region_count];
-                for (p, r) in self.region.iter().enumerate() {
-                    if let Some(r) = r {
-                        if !live[*r as usize] && src[p * c..p * c + c].iter().any(|v| *v != 0.0) {
-                            live[*r as usize] = true;
-                        }
-                    }
-                }
-                let mut out = src.clone();
-                for (p, wp) in w.iter().enumerate() {
-                    if wp[12] == 0.0 || !self.region[p].is_some_and(|r| live[r as usize]) {
-                        continue;
-                    }
-                    let (x, y) = ((p % self.width) as isize, (p / self.width) as isize);
-                    let mut acc = [0.0f32; 3];
-                    for (t, &wt) in wp.iter().enumerate() {
-                        if wt == 0.0 {
-                            continue;
-                        }
-                        let qx = x + (t as isize % 5 - 2) * step as isize;
-                        let qy = y + (t as isize / 5 - 2) * step as isize;
-                        let q = qy as usize * self.width + qx as usize;
-                        for (a, v) in acc.iter_mut().zip(&src[q * c..q * c + c]) {
-                            *a += wt * v;
-                        }
-                    }
-                    out[p * c..p * c + c].copy_from_slice(&acc[..c]);
-                }
-                layer.data = out;
-            });
-        }
+        progress.check()?;
+        let weights = self.weights_for(iterations);
+        layers.par_iter_mut().for_each(|layer| {
+            if !progress.is_cancelled() {
+                self.filter_one(&weights, layer);
+            }
+        });
         progress.check()
     }
+
+    /// The weights of every step of an `iterations`-step filter, computed once and shared
+    /// by all the layers filtered with it ([`Self::filter_one`]).
+    pub fn weights_for(&self, iterations: u32) -> FilterWeights {
+        FilterWeights {
+            steps: (0..iterations).map(|k| self.weights(1usize << k)).collect(),
+        }
+    }
+
+    /// Filters one layer in place with every step of `weights`. Each layer is filtered on
+    /// its own, so the result is the same whatever the layers around it.
+    pub fn filter_one(&self, weights: &FilterWeights, layer: &mut RawLayer) {
+        for (k, w) in weights.steps.iter().enumerate() {
+            let step = 1usize << k;
+            let c = layer.channels as usize;
+            let src = &layer.data;
+            // A region on which the layer is zero stays zero (weights never cross
+            // regions): skip its pixels. Pair layers live on one eye region each.
+            let mut live = vec![false; self.region_count];
+            for (p, r) in self.region.iter().enumerate() {
+                if let Some(r) = r {
+                    if !live[*r as usize] && src[p * c..p * c + c].iter().any(|v| *v != 0.0) {
+                        live[*r as usize] = true;
+                    }
+                }
+            }
+            if !live.iter().any(|l| *l) {
+                continue;
+            }
+            let mut out = src.clone();
+            for (p, wp) in w.iter().enumerate() {
+                if wp[12] == 0.0 || !self.region[p].is_some_and(|r| live[r as usize]) {
+                    continue;
+                }
+                let (x, y) = ((p % self.width) as isize, (p / self.width) as isize);
+                let mut acc = [0.0f32; 3];
+                for (t, &wt) in wp.iter().enumerate() {
+                    if wt == 0.0 {
+                        continue;
+                    }
+                    let qx = x + (t as isize % 5 - 2) * step as isize;
+                    let qy = y + (t as isize / 5 - 2) * step as isize;
+                    let q = qy as usize * self.width + qx as usize;
+                    for (a, v) in acc.iter_mut().zip(&src[q * c..q * c + c]) {
+                        *a += wt * v;
+                    }
+                }
+                out[p * c..p * c + c].copy_from_slice(&acc[..c]);
+            }
+            layer.data = out;
+        }
+    }
+}
+
+/// The per-step tap weights of one filter ([`EyeFeatures::weights_for`]).
+pub struct FilterWeights {
+    steps: Vec<Vec<[f32; 25]>>,
+}
+
+/// Pixels an `iterations`-step filter reaches on each side: 2·(2^iterations − 1).
+pub fn footprint_radius(iterations: u32) -> usize {
+    2 * ((1usize << iterations) - 1)
 }
 
 #[cfg(test)]

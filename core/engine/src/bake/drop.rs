@@ -102,29 +102,6 @@ fn path_product<T: Copy>(
     })
 }
 
-fn norm(data: &[f32]) -> f64 {
-    data.iter()
-        .map(|v| (*v as f64) * (*v as f64))
-        .sum::<f64>()
-        .sqrt()
-}
-
-/// Adds `w·layer` into the RGB image `acc`.
-fn accumulate(acc: &mut [f64], layer: &RawLayer, w: Rgb) {
-    let w = [w.x as f64, w.y as f64, w.z as f64];
-    if layer.channels == 1 {
-        for (px, v) in acc.chunks_exact_mut(3).zip(&layer.data) {
-            for c in 0..3 {
-                px[c] += w[c] * *v as f64;
-            }
-        }
-    } else {
-        for (i, v) in layer.data.iter().enumerate() {
-            acc[i] += w[i % 3] * *v as f64;
-        }
-    }
-}
-
 /// The tint of the light group of `key` (see [`crate::stack::StackHeader::group_tint`]).
 fn key_tint(ctx: &BakeContext, key: &LayerKey) -> Rgb {
     ctx.lights.groups[key.light_group.saturating_sub(1) as usize].tint
@@ -150,59 +127,49 @@ fn bake_time_coefficients(ctx: &BakeContext, scene: &Scene) -> Vec<Vec<Rgb>> {
     coefs
 }
 
-/// The relit image (RGB, f64) of `layers` at the scene's bake-time materials.
-pub fn bake_time_image(ctx: &BakeContext, scene: &Scene, layers: &[RawLayer]) -> Vec<f64> {
+/// Per layer of `keys`, its weight in the image at the scene's bake-time materials (the
+/// product of its slots' coefficients, times its light group's tint).
+pub fn bake_time_weights(ctx: &BakeContext, scene: &Scene, keys: &[LayerKey]) -> Vec<Rgb> {
     let coefs = bake_time_coefficients(ctx, scene);
-    let pixels = (ctx.resolution.width * ctx.resolution.height) as usize;
-    let mut image = vec![0.0f64; pixels * 3];
-    for layer in layers {
-        accumulate(
-            &mut image,
-            layer,
-            path_product(&layer.key, &coefs, Rgb::ONE, |a, b| a * b) * key_tint(ctx, &layer.key),
-        );
-    }
-    image
+    keys.iter()
+        .map(|key| path_product(key, &coefs, Rgb::ONE, |a, b| a * b) * key_tint(ctx, key))
+        .collect()
 }
 
-/// Leaves out the layers whose worst-case contribution fits in `budget` (see the module
-/// docs) and reports, per region, what was kept, unreached and left out. `full` is
-/// [`bake_time_image`] of `layers`.
-pub fn drop_negligible(
-    ctx: &BakeContext,
-    scene: &Scene,
-    layers: Vec<RawLayer>,
-    full: &[f64],
-    unreached: &[LayerKey],
-    budget: f64,
-) -> (Vec<RawLayer>, DropReport) {
-    let pixels = (ctx.resolution.width * ctx.resolution.height) as usize;
-    let bake_coefs = bake_time_coefficients(ctx, scene);
-    let weight = |key: &LayerKey| {
-        path_product(key, &bake_coefs, Rgb::ONE, |a, b| a * b) * key_tint(ctx, key)
-    };
-    let reference = full.iter().map(|v| v * v).sum::<f64>().sqrt();
+/// A reached layer as the dropping sees it: its key, its channels as a whole (1: grey) and
+/// the L2 norm of its radiance over the frame (of the stored channels).
+pub struct LayerNorm {
+    pub key: LayerKey,
+    pub channels: u32,
+    pub norm: f64,
+}
 
-    let mut kept = layers;
-    let mut dropped: Vec<RawLayer> = Vec::new();
+/// Which of `layers` to leave out under `budget` (see the module docs), `reference` being
+/// ‖I₀‖, the norm of the image at the bake-time materials; and the bound Σ B_l / ‖I₀‖ of
+/// those left out.
+pub fn choose_negligible(
+    ctx: &BakeContext,
+    layers: &[LayerNorm],
+    reference: f64,
+    budget: f64,
+) -> (Vec<bool>, f64) {
+    let mut leave = vec![false; layers.len()];
     let mut bound = 0.0f64;
     if budget > 0.0 && reference > 0.0 {
         let maxima = max_coefficients(ctx);
-
-        let mut order: Vec<(f64, usize)> = kept
+        let mut order: Vec<(f64, usize)> = layers
             .iter()
             .enumerate()
             .map(|(i, l)| {
                 let w = path_product(&l.key, &maxima, 1.0f32, |a, b| a * b) as f64;
                 let spread = if l.channels == 1 { 3f64.sqrt() } else { 1.0 };
                 (
-                    w * key_tint(ctx, &l.key).max_element() as f64 * spread * norm(&l.data),
+                    w * key_tint(ctx, &l.key).max_element() as f64 * spread * l.norm,
                     i,
                 )
             })
             .collect();
         order.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let mut leave = vec![false; kept.len()];
         for (b, i) in order {
             if (bound * reference + b) > budget * reference {
                 break;
@@ -210,26 +177,21 @@ pub fn drop_negligible(
             bound += b / reference;
             leave[i] = true;
         }
-        let mut k = Vec::new();
-        for (i, l) in kept.into_iter().enumerate() {
-            if leave[i] {
-                dropped.push(l);
-            } else {
-                k.push(l);
-            }
-        }
-        kept = k;
     }
-    let mut lost = vec![0.0f64; pixels * 3];
-    for layer in &dropped {
-        accumulate(&mut lost, layer, weight(&layer.key));
-    }
-    let cost = if reference > 0.0 {
-        lost.iter().map(|v| v * v).sum::<f64>().sqrt() / reference
-    } else {
-        0.0
-    };
+    (leave, bound)
+}
 
+/// The report of what was kept and left out: `cost` is ‖Σ w_l L_l‖ / ‖I₀‖ over the layers
+/// left out at the bake-time materials.
+pub fn drop_report(
+    ctx: &BakeContext,
+    kept: &[LayerKey],
+    dropped: &[LayerKey],
+    unreached: &[LayerKey],
+    budget: f64,
+    bound: f64,
+    cost: f64,
+) -> DropReport {
     let holds = |key: &LayerKey, region: Option<u16>| match region {
         Some(r) => key.contains_region(r),
         None => key.path.contains(&PathVertex::Fixed),
@@ -253,17 +215,16 @@ pub fn drop_negligible(
     for (name, region) in targets {
         regions.push(RegionLayers {
             region: name,
-            stored: kept.iter().filter(|l| holds(&l.key, region)).count(),
+            stored: kept.iter().filter(|k| holds(k, region)).count(),
             dropped_unreached: unreached.iter().filter(|k| holds(k, region)).count(),
-            dropped_negligible: dropped.iter().filter(|l| holds(&l.key, region)).count(),
+            dropped_negligible: dropped.iter().filter(|k| holds(k, region)).count(),
         });
     }
-    let report = DropReport {
+    DropReport {
         budget,
         bound,
         cost_at_bake_materials: cost,
-        dropped: dropped.iter().map(|l| l.key.layer_name()).collect(),
+        dropped: dropped.iter().map(|k| k.layer_name()).collect(),
         regions,
-    };
-    (kept, report)
+    }
 }

@@ -2,9 +2,13 @@
 //! will reach (found by a small probe trace), the bytes of its accumulators at their peak,
 //! and the size of the stack it will write.
 //!
-//! The bake keeps one full-frame f32 RGB accumulator per layer any path reaches (see
-//! [`crate::bake`]), so memory is ≈ 12 bytes × reached layers × pixels, and which layers are
-//! reached depends on what the camera sees: the layers *possible* (world + slots + slot
+//! A one-pass bake streams ([`super::stream`]): its memory is the tiled stack it builds
+//! (per 16×16 tile only the layers non-zero there) plus the tile rows in flight, so the
+//! forecast needs how many (tile, layer) pairs are non-zero: the probe counts them in the
+//! tiles it visits. A progressive bake (several passes) and a farm partition keep one
+//! full-frame f32 RGB accumulator per layer any path reaches (see [`crate::bake`]), so
+//! their memory is ≈ 12 bytes × reached layers × pixels. Which layers are reached depends
+//! on what the camera sees: the layers *possible* (world + slots + slot
 //! pairs per light group) can overstate it several times. The probe traces one eye sample
 //! at a sparse grid of pixels with the bake's own integrator and counts the layers it
 //! reaches (and which of them carry colour). Layers only a few pixels reach can be missed
@@ -58,9 +62,19 @@ pub struct BakeEstimate {
     /// Forecast peak of the bake's own allocations (accumulators, per-pixel features, tile
     /// buffers, geometry, assembly and write copies), in bytes.
     pub peak_bytes: u64,
-    /// Forecast size of the stack in memory (layer samples at the stored precision); the
+    /// Forecast size of the stack in memory (layer samples at the stored precision: the
+    /// tiled stack's entries for a streaming bake, full frames for the dense path); the
     /// file is smaller by its compression.
     pub stack_bytes: u64,
+    /// Whether the forecast is of the streaming one-pass bake (else the dense path).
+    pub streaming: bool,
+    /// Forecast (tile, layer) entries of the tiled stack: the non-zero pairs the probe
+    /// found per tile it visited, times the tiles.
+    pub tile_entries: u64,
+    /// Of those, forecast entries stored with three channels.
+    pub tile_entries_rgb: u64,
+    /// Bytes the same layers would take as full frames (what the dense path stores).
+    pub dense_stack_bytes: u64,
     /// Each editable region's basis: its ns (and Principled roughness) range and the basis
     /// count the tolerance picked for it — the cost of a wide roughness range, shown before
     /// the bake (slots, hence layers, grow with the count).
@@ -113,19 +127,92 @@ impl PathSink for ProbeSink<'_> {
     fn eye_hit(&mut self, _region: u32, _normal: glam::Vec3, _position: glam::Vec3) {}
 }
 
+/// What one probe row found: per layer the probe pixels that reached it and whether it
+/// carried colour, its pixel count, and per tile it crossed the layers reached there.
+struct ProbeRow {
+    counts: Vec<u32>,
+    rgb: Vec<bool>,
+    pixels: u64,
+    tile_row: u32,
+    tiles: std::collections::BTreeMap<u32, Vec<bool>>,
+}
+
+/// The inputs of [`streaming_peak`].
+struct StreamingCosts {
+    entries: u64,
+    entries_rgb: u64,
+    tiles: u64,
+    threads: u64,
+    geometry: u64,
+    sample: u64,
+    tile_buffers: u64,
+}
+
+/// The streaming bake's stack bytes and peak: the tiled stack, plus the tile rows in flight
+/// (the band being traced and the denoiser's window, each tile its non-zero layers as f32
+/// RGB and its pixels' features), the row being stored, the per-thread tile buffers and
+/// denoiser windows, and the geometry; writing holds the stack and the file's encoded copy.
+fn streaming_peak(ctx: &BakeContext, c: &StreamingCosts) -> (u64, u64) {
+    let res = ctx.resolution;
+    let tile_px = (super::tiles::TILE * super::tiles::TILE) as u64;
+    let grey = c.entries - c.entries_rgb.min(c.entries);
+    let stack = tile_px * (grey + 3 * c.entries_rgb) * c.sample;
+    let tiles_x = super::super::stack::tiled::tiles_along(res.width) as u64;
+    let tiles_y = super::super::stack::tiled::tiles_along(res.height).max(1) as u64;
+    let apron = super::band::apron_rows(&ctx.settings.denoise) as u64;
+    let band = super::band::default_band_rows(res.width, c.threads as usize, apron as usize) as u64;
+    let rows_held = (band + 2 * apron + 1).min(tiles_y);
+    let per_tile_traced = (c.entries.div_ceil(c.tiles.max(1))) * tile_px * 12
+        + tile_px * super::denoise::FEATURE_STRIDE as u64 * 4;
+    let traced = rows_held * tiles_x * per_tile_traced;
+    let window_px = res.width as u64 * ((2 * apron + band) * super::tiles::TILE as u64);
+    let window = if apron > 0 {
+        // Each worker's layer window, the weights of both filters, the window's features
+        // (and their records while built).
+        c.threads * window_px * 12 + window_px * (2 * 25 * 4 + 64)
+    } else {
+        0
+    };
+    // The row being stored: its layers in f32 RGB on their way to the builder.
+    let row_out = band * tiles_x * c.entries.div_ceil(c.tiles.max(1)) * tile_px * 12;
+    let tracing = stack + traced + c.tile_buffers + window + row_out;
+    let write = stack * 2;
+    (stack, c.geometry + tracing.max(write))
+}
+
 /// Bytes the scene's geometry and BVH take once prepared (positions, normals, UVs,
 /// triangles and the BVH's nodes): a per-triangle allowance.
 const BYTES_PER_TRIANGLE: u64 = 160;
 
 /// Traces the probe over `ctx` and forecasts the bake's memory for `passes` progressive
-/// passes (a progressive bake keeps its sums while it hands each pass's stack out).
-/// `prepared_bytes`: what preparing `ctx` took (geometry, BVH, textures, environment,
-/// subsurface samples), measured by the caller where the OS tells ([`prepare_measured`]);
-/// `None` falls back to a per-triangle allowance.
+/// passes: one pass streams, several keep dense sums while they hand each pass's stack
+/// out. `prepared_bytes`: what preparing `ctx` took (geometry, BVH, textures,
+/// environment, subsurface samples), measured by the caller where the OS tells
+/// ([`prepare_measured`]); `None` falls back to a per-triangle allowance.
 pub fn estimate(
     ctx: &BakeContext,
     scene: &Scene,
     passes: usize,
+    prepared_bytes: Option<u64>,
+) -> BakeEstimate {
+    estimate_path(ctx, scene, passes, passes <= 1, prepared_bytes)
+}
+
+/// [`estimate`] of the dense path whatever the passes (a farm partition: full-frame sums).
+pub fn estimate_dense(
+    ctx: &BakeContext,
+    scene: &Scene,
+    passes: usize,
+    prepared_bytes: Option<u64>,
+) -> BakeEstimate {
+    estimate_path(ctx, scene, passes, false, prepared_bytes)
+}
+
+fn estimate_path(
+    ctx: &BakeContext,
+    scene: &Scene,
+    passes: usize,
+    streaming: bool,
     prepared_bytes: Option<u64>,
 ) -> BakeEstimate {
     let res = ctx.resolution;
@@ -137,12 +224,14 @@ pub fn estimate(
     let brdf = BasisBrdf { ctx };
     // Offset by half a stride so the grid samples the frame's inside, not its edge.
     let rows: Vec<u32> = (stride / 2..res.height).step_by(stride as usize).collect();
-    let per_row: Vec<(Vec<u32>, Vec<bool>, u64)> = rows
+    let tile = super::tiles::TILE;
+    let per_row: Vec<ProbeRow> = rows
         .par_iter()
         .map(|&y| {
             let mut counts = vec![0u32; layers];
             let mut reached = vec![false; layers];
             let mut rgb = vec![false; layers];
+            let mut tiles: std::collections::BTreeMap<u32, Vec<bool>> = Default::default();
             let mut tracer = CountingTracer::default();
             let mut n = 0;
             for x in (stride / 2..res.width).step_by(stride as usize) {
@@ -163,21 +252,54 @@ pub fn estimate(
                 for (c, r) in counts.iter_mut().zip(&reached) {
                     *c += u32::from(*r);
                 }
+                let in_tile = tiles.entry(x / tile).or_insert_with(|| vec![false; layers]);
+                for (t, r) in in_tile.iter_mut().zip(&reached) {
+                    *t |= *r;
+                }
                 n += 1;
             }
-            (counts, rgb, n)
+            ProbeRow {
+                counts,
+                rgb,
+                pixels: n,
+                tile_row: y / tile,
+                tiles,
+            }
         })
         .collect();
     let mut probe_pixels = 0u64;
-    for (k, c, n) in per_row {
-        probe_pixels += n;
-        for (a, b) in counts.iter_mut().zip(k) {
+    // The (tile, layer) pairs reached in each tile the probe visited.
+    let mut tile_sets: std::collections::BTreeMap<(u32, u32), Vec<bool>> = Default::default();
+    for row in per_row {
+        probe_pixels += row.pixels;
+        for (a, b) in counts.iter_mut().zip(row.counts) {
             *a += b;
         }
-        for (a, b) in rgb.iter_mut().zip(c) {
+        for (a, b) in rgb.iter_mut().zip(row.rgb) {
             *a |= b;
         }
+        for (tx, set) in row.tiles {
+            let all = tile_sets
+                .entry((row.tile_row, tx))
+                .or_insert_with(|| vec![false; layers]);
+            for (a, b) in all.iter_mut().zip(set) {
+                *a |= b;
+            }
+        }
     }
+    let (mut pairs, mut pairs_rgb) = (0u64, 0u64);
+    for set in tile_sets.values() {
+        for (l, r) in set.iter().enumerate() {
+            if *r {
+                pairs += 1;
+                pairs_rgb += u64::from(rgb[l]);
+            }
+        }
+    }
+    let all_tiles = super::tiles::tiles(res).len() as u64;
+    let visited = tile_sets.len().max(1) as u64;
+    let tile_entries = (pairs * all_tiles).div_ceil(visited);
+    let tile_entries_rgb = (pairs_rgb * all_tiles).div_ceil(visited);
     let layers_seen = counts.iter().filter(|c| **c > 0).count().max(1);
     let layers_reached = layers_seen;
     // Layers the probe did not see take the seen layers' share of colour.
@@ -205,7 +327,8 @@ pub fn estimate(
         Precision::F16 => 2,
         Precision::F32 => 4,
     };
-    let stack_bytes = px * (layers_grey as u64 + 3 * layers_rgb as u64) * sample;
+    let dense_stack_bytes = px * (layers_grey as u64 + 3 * layers_rgb as u64) * sample;
+    let stack_bytes = dense_stack_bytes;
     let denoising =
         ctx.settings.denoise.direct_iterations + ctx.settings.denoise.bounce_iterations > 0;
     // The denoiser's 25 weights per pixel and one output copy per worker.
@@ -231,6 +354,22 @@ pub fn estimate(
     // the averaged layers were larger).
     let write = stack_bytes * 2 + if passes > 1 { accumulator_bytes } else { 0 };
     let peak_bytes = geometry + tracing.max(assembly).max(write);
+    let (stack_bytes, peak_bytes) = if streaming {
+        streaming_peak(
+            ctx,
+            &StreamingCosts {
+                entries: tile_entries,
+                entries_rgb: tile_entries_rgb,
+                tiles: all_tiles,
+                threads,
+                geometry,
+                sample,
+                tile_buffers,
+            },
+        )
+    } else {
+        (stack_bytes, peak_bytes)
+    };
     BakeEstimate {
         width: res.width,
         height: res.height,
@@ -243,6 +382,10 @@ pub fn estimate(
         prepared_bytes: geometry,
         peak_bytes,
         stack_bytes,
+        streaming,
+        tile_entries,
+        tile_entries_rgb,
+        dense_stack_bytes,
         editable: ctx
             .regions
             .iter()

@@ -1,12 +1,18 @@
 //! The bake: one path-tracing pass that fills every layer of the transfer stack.
 //!
 //! For each pixel and eye sample, the integrator ([`integrator`]) gives radiance per slot
-//! (direct) and per slot pair (one bounce); a tile accumulates them densely, then hands every
-//! layer that received anything to the whole-image layer store. At the end a layer whose
-//! three channels are bit-identical everywhere (its paths met no colour: Table 1's grey
-//! layers) is stored with one channel, an all-zero layer is dropped, and the rest are RGB.
+//! (direct) and per slot pair (one bounce). Every bake ends in a [`TiledStack`]: per 16×16
+//! tile only the layers non-zero there ([`finalise`]). A one-pass bake streams
+//! ([`stream`]): tile rows are traced in bands and finalised as soon as their denoiser
+//! window is traced, so its memory follows the data. A progressive bake (several passes)
+//! and a farm's merge keep full-frame accumulators per reached layer ([`blocks`]) — their
+//! memory stays dense, ≈ 12 bytes × reached layers × pixels — and cut the assembled layers
+//! into the same tiles with the same code, so they give the same stack. A layer whose three
+//! channels are bit-identical everywhere (its paths met no colour: Table 1's grey layers)
+//! is stored with one channel, an all-zero layer is dropped, and the rest are RGB.
 
 pub mod assemble;
+pub mod band;
 pub mod bench;
 pub mod blocks;
 pub mod bounce_budget;
@@ -16,6 +22,7 @@ pub mod denoise;
 pub mod drop;
 pub mod estimate;
 pub mod farm_file;
+pub mod finalise;
 pub mod frozen;
 pub mod guide;
 pub mod guide_file;
@@ -33,6 +40,7 @@ pub mod report;
 pub mod settings;
 pub mod setup;
 pub mod signature;
+pub mod stream;
 pub mod subsurface;
 pub mod subsurface_light;
 pub mod tiles;
@@ -44,6 +52,7 @@ use std::time::Instant;
 
 use crate::progress::{Progress, Stage};
 use crate::scene::Scene;
+use crate::stack::tiled::TiledStack;
 use crate::stack::TransferStack;
 use crate::Result;
 pub(crate) use assemble::assemble;
@@ -52,14 +61,43 @@ pub use report::{BakeReport, PassReport};
 pub use settings::{BakeSettings, Denoise, IndirectSampling, LightGrouping};
 pub(crate) use trace::trace_range;
 
-/// Bakes `scene` into a transfer stack. `progress` reports and cancels from other threads.
+/// Bakes `scene` into a dense transfer stack: [`bake_tiled`] expanded with
+/// [`TiledStack::to_dense`] (every layer a full frame: for tests and small bakes).
 pub fn bake(
     scene: &Scene,
     settings: &BakeSettings,
     progress: &Progress,
 ) -> Result<(TransferStack, BakeReport)> {
-    let (stack, report, _) =
-        bake_progressive(scene, settings, &[settings.spp], progress, |_, _, _| Ok(()))?;
+    let (stack, report) = bake_tiled(scene, settings, progress)?;
+    Ok((stack.to_dense()?, report))
+}
+
+/// Bakes `scene` into a tiled stack in one streaming pass ([`stream`]): memory is the
+/// stack plus the tile rows in flight. `progress` reports and cancels from other threads.
+pub fn bake_tiled(
+    scene: &Scene,
+    settings: &BakeSettings,
+    progress: &Progress,
+) -> Result<(TiledStack, BakeReport)> {
+    bake_tiled_banded(scene, settings, None, progress)
+}
+
+/// [`bake_tiled`] tracing `band_rows` tile rows at a time (`None`: enough tiles for the
+/// threads). The stack does not depend on it.
+pub fn bake_tiled_banded(
+    scene: &Scene,
+    settings: &BakeSettings,
+    band_rows: Option<usize>,
+    progress: &Progress,
+) -> Result<(TiledStack, BakeReport)> {
+    let (stack, report, _) = run_passes(
+        scene,
+        settings,
+        &[settings.spp],
+        band_rows,
+        progress,
+        |_, _, _| Ok(()),
+    )?;
     Ok((stack, report))
 }
 
@@ -77,7 +115,8 @@ pub fn doubling_passes(spp: u32, passes: u32) -> Vec<u32> {
 /// A bake in passes: after pass k the stack holds `passes[k]` eye samples per pixel
 /// (cumulative, increasing, the last one is the bake) and `on_pass` gets it — complete and
 /// usable, e.g. to write it (atomically) and relight a first noisy image within seconds.
-/// The paths are the same as one bake of `passes.last()` samples.
+/// The paths are the same as one bake of `passes.last()` samples. Dense stacks:
+/// [`bake_progressive_tiled`] expanded per pass with [`TiledStack::to_dense`].
 pub fn bake_progressive(
     scene: &Scene,
     settings: &BakeSettings,
@@ -85,6 +124,34 @@ pub fn bake_progressive(
     progress: &Progress,
     mut on_pass: impl FnMut(&TransferStack, &BakeReport, &PassReport) -> Result<()>,
 ) -> Result<(TransferStack, BakeReport, Vec<PassReport>)> {
+    let (stack, report, reports) =
+        bake_progressive_tiled(scene, settings, passes, progress, |stack, report, pass| {
+            on_pass(&stack.to_dense()?, report, pass)
+        })?;
+    Ok((stack.to_dense()?, report, reports))
+}
+
+/// [`bake_progressive`] in tiled stacks. One pass streams ([`bake_tiled`]); several keep
+/// full-frame accumulators between the passes (their memory stays dense) and cut each
+/// pass's layers into tiles.
+pub fn bake_progressive_tiled(
+    scene: &Scene,
+    settings: &BakeSettings,
+    passes: &[u32],
+    progress: &Progress,
+    on_pass: impl FnMut(&TiledStack, &BakeReport, &PassReport) -> Result<()>,
+) -> Result<(TiledStack, BakeReport, Vec<PassReport>)> {
+    run_passes(scene, settings, passes, None, progress, on_pass)
+}
+
+fn run_passes(
+    scene: &Scene,
+    settings: &BakeSettings,
+    passes: &[u32],
+    band_rows: Option<usize>,
+    progress: &Progress,
+    mut on_pass: impl FnMut(&TiledStack, &BakeReport, &PassReport) -> Result<()>,
+) -> Result<(TiledStack, BakeReport, Vec<PassReport>)> {
     settings.validate()?;
     if passes.is_empty() || passes.windows(2).any(|w| w[0] >= w[1]) || passes[0] == 0 {
         return Err(crate::RelumeError::invalid(
@@ -115,7 +182,6 @@ pub fn bake_progressive(
     ctx.build_guide(scene, progress)?;
     let setup_seconds = start.elapsed().as_secs_f64();
     let res = ctx.resolution;
-    let (width, height) = (res.width as usize, res.height as usize);
     let mut store = blocks::BlockStore::default();
     let rays = std::sync::atomic::AtomicU64::new(0);
     let tile_count = tiles::tiles(res).len() as u64;
@@ -125,12 +191,55 @@ pub fn bake_progressive(
         .num_threads(settings.threads)
         .build()
         .map_err(|e| crate::RelumeError::invalid("threads", e.to_string()))?;
+    let finish_report = |report: &mut BakeReport, rays: u64| {
+        report.seconds = start.elapsed().as_secs_f64();
+        report.setup_seconds = setup_seconds;
+        report.trace_seconds = report.seconds - setup_seconds;
+        report.rays = rays;
+        report.rays_per_second = rays as f64 / report.trace_seconds.max(1e-9);
+        report.triangles = validation.triangles;
+        report.degenerate_triangles = validation.degenerate_triangles;
+        report.warnings = validation.warnings.clone();
+        report.estimate = Some(forecast.clone());
+    };
+    if passes.len() == 1 {
+        let band = band_rows.unwrap_or_else(|| {
+            pool.install(|| {
+                band::default_band_rows(
+                    res.width,
+                    settings.threads,
+                    band::apron_rows(&settings.denoise),
+                )
+            })
+        });
+        let trace_start = Instant::now();
+        let streamed =
+            stream::bake_streaming(&ctx, scene, &settings, band, &pool, progress, &rays)?;
+        progress.set_stage(Stage::Finishing);
+        let (stack, mut report) = assemble::layer_report(
+            &ctx,
+            streamed.finished,
+            trace_start.elapsed().as_secs_f64(),
+            streamed.denoise_seconds,
+        );
+        report.peak_accounted_bytes = streamed.peak_accounted_bytes;
+        finish_report(&mut report, rays.load(std::sync::atomic::Ordering::Relaxed));
+        let pass_report = PassReport {
+            pass: 0,
+            spp: settings.spp,
+            seconds: report.seconds,
+            estimated_rel_error: None,
+        };
+        progress.check()?;
+        on_pass(&stack, &report, &pass_report)?;
+        progress.set_stage(Stage::Done);
+        return Ok((stack, report, vec![pass_report]));
+    }
     let mut pass_reports = Vec::new();
     let mut previous_image: Option<Vec<f64>> = None;
     let mut done = 0u32;
     let mut result = None;
     for (pass, &upto) in passes.iter().enumerate() {
-        let trace_start = Instant::now();
         let (from, to) = (done, upto);
         progress.set_stage(Stage::Tracing);
         let last_pass = pass + 1 == passes.len();
@@ -160,12 +269,12 @@ pub fn bake_progressive(
             &eye_features,
             done,
             &pool,
-            width,
-            height,
             progress,
+            last_pass,
             true,
         )?;
         drop(sums);
+        let image = image.unwrap_or_default();
         let norm = image.iter().map(|v| v * v).sum::<f64>().sqrt();
         let estimated_rel_error = previous_image.as_ref().map(|prev| {
             let diff = prev
@@ -178,18 +287,7 @@ pub fn bake_progressive(
             diff * (r / (1.0 - r)).sqrt() / norm.max(1e-300)
         });
         previous_image = Some(image);
-        let trace_seconds = trace_start.elapsed().as_secs_f64();
-        let total_rays = rays.load(std::sync::atomic::Ordering::Relaxed);
-        report.seconds = start.elapsed().as_secs_f64();
-        report.setup_seconds = setup_seconds;
-        report.trace_seconds = report.seconds - setup_seconds;
-        report.rays = total_rays;
-        report.rays_per_second = total_rays as f64 / report.trace_seconds.max(1e-9);
-        report.triangles = validation.triangles;
-        report.degenerate_triangles = validation.degenerate_triangles;
-        report.warnings = validation.warnings.clone();
-        report.estimate = Some(forecast.clone());
-        let _ = trace_seconds;
+        finish_report(&mut report, rays.load(std::sync::atomic::Ordering::Relaxed));
         let pass_report = PassReport {
             pass,
             spp: done,

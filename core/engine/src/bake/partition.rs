@@ -23,6 +23,7 @@ use super::settings::{BakeSettings, IndirectSampling};
 use super::{assemble, denoise, estimate, tiles, trace_range, BakeReport};
 use crate::bake::partial::{BlockInfo, PartialHeader, PartialStack, PARTIAL_FORMAT_VERSION};
 use crate::scene::{hash::scene_hash, Scene};
+use crate::stack::tiled::TiledStack;
 use crate::stack::TransferStack;
 use crate::{RelumeError, Result};
 
@@ -90,7 +91,7 @@ pub fn bake_partition(
     let fingerprint = settings_fingerprint(settings);
     progress.set_stage(Stage::Setup);
     let (mut ctx, validation, prepared) = estimate::prepare_measured(scene, settings, progress)?;
-    let forecast = estimate::estimate(&ctx, scene, 1, prepared);
+    let forecast = estimate::estimate_dense(&ctx, scene, 1, prepared);
     crate::memory::check_budget(
         &format!(
             "this partition ({}×{}, {} of {} possible layers reached by a probe)",
@@ -304,17 +305,28 @@ pub fn check_parts(parts: &[(PathBuf, PartialHeader)]) -> Result<Vec<usize>> {
     Ok(order)
 }
 
-/// Merges the partial stacks of one bake of `scene` (read from the paths beside them) into
-/// the stack a one-machine bake with the same settings makes, bit for bit: checks
-/// ([`check_parts`], and the scene's hash), sums in the canonical tree, finalises.
-/// `threads` (0: all cores) are the merge machine's. All parts in memory: see
-/// [`merge_files`] for the streaming form.
+/// [`merge_tiled`], expanded to the dense stack ([`TiledStack::to_dense`]).
 pub fn merge(
     scene: &Scene,
     parts: Vec<(PathBuf, PartialStack)>,
     threads: usize,
     progress: &Progress,
 ) -> Result<(TransferStack, BakeReport)> {
+    let (stack, report) = merge_tiled(scene, parts, threads, progress)?;
+    Ok((stack.to_dense()?, report))
+}
+
+/// Merges the partial stacks of one bake of `scene` (read from the paths beside them) into
+/// the stack a one-machine bake with the same settings makes, bit for bit: checks
+/// ([`check_parts`], and the scene's hash), sums in the canonical tree, finalises (as
+/// full frames: a merge's memory stays dense). `threads` (0: all cores) are the merge
+/// machine's. All parts in memory: see [`merge_files_tiled`] for the streaming form.
+pub fn merge_tiled(
+    scene: &Scene,
+    parts: Vec<(PathBuf, PartialStack)>,
+    threads: usize,
+    progress: &Progress,
+) -> Result<(TiledStack, BakeReport)> {
     let headers: Vec<(PathBuf, PartialHeader)> = parts
         .iter()
         .map(|(p, s)| (p.clone(), s.header.clone()))
@@ -329,15 +341,27 @@ pub fn merge(
     )
 }
 
-/// [`merge`] of partial stack files: every header is checked first, then the parts are read
-/// one at a time in sample order and folded in as they come, so the merge holds at most
-/// ≈ log2(parts) + 1 blocks of sums (one, two… full-frame stacks of f32), not every part.
+/// [`merge_files_tiled`], expanded to the dense stack ([`TiledStack::to_dense`]).
 pub fn merge_files(
     scene: &Scene,
     paths: &[PathBuf],
     threads: usize,
     progress: &Progress,
 ) -> Result<(TransferStack, BakeReport)> {
+    let (stack, report) = merge_files_tiled(scene, paths, threads, progress)?;
+    Ok((stack.to_dense()?, report))
+}
+
+/// [`merge_tiled`] of partial stack files: every header is checked first, then the parts
+/// are read one at a time in sample order and folded in as they come, so the merge holds
+/// at most ≈ log2(parts) + 1 blocks of sums (one, two… full-frame stacks of f32), not
+/// every part.
+pub fn merge_files_tiled(
+    scene: &Scene,
+    paths: &[PathBuf],
+    threads: usize,
+    progress: &Progress,
+) -> Result<(TiledStack, BakeReport)> {
     let headers = paths
         .iter()
         .map(|p| Ok((p.clone(), crate::bake::partial::read_partial_header(p)?)))
@@ -357,7 +381,7 @@ fn merge_with(
     mut load: impl FnMut(usize) -> Result<PartialStack>,
     threads: usize,
     progress: &Progress,
-) -> Result<(TransferStack, BakeReport)> {
+) -> Result<(TiledStack, BakeReport)> {
     let start = Instant::now();
     let order = check_parts(&headers)?;
     let h0 = &headers[0].1;
@@ -425,10 +449,9 @@ fn merge_with(
         &eye_features,
         settings.spp,
         &pool,
-        ctx.resolution.width as usize,
-        ctx.resolution.height as usize,
         progress,
         true,
+        false,
     )?;
     report.seconds = start.elapsed().as_secs_f64();
     report.setup_seconds = report.seconds - report.assembly_seconds;

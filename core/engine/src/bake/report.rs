@@ -32,7 +32,19 @@ pub struct BakeReport {
     pub layers_rgb: usize,
     /// Layers no path reached (e.g. a region never seen from another): not stored.
     pub layers_empty: usize,
+    /// Bytes of samples the stack would hold in the dense layout (every kept layer a full
+    /// frame): what `dense_bytes` says, kept under its old name.
     pub sample_bytes: usize,
+    /// (Tile, layer) entries of the tiled stack.
+    pub tile_entries: usize,
+    /// Bytes of samples the tiled stack holds (only the layers present per tile).
+    pub stored_bytes: usize,
+    /// Bytes the kept layers would hold as full frames (the dense layout).
+    pub dense_bytes: usize,
+    /// The largest number of bytes the bake's own accounting held at once in its layer
+    /// buffers: the streaming bake's stack so far plus its band in flight; 0 for the dense
+    /// path (progressive passes, a merge), whose layers are full frames.
+    pub peak_accounted_bytes: usize,
     /// Layers kept and left out, per region, and what leaving them out costs.
     pub layers: drop::DropReport,
     /// The memory forecast made before tracing (compare with the measured peak).

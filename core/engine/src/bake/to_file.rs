@@ -1,5 +1,7 @@
-//! A bake written to a stack file: the one place that turns [`bake_progressive`] into files
-//! on disk, shared by `relume bake` and the Python bindings' `BakeJob`.
+//! A bake written to a stack file: the one place that turns [`bake_progressive_tiled`]
+//! into files on disk, shared by `relume bake` and the Python bindings' `BakeJob`. The
+//! file is the tiled stack (format v2): one pass streams and never holds the layers as
+//! full frames.
 //!
 //! With `passes > 1` the sample counts double up to `settings.spp` ([`doubling_passes`]) and
 //! a complete stack replaces the file after every pass; each write is atomic (temp file,
@@ -11,9 +13,10 @@ use std::path::Path;
 use std::time::Instant;
 
 use super::progress::Progress;
-use super::{bake_progressive, doubling_passes, BakeReport, BakeSettings, PassReport};
+use super::{bake_progressive_tiled, doubling_passes, BakeReport, BakeSettings, PassReport};
 use crate::scene::Scene;
-use crate::stack::{exr_file::write_stack_cancellable, TransferStack};
+use crate::stack::tiled::file::write_tiled_cancellable;
+use crate::stack::tiled::TiledStack;
 use crate::Result;
 
 /// Most progressive passes: each doubles the samples, so 16 spans a 65 536-fold range.
@@ -21,8 +24,8 @@ pub const MAX_PASSES: u32 = 16;
 
 /// What [`bake_to_file`] did.
 pub struct BakedFile {
-    /// The final stack (the last pass's, as written).
-    pub stack: TransferStack,
+    /// The final stack (the last pass's, as written: file format v2, tiled).
+    pub stack: TiledStack,
     pub report: BakeReport,
     /// One per pass, with the estimated noise after each.
     pub passes: Vec<PassReport>,
@@ -58,10 +61,10 @@ pub fn bake_to_file(
     let mut write_seconds = 0.0;
     let mut stacks_written = 0;
     let (stack, report, passes) =
-        bake_progressive(scene, settings, &counts, progress, |stack, _, pass| {
+        bake_progressive_tiled(scene, settings, &counts, progress, |stack, _, pass| {
             let t = Instant::now();
             progress.set_stage(super::progress::Stage::Writing);
-            file_bytes = write_stack_cancellable(path, stack, progress)?;
+            file_bytes = write_tiled_cancellable(path, stack, progress)?;
             write_seconds = t.elapsed().as_secs_f64();
             stacks_written += 1;
             on_written(pass, file_bytes);

@@ -53,35 +53,34 @@ impl PathSink for TileSink<'_> {
     }
 }
 
-/// Traces eye samples `samples` of every pixel of `tile` into the pass's `blocks` (the
-/// [`blocks::dyadic_blocks`] of `samples`, or one block when `fold`: the range is a whole
-/// bake `[0, spp)` and its tree's root is all that is kept). Every pixel adds its samples in
-/// the canonical tree of [`blocks`], so any split of the samples gives the same bits.
+/// Traces eye samples `samples` of every pixel of `tile` into per-pixel records (layer sums
+/// then features, [`blocks::combine`]'s layout), `blocks` of them per pixel (the
+/// [`blocks::dyadic_blocks`] of `samples`, or one when `fold`: the range is a whole bake
+/// `[0, spp)` and its tree's root is all that is kept), block-major then pixel-major. Every
+/// pixel adds its samples in the canonical tree of [`blocks`], so any split of the samples
+/// gives the same bits. `None` when `progress` was cancelled midway.
 #[allow(clippy::too_many_arguments)]
-fn trace_tile(
+pub(crate) fn trace_tile_records(
     ctx: &BakeContext,
     brdf: &BasisBrdf,
-    blocks: &[blocks::Block],
+    blocks: usize,
     fold: bool,
     tile: &tiles::Tile,
     samples: std::ops::Range<u32>,
-    width: usize,
     progress: &Progress,
     rays: &std::sync::atomic::AtomicU64,
-) -> Result<bool> {
+) -> Result<Option<Vec<f32>>> {
     let layer_count = ctx.layer_count();
     let layout = DenseLayout::of(ctx);
-    let height = ctx.resolution.height as usize;
     let tp = tile.pixels();
     let fs = denoise::FEATURE_STRIDE;
     let record = layer_count * 3 + fs;
-    let mut buf: Vec<f32> =
-        crate::memory::try_zeroed(blocks.len() * tp * record, "a tile's layer sums")?;
+    let mut buf: Vec<f32> = crate::memory::try_zeroed(blocks * tp * record, "a tile's layer sums")?;
     let mut tree = blocks::PixelTree::new(layer_count)?;
     let mut tracer = CountingTracer::default();
     for ty in 0..tile.height {
         if progress.is_cancelled() {
-            return Ok(false);
+            return Ok(None);
         }
         for tx in 0..tile.width {
             let pixel = (ty * tile.width + tx) as usize;
@@ -107,14 +106,41 @@ fn trace_tile(
             if fold {
                 tree.fold();
             }
-            debug_assert_eq!(tree.blocks().len(), blocks.len());
-            for b in 0..blocks.len() {
+            debug_assert_eq!(tree.blocks().len(), blocks);
+            for b in 0..blocks {
                 let dst = (b * tp + pixel) * record;
                 buf[dst..dst + record].copy_from_slice(tree.record(b));
             }
         }
     }
     rays.fetch_add(tracer.rays, std::sync::atomic::Ordering::Relaxed);
+    Ok(Some(buf))
+}
+
+/// Traces eye samples `samples` of every pixel of `tile` into the pass's full-frame
+/// `blocks` ([`trace_tile_records`], then scattered per layer).
+#[allow(clippy::too_many_arguments)]
+fn trace_tile(
+    ctx: &BakeContext,
+    brdf: &BasisBrdf,
+    blocks: &[blocks::Block],
+    fold: bool,
+    tile: &tiles::Tile,
+    samples: std::ops::Range<u32>,
+    width: usize,
+    progress: &Progress,
+    rays: &std::sync::atomic::AtomicU64,
+) -> Result<bool> {
+    let layer_count = ctx.layer_count();
+    let height = ctx.resolution.height as usize;
+    let tp = tile.pixels();
+    let fs = denoise::FEATURE_STRIDE;
+    let record = layer_count * 3 + fs;
+    let Some(buf) =
+        trace_tile_records(ctx, brdf, blocks.len(), fold, tile, samples, progress, rays)?
+    else {
+        return Ok(false);
+    };
     for (b, block) in blocks.iter().enumerate() {
         let records = &buf[b * tp * record..(b + 1) * tp * record];
         {

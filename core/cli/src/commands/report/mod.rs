@@ -27,7 +27,7 @@ use relume_engine::image_io::{compare_rgb, read_rgb_exr, write_atomic, write_rgb
 use relume_engine::materials::{resolve_materials, MaterialsFile};
 use relume_engine::relight::CpuRelighter;
 use relume_engine::scene::{file::load_scene, hash::scene_hash, Resolution, Scene};
-use relume_engine::stack::{bases::StackBases, tiled::TiledStack, RegionInfo};
+use relume_engine::stack::{bases::StackBases, RegionInfo};
 use relume_engine::RelumeError;
 use serde_json::{json, Value};
 
@@ -457,7 +457,7 @@ fn measure_preset(
             bake_to_file(&scene, &settings, 1, &path, &p, |_, _| {})
         })?
     };
-    let stack = Arc::new(TiledStack::from_dense(&baked.stack)?);
+    let stack = Arc::new(baked.stack);
     let materials = resolve_materials(&stack.header.regions, &MaterialsFile::default())?;
     let coefs = StackBases::from_header(&stack.header)?.coefficients(&materials)?;
     let mut relighter = CpuRelighter::from_tiled(stack.clone())?;

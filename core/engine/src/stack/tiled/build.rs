@@ -7,13 +7,13 @@ use std::sync::Mutex;
 use half::f16;
 use rayon::prelude::*;
 
-use super::validate::{format_err, validate};
 use super::layout::{
     tile_rect, tiles_along, StackTile, TileLayer, TileRect, TileValues, TiledLayerInfo, TiledStack,
     STACK_FORMAT_VERSION_TILED,
 };
-use crate::layer_key::LayerKey;
+use super::validate::{format_err, validate};
 use crate::error::{RelumeError, Result};
+use crate::layer_key::LayerKey;
 use crate::stack::{
     Layer, LayerSamples, Precision, StackHeader, TransferStack, STACK_FORMAT_VERSION,
 };

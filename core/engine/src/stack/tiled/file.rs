@@ -26,14 +26,14 @@ use std::path::Path;
 use exr::prelude::{self as x, ReadChannels as _, ReadLayers as _, WritableImage as _};
 use serde::{Deserialize, Serialize};
 
-use super::validate::{format_err, validate};
 use super::layout::{
     StackTile, TileLayer, TileValues, TiledLayerInfo, TiledStack, STACK_FORMAT_VERSION_TILED,
 };
-use crate::progress::Progress;
-use crate::layer_key::LayerKey;
+use super::validate::{format_err, validate};
 use crate::error::{RelumeError, Result};
 use crate::image_io::write_atomic_checked;
+use crate::layer_key::LayerKey;
+use crate::progress::Progress;
 use crate::stack::exr_file::{
     read_stack, ATTR_FORMAT_VERSION, ATTR_HEADER, ATTR_LAYERS, ATTR_SCENE_HASH,
 };

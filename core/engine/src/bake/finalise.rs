@@ -1,0 +1,454 @@
+//! The last step of every bake, one tile at a time: a tile's denoised f32 layers become
+//! entries of the tiled stack ([`TiledStackBuilder`]), and the statistics the layer
+//! dropping needs (per-layer norms, the image at the bake-time materials) are gathered on
+//! the way, so no step after it needs the layers as full frames.
+//!
+//! Both bakes end here: the streaming one-pass bake ([`super::stream`]) hands over each
+//! tile row as soon as its denoiser window is traced, the dense path (progressive passes,
+//! a farm's merge) cuts its full-frame layers into tiles. Given the same f32 values they
+//! make the same stack, bit for bit: a tile's entries, the order its statistics are added
+//! in (layer id within a tile, raster order across tiles) and the dropping do not depend
+//! on the path.
+
+use crate::bake::context::BakeContext;
+use crate::bake::drop::{self, DropReport, LayerNorm};
+use crate::layer_key::LayerKey;
+use crate::scene::Scene;
+use crate::stack::tiled::{
+    StackTile, TileLayer, TileRadiance, TileRect, TileValues, TiledLayerInfo, TiledStack,
+    TiledStackBuilder,
+};
+use crate::{Result, Rgb};
+
+/// One layer's f32 radiance over one tile (the tile's pixels row-major, `channels`
+/// interleaved), denoised and averaged: what [`finalise_tile`] takes.
+pub(crate) struct TileInput {
+    pub layer: u32,
+    pub channels: u8,
+    pub data: Vec<f32>,
+}
+
+/// What one finalised tile adds to the stack's statistics.
+pub(crate) struct TileTally {
+    /// Per entry stored: layer id, whether stored grey, Σ value² over its stored channels.
+    entries: Vec<(u32, bool, f64)>,
+    /// Σ over the tile's pixels and channels of the bake-time image².
+    image_sumsq: f64,
+    /// The tile's bake-time image (RGB, f64), when the caller keeps the whole image.
+    image: Option<Vec<f64>>,
+    /// Values handed to the builder.
+    values: usize,
+}
+
+/// Stores tile `tile` (covering `rect`) of `inputs` into `builder`: an all-zero layer is
+/// left out, one whose three channels have the same bits throughout the tile is stored grey
+/// (one channel), and the builder quantises each entry with its own scale. `weights` are
+/// the layers' weights at the bake-time materials (by layer id); `keep_image` keeps the
+/// tile's bake-time image in the tally (a progressive bake's error estimate needs it).
+pub(crate) fn finalise_tile(
+    builder: &TiledStackBuilder,
+    tile: usize,
+    rect: TileRect,
+    mut inputs: Vec<TileInput>,
+    weights: &[Rgb],
+    keep_image: bool,
+) -> Result<TileTally> {
+    inputs.sort_by_key(|i| i.layer);
+    let mut image = vec![0.0f64; rect.pixels() * 3];
+    let mut kept: Vec<TileInput> = Vec::with_capacity(inputs.len());
+    let mut entries = Vec::with_capacity(inputs.len());
+    for mut input in inputs {
+        if input.data.iter().all(|v| *v == 0.0) {
+            continue;
+        }
+        if input.channels == 3
+            && input
+                .data
+                .chunks_exact(3)
+                .all(|p| p[0] == p[1] && p[1] == p[2])
+        {
+            input.data = input.data.chunks_exact(3).map(|p| p[0]).collect();
+            input.channels = 1;
+        }
+        let sumsq: f64 = input.data.iter().map(|v| (*v as f64) * (*v as f64)).sum();
+        let w = weights[input.layer as usize];
+        let w = [w.x as f64, w.y as f64, w.z as f64];
+        if input.channels == 1 {
+            for (px, v) in image.chunks_exact_mut(3).zip(&input.data) {
+                for c in 0..3 {
+                    px[c] += w[c] * *v as f64;
+                }
+            }
+        } else {
+            for (i, v) in input.data.iter().enumerate() {
+                image[i] += w[i % 3] * *v as f64;
+            }
+        }
+        entries.push((input.layer, input.channels == 1, sumsq));
+        kept.push(input);
+    }
+    let radiance: Vec<TileRadiance> = kept
+        .iter()
+        .map(|i| TileRadiance {
+            layer: i.layer,
+            channels: i.channels,
+            radiance: &i.data,
+        })
+        .collect();
+    builder.insert(tile, &radiance)?;
+    Ok(TileTally {
+        entries,
+        image_sumsq: image.iter().map(|v| v * v).sum(),
+        image: keep_image.then_some(image),
+        values: kept.iter().map(|i| i.data.len()).sum(),
+    })
+}
+
+/// The statistics of the tiles finalised so far, added in raster order.
+pub(crate) struct StackTally {
+    /// Per layer id, Σ value² over its grey entries (one channel each).
+    grey_sumsq: Vec<f64>,
+    /// Per layer id, Σ value² over its RGB entries.
+    rgb_sumsq: Vec<f64>,
+    image_sumsq: f64,
+    /// The whole bake-time image (RGB, f64), when kept.
+    image: Option<Vec<f64>>,
+    width: usize,
+    values: usize,
+    value_bytes: usize,
+}
+
+impl StackTally {
+    /// No tile yet, for `layers` layer ids; `keep_image` keeps the whole bake-time image
+    /// (`pixels` of a `width`-wide frame).
+    pub(crate) fn new(
+        layers: usize,
+        width: usize,
+        pixels: usize,
+        precision: crate::options::Precision,
+        keep_image: bool,
+    ) -> Self {
+        StackTally {
+            values: 0,
+            value_bytes: value_bytes(precision),
+            grey_sumsq: vec![0.0; layers],
+            rgb_sumsq: vec![0.0; layers],
+            image_sumsq: 0.0,
+            image: keep_image.then(|| vec![0.0; pixels * 3]),
+            width,
+        }
+    }
+
+    /// Adds a tile's tally; tiles must come in raster order (the sums' order is the
+    /// bits of the drop decisions).
+    pub(crate) fn add(&mut self, rect: TileRect, tally: TileTally) {
+        for (layer, grey, sumsq) in tally.entries {
+            let slot = if grey {
+                &mut self.grey_sumsq
+            } else {
+                &mut self.rgb_sumsq
+            };
+            slot[layer as usize] += sumsq;
+        }
+        self.image_sumsq += tally.image_sumsq;
+        self.values += tally.values;
+        if let (Some(all), Some(tile)) = (&mut self.image, tally.image) {
+            for ty in 0..rect.height as usize {
+                let row = (rect.y0 as usize + ty) * self.width + rect.x0 as usize;
+                let w = rect.width as usize;
+                all[row * 3..(row + w) * 3].copy_from_slice(&tile[ty * w * 3..(ty + 1) * w * 3]);
+            }
+        }
+    }
+}
+
+impl StackTally {
+    /// Bytes of the values stored so far.
+    pub(crate) fn stored_bytes(&self) -> usize {
+        self.values * self.value_bytes
+    }
+}
+
+/// Bytes of one stored value.
+pub(crate) fn value_bytes(precision: crate::options::Precision) -> usize {
+    match precision {
+        crate::options::Precision::F16 => 2,
+        crate::options::Precision::F32 => 4,
+    }
+}
+
+/// A finished bake's stack and what its layers became.
+pub(crate) struct Finished {
+    pub stack: TiledStack,
+    pub drop: DropReport,
+    pub possible: usize,
+    pub grey: usize,
+    pub rgb: usize,
+    pub empty: usize,
+    /// Bytes the kept layers would hold as full frames (the dense layout).
+    pub dense_bytes: usize,
+    /// The bake-time image, when the tally kept it.
+    pub image: Option<Vec<f64>>,
+}
+
+/// Per layer id what the whole bake saw: whether any sample reached it, and whether its
+/// averaged radiance carried colour anywhere (before denoising: the stored layer's
+/// channels, as the dense stack had them).
+pub(crate) struct LayerFacts {
+    pub reached: Vec<bool>,
+    pub coloured: Vec<bool>,
+}
+
+/// Finishes the stack once every tile is in: leaves out the layers no path reached and,
+/// under `budget`, the negligible ones ([`drop`]), renumbers the rest in id order, and
+/// keeps one black layer when nothing is left (the stack stays a valid file that relights
+/// to black).
+pub(crate) fn finish_stack(
+    ctx: &BakeContext,
+    builder: TiledStackBuilder,
+    tally: StackTally,
+    facts: &LayerFacts,
+    weights: &[Rgb],
+    budget: f64,
+) -> Result<Finished> {
+    let stack = builder.finish()?;
+    let count = stack.layers.len();
+    let keys: Vec<LayerKey> = stack.layers.iter().map(|l| l.key.clone()).collect();
+    let reached: Vec<usize> = (0..count).filter(|&i| facts.reached[i]).collect();
+    let unreached: Vec<LayerKey> = (0..count)
+        .filter(|&i| !facts.reached[i])
+        .map(|i| keys[i].clone())
+        .collect();
+    let norms: Vec<LayerNorm> = reached
+        .iter()
+        .map(|&i| {
+            let (channels, sumsq) = if facts.coloured[i] {
+                (3, 3.0 * tally.grey_sumsq[i] + tally.rgb_sumsq[i])
+            } else {
+                (1, tally.grey_sumsq[i] + tally.rgb_sumsq[i])
+            };
+            LayerNorm {
+                key: keys[i].clone(),
+                channels,
+                norm: sumsq.sqrt(),
+            }
+        })
+        .collect();
+    let reference = tally.image_sumsq.sqrt();
+    let (leave, bound) = drop::choose_negligible(ctx, &norms, reference, budget);
+    let mut keep = vec![false; count];
+    let mut dropped_ids = vec![false; count];
+    for (k, &i) in reached.iter().enumerate() {
+        keep[i] = !leave[k];
+        dropped_ids[i] = leave[k];
+    }
+    let cost = if reference > 0.0 && dropped_ids.iter().any(|d| *d) {
+        lost_image_norm(&stack, &dropped_ids, weights) / reference
+    } else {
+        0.0
+    };
+    let kept_keys: Vec<LayerKey> = (0..count)
+        .filter(|&i| keep[i])
+        .map(|i| keys[i].clone())
+        .collect();
+    let dropped_keys: Vec<LayerKey> = (0..count)
+        .filter(|&i| dropped_ids[i])
+        .map(|i| keys[i].clone())
+        .collect();
+    let report = drop::drop_report(
+        ctx,
+        &kept_keys,
+        &dropped_keys,
+        &unreached,
+        budget,
+        bound,
+        cost,
+    );
+    let mut stack = keep_layers(stack, &keep, &facts.coloured);
+    let grey = stack.layers.iter().filter(|l| l.channels == 1).count();
+    let rgb = stack.layers.len() - grey;
+    let pixels = stack.header.width as usize * stack.header.height as usize;
+    let dense_bytes = (grey + 3 * rgb) * pixels * value_bytes(stack.header.precision);
+    if stack.layers.is_empty() {
+        stack.layers.push(TiledLayerInfo {
+            key: LayerKey::new(vec![]),
+            channels: 1,
+            scale: 1.0,
+        });
+    }
+    Ok(Finished {
+        stack,
+        drop: report,
+        possible: count,
+        grey,
+        rgb,
+        empty: unreached.len(),
+        dense_bytes,
+        image: tally.image,
+    })
+}
+
+/// ‖Σ w_l L_l‖ over the layers marked in `dropped`, from their stored entries.
+fn lost_image_norm(stack: &TiledStack, dropped: &[bool], weights: &[Rgb]) -> f64 {
+    let mut sumsq = 0.0f64;
+    for (t, tile) in stack.tiles.iter().enumerate() {
+        let pixels = stack.tile_rect(t).pixels();
+        let mut image = vec![0.0f64; pixels * 3];
+        let mut any = false;
+        for (e, entry) in tile.entries.iter().enumerate() {
+            if !dropped[entry.layer as usize] {
+                continue;
+            }
+            any = true;
+            let w = weights[entry.layer as usize].to_array();
+            for p in 0..pixels {
+                for c in 0..3 {
+                    image[p * 3 + c] += w[c] as f64 * stack.value(t, e, p, c) as f64;
+                }
+            }
+        }
+        if any {
+            sumsq += image.iter().map(|v| v * v).sum::<f64>();
+        }
+    }
+    sumsq.sqrt()
+}
+
+/// The stack with only the layers marked in `keep`, renumbered in id order; a kept layer
+/// has 3 channels where `coloured`, else 1.
+fn keep_layers(stack: TiledStack, keep: &[bool], coloured: &[bool]) -> TiledStack {
+    let mut new_id = vec![u32::MAX; keep.len()];
+    let mut layers = Vec::new();
+    for (i, info) in stack.layers.into_iter().enumerate() {
+        if keep[i] {
+            new_id[i] = layers.len() as u32;
+            layers.push(TiledLayerInfo {
+                channels: if coloured[i] { 3 } else { 1 },
+                ..info
+            });
+        }
+    }
+    let tiles = stack
+        .tiles
+        .into_iter()
+        .enumerate()
+        .map(|(t, tile)| {
+            let pixels =
+                crate::stack::tiled::tile_rect(stack.header.width, stack.header.height, t).pixels();
+            if tile.entries.iter().all(|e| keep[e.layer as usize]) {
+                let entries = tile
+                    .entries
+                    .into_iter()
+                    .map(|e| TileLayer {
+                        layer: new_id[e.layer as usize],
+                        ..e
+                    })
+                    .collect();
+                return StackTile {
+                    entries,
+                    values: tile.values,
+                };
+            }
+            let mut values = TileValues::empty(tile.values.precision());
+            let mut entries = Vec::new();
+            for e in &tile.entries {
+                if !keep[e.layer as usize] {
+                    continue;
+                }
+                let range = e.offset as usize..e.offset as usize + pixels * e.channels as usize;
+                let offset = values.len() as u32;
+                match (&mut values, &tile.values) {
+                    (TileValues::F16(out), TileValues::F16(src)) => {
+                        out.extend_from_slice(&src[range])
+                    }
+                    (TileValues::F32(out), TileValues::F32(src)) => {
+                        out.extend_from_slice(&src[range])
+                    }
+                    _ => unreachable!("one precision per tile"),
+                }
+                entries.push(TileLayer {
+                    layer: new_id[e.layer as usize],
+                    offset,
+                    ..*e
+                });
+            }
+            StackTile { entries, values }
+        })
+        .collect();
+    TiledStack {
+        header: stack.header,
+        layers,
+        tiles,
+    }
+}
+
+/// Bakes' dense path: the full-frame f32 `layers` (id, channels, data) cut into tiles
+/// and finalised in raster order ([`finalise_tile`]).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn finalise_dense(
+    builder: &TiledStackBuilder,
+    layers: &[(u32, u8, &[f32])],
+    width: u32,
+    height: u32,
+    weights: &[Rgb],
+    tally: &mut StackTally,
+    pool: &rayon::ThreadPool,
+    progress: &crate::progress::Progress,
+) -> Result<()> {
+    use rayon::prelude::*;
+    let count = crate::stack::tiled::tiles_along(width) as usize
+        * crate::stack::tiled::tiles_along(height) as usize;
+    let keep_image = tally.image.is_some();
+    let tallies: Vec<Result<TileTally>> = pool.install(|| {
+        (0..count)
+            .into_par_iter()
+            .map(|t| {
+                progress.check()?;
+                let rect = crate::stack::tiled::tile_rect(width, height, t);
+                let inputs = layers
+                    .iter()
+                    .map(|&(layer, channels, data)| TileInput {
+                        layer,
+                        channels,
+                        data: tile_values(data, channels as usize, rect, width as usize),
+                    })
+                    .collect();
+                finalise_tile(builder, t, rect, inputs, weights, keep_image)
+            })
+            .collect()
+    });
+    for (t, r) in tallies.into_iter().enumerate() {
+        tally.add(crate::stack::tiled::tile_rect(width, height, t), r?);
+    }
+    Ok(())
+}
+
+/// The values of `rect` from a full-frame layer of `channels` interleaved channels.
+fn tile_values(data: &[f32], channels: usize, rect: TileRect, width: usize) -> Vec<f32> {
+    let mut out = Vec::with_capacity(rect.pixels() * channels);
+    for ty in 0..rect.height as usize {
+        let row = (rect.y0 as usize + ty) * width + rect.x0 as usize;
+        out.extend_from_slice(&data[row * channels..(row + rect.width as usize) * channels]);
+    }
+    out
+}
+
+/// The header's scene-dependent parts live in the assembly; a builder takes every possible
+/// layer id (key and 3 channels: a tile's grey entries are found per tile).
+pub(crate) fn builder_for(
+    ctx: &BakeContext,
+    header: crate::stack::StackHeader,
+) -> Result<TiledStackBuilder> {
+    let layers = (0..ctx.layer_count())
+        .map(|i| (super::layout::layer_key(ctx, i), 3u8))
+        .collect();
+    TiledStackBuilder::new(header, layers)
+}
+
+/// Per layer id, its weight at the scene's bake-time materials.
+pub(crate) fn layer_weights(ctx: &BakeContext, scene: &Scene) -> Vec<Rgb> {
+    let keys: Vec<LayerKey> = (0..ctx.layer_count())
+        .map(|i| super::layout::layer_key(ctx, i))
+        .collect();
+    drop::bake_time_weights(ctx, scene, &keys)
+}

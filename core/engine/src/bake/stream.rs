@@ -1,0 +1,465 @@
+//! The one-pass bake whose memory follows the data: tile rows are traced in bands, each
+//! traced tile is kept only as its sparse averages (the layers non-zero there) and its
+//! pixels' eye features, and a tile row is finalised into the tiled stack as soon as the
+//! rows its denoiser reads are traced. Peak memory is the stack built so far plus the rows
+//! in flight, not layers × frame.
+//!
+//! The denoiser ([`super::denoise`]) is a fixed linear operator whose weights depend only
+//! on the eye features, with a footprint of [`super::denoise::footprint_radius`] pixels. A
+//! tile row is filtered on a window of `apron` tile rows above and below it
+//! ([`super::band`]; `apron · 16` ≥ that radius), whose cut edges are treated like the image's: the row's output is then exactly what the
+//! whole-frame filter gives (errors from a cut edge travel at most the radius inwards), so
+//! this bake makes the same stack, bit for bit, as the dense path that filters full frames
+//! (a progressive bake's, a farm merge's).
+
+use rayon::prelude::*;
+use std::time::Instant;
+
+use super::assemble::stack_header;
+use super::band::apron_rows;
+use super::context::BakeContext;
+use super::denoise::{EyeFeatures, FEATURE_STRIDE};
+use super::drop::RawLayer;
+use super::finalise::{
+    builder_for, finalise_tile, finish_stack, layer_weights, Finished, LayerFacts, StackTally,
+    TileInput, TileTally,
+};
+use super::settings::BakeSettings;
+use super::tiles::{self, Tile, TILE};
+use super::trace::trace_tile_records;
+use super::vertex_brdf::BasisBrdf;
+use crate::layer_key::LayerKey;
+use crate::progress::{Progress, Stage};
+use crate::scene::Scene;
+use crate::stack::tiled::{tiles_along, TileRect, TiledStackBuilder};
+use crate::{RelumeError, Result};
+
+/// What the streaming bake made.
+pub(crate) struct Streamed {
+    pub finished: Finished,
+    pub denoise_seconds: f64,
+    /// The most bytes held at once in stored tiles, traced rows and denoiser windows.
+    pub peak_accounted_bytes: usize,
+}
+
+/// One traced tile: its averaged layers (those with a non-zero sum, RGB, sorted by id) and
+/// its pixels' eye-feature records.
+struct TracedTile {
+    rect: TileRect,
+    features: Vec<f32>,
+    layers: Vec<(u32, Vec<f32>)>,
+    /// Layer ids whose averaged channels differ somewhere in the tile.
+    coloured: Vec<u32>,
+}
+
+impl TracedTile {
+    fn bytes(&self) -> usize {
+        4 * (self.features.len() + self.layers.iter().map(|(_, d)| d.len()).sum::<usize>())
+    }
+
+    fn layer(&self, id: u32) -> Option<&[f32]> {
+        self.layers
+            .binary_search_by_key(&id, |(l, _)| *l)
+            .ok()
+            .map(|i| &self.layers[i].1[..])
+    }
+}
+
+fn rect_of(tile: &Tile) -> TileRect {
+    TileRect {
+        x0: tile.x0,
+        y0: tile.y0,
+        width: tile.width,
+        height: tile.height,
+    }
+}
+
+/// Traces all `spp` samples of `tile` (the canonical tree's root per pixel) and keeps the
+/// sparse averages.
+fn trace_sparse(
+    ctx: &BakeContext,
+    brdf: &BasisBrdf,
+    tile: &Tile,
+    spp: u32,
+    progress: &Progress,
+    rays: &std::sync::atomic::AtomicU64,
+) -> Result<TracedTile> {
+    let buf = trace_tile_records(ctx, brdf, 1, true, tile, 0..spp, progress, rays)?
+        .ok_or(RelumeError::Cancelled)?;
+    let layer_count = ctx.layer_count();
+    let record = layer_count * 3 + FEATURE_STRIDE;
+    let tp = tile.pixels();
+    let mut features = Vec::with_capacity(tp * FEATURE_STRIDE);
+    for p in 0..tp {
+        let at = p * record + layer_count * 3;
+        features.extend_from_slice(&buf[at..at + FEATURE_STRIDE]);
+    }
+    let inv_spp = 1.0 / spp as f32;
+    let mut layers = Vec::new();
+    let mut coloured = Vec::new();
+    for layer in 0..layer_count {
+        let texel = |p: usize| &buf[p * record + layer * 3..p * record + layer * 3 + 3];
+        if (0..tp).all(|p| texel(p) == [0.0; 3]) {
+            continue;
+        }
+        let mut data = crate::memory::try_with_capacity(tp * 3, "a tile's layer averages")?;
+        for p in 0..tp {
+            data.extend(texel(p).iter().map(|v| v * inv_spp));
+        }
+        if data.chunks_exact(3).any(|c| c[0] != c[1] || c[1] != c[2]) {
+            coloured.push(layer as u32);
+        }
+        layers.push((layer as u32, data));
+    }
+    Ok(TracedTile {
+        rect: rect_of(tile),
+        features,
+        layers,
+        coloured,
+    })
+}
+
+/// Bakes `settings.spp` samples per pixel in one pass, streaming tile rows into the tiled
+/// stack; `band_rows` tile rows are traced at once (rayon over their tiles).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn bake_streaming(
+    ctx: &BakeContext,
+    scene: &Scene,
+    settings: &BakeSettings,
+    band_rows: usize,
+    pool: &rayon::ThreadPool,
+    progress: &Progress,
+    rays: &std::sync::atomic::AtomicU64,
+) -> Result<Streamed> {
+    let res = ctx.resolution;
+    let (width, height) = (res.width as usize, res.height as usize);
+    let spp = settings.spp;
+    let all = tiles::tiles(res);
+    let tx = tiles_along(res.width) as usize;
+    let ty = tiles_along(res.height) as usize;
+    let apron = apron_rows(&settings.denoise);
+    let band = band_rows.max(1);
+    let builder = builder_for(ctx, stack_header(ctx, scene, settings, spp))?;
+    let weights = layer_weights(ctx, scene);
+    let layer_count = ctx.layer_count();
+    let mut tally = StackTally::new(
+        layer_count,
+        width,
+        width * height,
+        settings.precision,
+        false,
+    );
+    let mut facts = LayerFacts {
+        reached: vec![false; layer_count],
+        coloured: vec![false; layer_count],
+    };
+    let path_len: Vec<usize> = (0..layer_count)
+        .map(|i| super::layout::layer_key(ctx, i).path.len())
+        .collect();
+    let brdf = BasisBrdf { ctx };
+    let mut rows: Vec<Option<Vec<TracedTile>>> = (0..ty).map(|_| None).collect();
+    let (mut traced, mut next, mut freed) = (0usize, 0usize, 0usize);
+    let mut held_rows = 0usize;
+    let mut peak = 0usize;
+    let mut denoise_seconds = 0.0;
+    while next < ty {
+        progress.check()?;
+        let needed = (next + apron + 1).min(ty);
+        if traced < needed {
+            progress.set_stage(Stage::Tracing);
+            let upto = (traced + band).max(needed).min(ty);
+            let band_tiles = &all[traced * tx..upto * tx];
+            let done: Vec<Result<TracedTile>> = pool.install(|| {
+                band_tiles
+                    .par_iter()
+                    .map(|tile| {
+                        progress.check()?;
+                        let t = trace_sparse(ctx, &brdf, tile, spp, progress, rays)?;
+                        progress.advance(spp as u64);
+                        Ok(t)
+                    })
+                    .collect()
+            });
+            let mut done = done.into_iter().collect::<Result<Vec<_>>>()?;
+            for t in &done {
+                held_rows += t.bytes();
+                for (l, _) in &t.layers {
+                    facts.reached[*l as usize] = true;
+                }
+                for l in &t.coloured {
+                    facts.coloured[*l as usize] = true;
+                }
+            }
+            for r in (traced..upto).rev() {
+                rows[r] = Some(done.split_off((r - traced) * tx));
+            }
+            traced = upto;
+            peak = peak.max(tally.stored_bytes() + held_rows);
+            continue;
+        }
+        let started = Instant::now();
+        // Every row whose window is traced is finalised on one window: the filter runs over
+        // the apron rows once per band, not once per row.
+        let last = if traced == ty {
+            ty - 1
+        } else {
+            traced - 1 - apron
+        };
+        let window = Window {
+            ctx,
+            settings,
+            rows: &rows,
+            lo: next.saturating_sub(apron),
+            hi: (last + apron).min(ty - 1),
+            centre: (next, last),
+            width,
+            height,
+            path_len: &path_len,
+            finishing: traced == ty,
+        };
+        let (tallies, transient) = window.finalise(&builder, &weights, pool, progress)?;
+        if apron > 0 {
+            denoise_seconds += started.elapsed().as_secs_f64();
+        }
+        for (rect, t) in tallies {
+            tally.add(rect, t);
+        }
+        peak = peak.max(tally.stored_bytes() + held_rows + transient);
+        // Row r serves the rows up to r + apron: those up to `last` are done.
+        while freed + apron <= last {
+            if let Some(row) = rows[freed].take() {
+                held_rows -= row.iter().map(TracedTile::bytes).sum::<usize>();
+            }
+            freed += 1;
+        }
+        next = last + 1;
+    }
+    drop(rows);
+    progress.check()?;
+    progress.set_stage(Stage::Finishing);
+    let finished = finish_stack(
+        ctx,
+        builder,
+        tally,
+        &facts,
+        &weights,
+        settings.drop_budget as f64,
+    )?;
+    Ok(Streamed {
+        finished,
+        denoise_seconds,
+        peak_accounted_bytes: peak,
+    })
+}
+
+/// The traced rows `lo..=hi` around the tile rows `centre` (first, last) being finalised.
+struct Window<'a> {
+    ctx: &'a BakeContext,
+    settings: &'a BakeSettings,
+    rows: &'a [Option<Vec<TracedTile>>],
+    lo: usize,
+    hi: usize,
+    centre: (usize, usize),
+    width: usize,
+    height: usize,
+    path_len: &'a [usize],
+    /// Every row is traced: what is left is the bake's finish, reported as
+    /// [`Stage::Finishing`] rather than row by row.
+    finishing: bool,
+}
+
+impl Window<'_> {
+    /// Reports `stage` unless the bake is finishing.
+    fn stage(&self, progress: &Progress, stage: Stage) {
+        progress.set_stage(if self.finishing {
+            Stage::Finishing
+        } else {
+            stage
+        });
+    }
+
+    fn row(&self, r: usize) -> &[TracedTile] {
+        self.rows[r].as_deref().unwrap_or(&[])
+    }
+
+    /// First pixel row and height of the window.
+    fn span(&self) -> (usize, usize) {
+        let y0 = self.lo * TILE as usize;
+        let y1 = ((self.hi + 1) * TILE as usize).min(self.height);
+        (y0, y1 - y0)
+    }
+
+    fn iterations(&self, layer: u32) -> u32 {
+        match self.path_len[layer as usize] {
+            1 => self.settings.denoise.direct_iterations,
+            2 => self.settings.denoise.bounce_iterations,
+            _ => 0,
+        }
+    }
+
+    /// The window's eye features (only built when some layer is filtered).
+    fn features(&self) -> EyeFeatures {
+        let (y0, h) = self.span();
+        let mut sums = Vec::with_capacity(self.width * h * FEATURE_STRIDE);
+        for _ in 0..self.width * h {
+            sums.extend_from_slice(&EyeFeatures::EMPTY);
+        }
+        for r in self.lo..=self.hi {
+            for t in self.row(r) {
+                for py in 0..t.rect.height as usize {
+                    for px in 0..t.rect.width as usize {
+                        let src = (py * t.rect.width as usize + px) * FEATURE_STRIDE;
+                        let dst =
+                            ((t.rect.y0 as usize + py - y0) * self.width + t.rect.x0 as usize + px)
+                                * FEATURE_STRIDE;
+                        sums[dst..dst + FEATURE_STRIDE]
+                            .copy_from_slice(&t.features[src..src + FEATURE_STRIDE]);
+                    }
+                }
+            }
+        }
+        EyeFeatures::from_window_sums(self.ctx, &sums, self.settings.spp, (0, y0), (self.width, h))
+    }
+
+    /// Layer `layer` over the window as a full-width RGB image (zeros where a tile lacks it).
+    fn layer_image(&self, layer: u32) -> Result<Vec<f32>> {
+        let (y0, h) = self.span();
+        let mut image: Vec<f32> =
+            crate::memory::try_zeroed(self.width * h * 3, "a layer over a denoiser window")?;
+        for r in self.lo..=self.hi {
+            for t in self.row(r) {
+                let Some(data) = t.layer(layer) else { continue };
+                let w = t.rect.width as usize;
+                for py in 0..t.rect.height as usize {
+                    let dst =
+                        ((t.rect.y0 as usize + py - y0) * self.width + t.rect.x0 as usize) * 3;
+                    image[dst..dst + w * 3].copy_from_slice(&data[py * w * 3..(py + 1) * w * 3]);
+                }
+            }
+        }
+        Ok(image)
+    }
+
+    /// Filters what the centre row needs and finalises its tiles: their tallies in raster
+    /// order, and the bytes the windows held at once.
+    fn finalise(
+        &self,
+        builder: &TiledStackBuilder,
+        weights: &[crate::Rgb],
+        pool: &rayon::ThreadPool,
+        progress: &Progress,
+    ) -> Result<(Vec<(TileRect, TileTally)>, usize)> {
+        self.stage(progress, Stage::Assembly);
+        let centre: Vec<&TracedTile> = (self.centre.0..=self.centre.1)
+            .flat_map(|r| self.row(r).iter())
+            .collect();
+        // Every layer present in the window may reach the centre row once filtered.
+        let mut ids: Vec<u32> = (self.lo..=self.hi)
+            .flat_map(|r| self.row(r).iter())
+            .flat_map(|t| t.layers.iter().map(|(l, _)| *l))
+            .collect();
+        ids.sort_unstable();
+        ids.dedup();
+        let filtered = ids.iter().any(|&l| self.iterations(l) > 0);
+        let (features, direct, bounce) = if filtered {
+            let f = pool.install(|| self.features());
+            let d = pool.install(|| f.weights_for(self.settings.denoise.direct_iterations));
+            let b = pool.install(|| f.weights_for(self.settings.denoise.bounce_iterations));
+            (Some(f), Some(d), Some(b))
+        } else {
+            (None, None, None)
+        };
+        let (y0, h) = self.span();
+        let window_bytes = self.width * h * 3 * 4;
+        // Stages interleave row by row: the row's filtering, then its tiles' storing.
+        self.stage(progress, Stage::Denoising);
+        // Per layer: its values on each centre tile (None: absent there).
+        let per_layer: Vec<Result<Vec<Option<Vec<f32>>>>> = pool.install(|| {
+            ids.par_iter()
+                .map(|&layer| {
+                    progress.check()?;
+                    let iterations = self.iterations(layer);
+                    let (Some(f), true) = (&features, iterations > 0) else {
+                        return Ok(centre
+                            .iter()
+                            .map(|t| t.layer(layer).map(<[f32]>::to_vec))
+                            .collect());
+                    };
+                    let w = if self.path_len[layer as usize] == 1 {
+                        direct.as_ref()
+                    } else {
+                        bounce.as_ref()
+                    }
+                    .expect("weights built when filtering");
+                    let mut raw = RawLayer {
+                        key: LayerKey::new(vec![]),
+                        channels: 3,
+                        data: self.layer_image(layer)?,
+                    };
+                    f.filter_one(w, &mut raw);
+                    Ok(centre
+                        .iter()
+                        .map(|t| {
+                            let tw = t.rect.width as usize;
+                            let rows = (0..t.rect.height as usize).map(|py| {
+                                let at = ((t.rect.y0 as usize + py - y0) * self.width
+                                    + t.rect.x0 as usize)
+                                    * 3;
+                                &raw.data[at..at + tw * 3]
+                            });
+                            // A tile the filtered layer does not reach stays out.
+                            if rows.clone().all(|r| r.iter().all(|v| *v == 0.0)) {
+                                return None;
+                            }
+                            let mut out = Vec::with_capacity(t.rect.pixels() * 3);
+                            rows.for_each(|r| out.extend_from_slice(r));
+                            Some(out)
+                        })
+                        .collect())
+                })
+                .collect()
+        });
+        let mut inputs: Vec<Vec<TileInput>> = centre.iter().map(|_| Vec::new()).collect();
+        let mut row_values = 0usize;
+        for (&layer, per_tile) in ids.iter().zip(per_layer) {
+            for (col, data) in per_tile?.into_iter().enumerate() {
+                if let Some(data) = data {
+                    row_values += data.len();
+                    inputs[col].push(TileInput {
+                        layer,
+                        channels: 3,
+                        data,
+                    });
+                }
+            }
+        }
+        progress.check()?;
+        self.stage(progress, Stage::Assembly);
+        let tx = tiles_along(self.width as u32) as usize;
+        let tallies: Vec<Result<(TileRect, TileTally)>> = pool.install(|| {
+            centre
+                .par_iter()
+                .zip(inputs.into_par_iter())
+                .map(|(t, inputs)| {
+                    progress.check()?;
+                    let index = (t.rect.y0 / TILE) as usize * tx + (t.rect.x0 / TILE) as usize;
+                    Ok((
+                        t.rect,
+                        finalise_tile(builder, index, t.rect, inputs, weights, false)?,
+                    ))
+                })
+                .collect()
+        });
+        let threads = pool.current_num_threads().max(1);
+        // The row's f32 layers on their way to the builder, and while filtering each
+        // worker's window and the filters' weights and features.
+        let transient = row_values * 4
+            + if filtered {
+                window_bytes * threads.min(ids.len())
+                    + self.width * h * (FEATURE_STRIDE * 4 + 2 * 25 * 4)
+            } else {
+                0
+            };
+        Ok((tallies.into_iter().collect::<Result<Vec<_>>>()?, transient))
+    }
+}
