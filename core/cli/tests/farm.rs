@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use common::*;
-use relume_engine::stack::exr_file::read_stack;
+use relume_engine::stack::tiled::file::read_tiled;
 use relume_engine::stack::{LayerSamples, TransferStack};
 
 /// Guided, denoised preview with a light group per light, tiny.
@@ -38,7 +38,10 @@ fn bits(stack: &TransferStack) -> Vec<(String, u32, Vec<u32>)> {
 }
 
 fn assert_same_stack(a: &Path, b: &Path) {
-    let (a, b) = (read_stack(a).unwrap(), read_stack(b).unwrap());
+    let (a, b) = (
+        read_tiled(a).unwrap().to_dense().unwrap(),
+        read_tiled(b).unwrap().to_dense().unwrap(),
+    );
     assert_eq!(a.header, b.header);
     assert!(bits(&a) == bits(&b), "the stacks' samples differ");
 }

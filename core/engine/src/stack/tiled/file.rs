@@ -610,8 +610,10 @@ fn check_claims_against_file(
             return Err(RelumeError::StackTruncated {
                 path: path.to_path_buf(),
                 message: format!(
-                    "part {} claims {} of pixel data, more than a file of {} can hold at any compression ratio",
+                    "its part {} claims {}×{} pixels ({}), more than a file of {} can hold at any compression ratio",
                     part_name(h),
+                    h.layer_size.width(),
+                    h.layer_size.height(),
                     crate::memory::human_bytes(part),
                     crate::memory::human_bytes(file_len)
                 ),
