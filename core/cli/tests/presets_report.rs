@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use common::*;
 use relume_engine::bake::presets::Preset;
 use relume_engine::brdf::BasisCount;
-use relume_engine::stack::exr_file::read_stack;
+use relume_engine::stack::tiled::file::read_tiled;
 
 /// The assets' Cornell scene with its resolution set to `w`×`h`.
 fn small_cornell(dir: &Path, w: u32, h: u32) -> PathBuf {
@@ -41,7 +41,7 @@ fn bake_with_a_preset_uses_its_values_and_flags_override_them() {
         ),
         (Some(16), Some(12))
     );
-    let h = read_stack(&stack).unwrap().header;
+    let h = read_tiled(&stack).unwrap().header;
     let d = Preset::Draft.values();
     assert_eq!(
         (h.spp, h.light_samples, h.sampling.as_str()),
@@ -73,7 +73,7 @@ fn bake_with_a_preset_uses_its_values_and_flags_override_them() {
         "10x8",
         "--json",
     ]));
-    let h = read_stack(&stack).unwrap().header;
+    let h = read_tiled(&stack).unwrap().header;
     let p = Preset::Preview.values();
     assert_eq!((h.width, h.height, h.spp), (10, 8, 2));
     assert_eq!(
