@@ -277,7 +277,7 @@ fn peak_growth<T>(f: impl FnOnce() -> T) -> (T, u64) {
 /// (e) and (f): slow in a debug build; `cargo test --release -- --ignored` prints the
 /// figures docs/measurements.md quotes.
 #[test]
-#[ignore]
+#[ignore = "a memory measurement: minutes in a debug build and meaningless beside other load; run with --release -- --ignored on a quiet machine"]
 fn streaming_holds_less_than_the_dense_path_and_as_forecast() {
     let Some(scene) = cornell8(256) else {
         eprintln!("python3 could not write the cornell8 scene: skipped");

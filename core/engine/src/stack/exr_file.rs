@@ -218,9 +218,9 @@ pub fn write_stack(path: &Path, stack: &TransferStack) -> Result<u64> {
 
 /// Passes writes through while `progress` is not cancelled; after a cancel every write
 /// fails, which stops the OpenEXR encoder within one chunk.
-struct CancellableWriter<'a, W> {
-    inner: W,
-    progress: &'a Progress,
+pub(crate) struct CancellableWriter<'a, W> {
+    pub(crate) inner: W,
+    pub(crate) progress: &'a Progress,
 }
 
 impl<W> CancellableWriter<'_, W> {
@@ -661,7 +661,7 @@ pub fn read_stack(path: &Path) -> Result<TransferStack> {
 /// Most bytes of pixel data one byte of a compressed chunk can stand for: deflate (ZIP,
 /// PXR24's second stage) peaks near 1032:1, RLE at 64:1, PIZ's run-length Huffman codes
 /// below that; the margin covers chunk headers and PXR24's 24-to-32-bit widening.
-const MAX_COMPRESSION_RATIO: u64 = 1400;
+pub(crate) const MAX_COMPRESSION_RATIO: u64 = 1400;
 
 /// Checks what the header claims (image size, channels, sample types) against the file's
 /// length *before* anything of that size is allocated: a few-KiB file that claims 16384²

@@ -35,7 +35,8 @@ use crate::image_io::write_atomic_checked;
 use crate::layer_key::LayerKey;
 use crate::progress::Progress;
 use crate::stack::exr_file::{
-    read_stack, ATTR_FORMAT_VERSION, ATTR_HEADER, ATTR_LAYERS, ATTR_SCENE_HASH,
+    read_stack, CancellableWriter, ATTR_FORMAT_VERSION, ATTR_HEADER, ATTR_LAYERS, ATTR_SCENE_HASH,
+    MAX_COMPRESSION_RATIO,
 };
 use crate::stack::{Precision, StackHeader, STACK_FORMAT_VERSION};
 
@@ -51,10 +52,6 @@ const CHANNEL_COUNT: &str = "entries";
 const ENTRY_CHANNELS: [&str; 4] = ["channels", "layer", "offset", "scale"];
 const CHANNEL_VALUE: &str = "value";
 
-/// Most bytes of pixel data one byte of a compressed chunk can stand for (deflate peaks
-/// near 1032:1; the margin covers chunk headers), as in the dense reader.
-const MAX_COMPRESSION_RATIO: u64 = 1400;
-
 /// One entry of the layers attribute.
 #[derive(Serialize, Deserialize)]
 struct LayerEntry {
@@ -68,43 +65,6 @@ struct LayerEntry {
 fn rows_for(n: usize) -> (usize, usize) {
     let width = n.clamp(1, ROW_WIDTH);
     (width, n.div_ceil(width).max(1))
-}
-
-/// Passes writes through until `progress` is cancelled. (The dense writer has the same
-/// adapter, private to `exr_file.rs`; this one is its small equivalent.)
-struct CancellableWriter<'a, W> {
-    inner: W,
-    progress: &'a Progress,
-}
-
-impl<W> CancellableWriter<'_, W> {
-    fn check(&self) -> std::io::Result<()> {
-        if self.progress.is_cancelled() {
-            Err(std::io::Error::new(
-                std::io::ErrorKind::Interrupted,
-                "relume: write cancelled",
-            ))
-        } else {
-            Ok(())
-        }
-    }
-}
-
-impl<W: std::io::Write> std::io::Write for CancellableWriter<'_, W> {
-    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
-        self.check()?;
-        self.inner.write(buf)
-    }
-    fn flush(&mut self) -> std::io::Result<()> {
-        self.inner.flush()
-    }
-}
-
-impl<W: std::io::Seek> std::io::Seek for CancellableWriter<'_, W> {
-    fn seek(&mut self, pos: SeekFrom) -> std::io::Result<u64> {
-        self.check()?;
-        self.inner.seek(pos)
-    }
 }
 
 fn channel(name: &str, samples: x::FlatSamples) -> x::AnyChannel<x::FlatSamples> {
