@@ -1,10 +1,13 @@
-//! BRDFs: the Blinn–Phong model of the paper, its PCA basis, the one mapping from
-//! Blender's Principled BSDF to Blinn–Phong, and the material a user edits.
+//! BRDFs: the Blinn–Phong model of the paper, its PCA basis, the mapping from Blender's
+//! Principled BSDF to Blinn–Phong (fitted to Cycles' Principled, evaluated in
+//! [`cycles_principled`]; the analytic mapping as fallback), and the material a user edits.
 
 pub mod basis;
 pub mod blinn_phong;
+pub mod cycles_principled;
 pub mod material;
 pub mod principled;
+pub mod principled_fit;
 
 pub use crate::bssrdf::mapping::Subsurface;
 pub use basis::{BasisConfig, BasisCount, BrdfBasis};

@@ -1,4 +1,10 @@
-//! Principled BSDF → Blinn–Phong: the one mapping (docs/design.md §3).
+//! Principled BSDF → Blinn–Phong (docs/design.md §3).
+//!
+//! [`principled_to_blinn_phong`], the mapping every caller uses, looks up the Blinn–Phong
+//! fitted to Cycles' Principled BSDF ([`super::principled_fit`]). The **analytic mapping**
+//! below ([`principled_to_blinn_phong_analytic`]) is the documented fallback and the baseline
+//! of the fit's measurements; the fit keeps its F0 (`dielectric_f0`) and its clamping of
+//! inputs, and uses its exponent's growth below the fitted roughness range.
 //!
 //! * **Exponent.** Blender's roughness `r` gives the GGX/Beckmann width `α = r²`; the
 //!   Blinn–Phong exponent with the same Beckmann-like width is `ns = 2/α² − 2`. So the paper's
@@ -133,10 +139,18 @@ pub fn dielectric_f0(ior: f32, specular_ior_level: f32) -> f32 {
     ((r * r) * 2.0 * level).clamp(0.0, 1.0) as f32
 }
 
-/// Maps Principled inputs to Blinn–Phong (module docs). Total: every input, NaN and ±∞
-/// included, gives finite `Kd, Ks ≥ 0` with `Kd + Ks ≤ 1` per channel and `ns ∈ [NS_MIN,
-/// NS_MAX]`.
+/// Maps Principled inputs to Blinn–Phong: the Blinn–Phong fitted to Cycles' Principled BSDF
+/// ([`super::principled_fit`], docs/principled_fit.md), which every caller (bake, relight,
+/// CLI, Python, add-on) gets. Total: every input, NaN and ±∞ included, gives finite
+/// `Kd, Ks ≥ 0` with `Kd + Ks ≤ 1` per channel and `ns ∈ [NS_MIN, NS_MAX]`.
 pub fn principled_to_blinn_phong(p: &Principled) -> BlinnPhong {
+    super::principled_fit::fitted_blinn_phong(p)
+}
+
+/// The analytic mapping of the module docs, kept as the documented fallback and the baseline
+/// the fit is measured against. Total, with the same guarantees as
+/// [`principled_to_blinn_phong`].
+pub fn principled_to_blinn_phong_analytic(p: &Principled) -> BlinnPhong {
     let m = or_default(p.metallic, 0.0).clamp(0.0, 1.0);
     let f0 = dielectric_f0(p.ior, p.specular_ior_level);
     let mut kd = [0.0f32; 3];
@@ -223,49 +237,55 @@ mod tests {
     #[test]
     fn metallic_and_base_colour_edges() {
         // Dielectric white: Ks = F0, Kd = 1 − F0 (sum exactly 1).
-        let b = principled_to_blinn_phong(&p(1.0, 0.0, 0.5, 1.5, 0.5));
+        let b = principled_to_blinn_phong_analytic(&p(1.0, 0.0, 0.5, 1.5, 0.5));
         check(&b);
         assert!(
             (b.ks[0] - 0.04).abs() < 1e-6 && (b.kd[0] - 0.96).abs() < 1e-6,
             "{b:?}"
         );
         // Metal: no diffuse, Ks = base.
-        let b = principled_to_blinn_phong(&p(0.7, 1.0, 0.2, 1.5, 0.5));
+        let b = principled_to_blinn_phong_analytic(&p(0.7, 1.0, 0.2, 1.5, 0.5));
         check(&b);
         assert_eq!(b.kd, [0.0; 3]);
         assert!((b.ks[1] - 0.7).abs() < 1e-6);
         // Metal with black base colour: black, finite.
-        let b = principled_to_blinn_phong(&p(0.0, 1.0, 0.0, 1.5, 0.5));
+        let b = principled_to_blinn_phong_analytic(&p(0.0, 1.0, 0.0, 1.5, 0.5));
         check(&b);
         assert_eq!((b.kd, b.ks), ([0.0; 3], [0.0; 3]));
         // Black dielectric: only the F0 reflection.
-        let b = principled_to_blinn_phong(&p(0.0, 0.0, 0.5, 1.5, 0.5));
+        let b = principled_to_blinn_phong_analytic(&p(0.0, 0.0, 0.5, 1.5, 0.5));
         check(&b);
         assert_eq!(b.kd, [0.0; 3]);
         // IOR 1: no specular at all, Kd = base.
-        let b = principled_to_blinn_phong(&p(0.6, 0.0, 0.5, 1.0, 0.5));
+        let b = principled_to_blinn_phong_analytic(&p(0.6, 0.0, 0.5, 1.0, 0.5));
         check(&b);
         assert_eq!(b.ks, [0.0; 3]);
         assert!((b.kd[2] - 0.6).abs() < 1e-6);
         // Huge IOR with level 1: F0 clamped to 1, a perfect (white) specular, no diffuse.
-        let b = principled_to_blinn_phong(&p(0.6, 0.0, 0.5, 1e30, 1.0));
+        let b = principled_to_blinn_phong_analytic(&p(0.6, 0.0, 0.5, 1e30, 1.0));
         check(&b);
         assert!((b.ks[0] - 1.0).abs() < 1e-6 && b.kd[0] < 1e-6, "{b:?}");
         // Base colour > 1 is clamped to 1.
-        let b = principled_to_blinn_phong(&p(5.0, 0.3, 0.5, 1.5, 0.5));
+        let b = principled_to_blinn_phong_analytic(&p(5.0, 0.3, 0.5, 1.5, 0.5));
         check(&b);
-        assert_eq!(b, principled_to_blinn_phong(&p(1.0, 0.3, 0.5, 1.5, 0.5)));
+        assert_eq!(
+            b,
+            principled_to_blinn_phong_analytic(&p(1.0, 0.3, 0.5, 1.5, 0.5))
+        );
     }
 
     #[test]
     fn nan_and_infinite_inputs_are_total() {
         let nan = f32::NAN;
-        let b = principled_to_blinn_phong(&p(nan, nan, nan, nan, nan));
+        let b = principled_to_blinn_phong_analytic(&p(nan, nan, nan, nan, nan));
         check(&b);
-        assert_eq!(b, principled_to_blinn_phong(&p(0.8, 0.0, 0.5, 1.5, 0.5)));
+        assert_eq!(
+            b,
+            principled_to_blinn_phong_analytic(&p(0.8, 0.0, 0.5, 1.5, 0.5))
+        );
         let inf = f32::INFINITY;
         for x in [inf, -inf] {
-            check(&principled_to_blinn_phong(&p(x, x, x, x, x)));
+            check(&principled_to_blinn_phong_analytic(&p(x, x, x, x, x)));
         }
     }
 
@@ -286,7 +306,7 @@ mod tests {
                                 ior,
                                 specular_ior_level: level,
                             };
-                            check(&principled_to_blinn_phong(&q));
+                            check(&principled_to_blinn_phong_analytic(&q));
                             n += 1;
                         }
                     }

@@ -1,0 +1,160 @@
+//! The closest Blinn–Phong to Cycles' Principled BSDF, tabulated once (docs/principled_fit.md).
+//!
+//! [`fit`] fits, per roughness row, `ns` and `Kd, Ks` against
+//! [`super::cycles_principled::CyclesPrincipled`] (GGX with multiple scattering and Cycles'
+//! Fresnel, the diffuse base under the specular layer); [`table`] holds the result, written
+//! by `scripts/principled_fit_table.sh`. [`fitted_blinn_phong`] looks a material up:
+//!
+//! * roughness: linear between rows (`ns` on a log scale); below the first row (0.05) the
+//!   first row's `Kd, Ks` with the analytic mapping's growth of `ns`;
+//! * metallic: linear (Cycles mixes the metal and dielectric layers linearly, and both use
+//!   the row's `ns`);
+//! * base colour: per channel, linear between the metal targets' base colours and exactly
+//!   linear for dielectrics (their BRDF is linear in the base colour);
+//! * dielectric specular F0 (from IOR and Specular IOR Level): linear between the targets'
+//!   F0.
+//!
+//! Every table entry has `Kd, Ks ≥ 0` and `Kd + Ks ≤ 1`, and all interpolation is convex,
+//! so a looked-up material keeps Relume's energy rule; the lookup still clamps as a guard.
+//! The fit is an approximation: a Blinn–Phong lobe that depends on the half angle only,
+//! normalised as Relume's is, cannot follow GGX's view dependence (it reflects about
+//! cos²θo of a mirror's light), so smooth metals stay darker than Cycles'; the measured
+//! figures are in docs/principled_fit.md.
+
+pub mod fit;
+mod table;
+
+use super::principled::{dielectric_f0, roughness_to_ns};
+use super::{BlinnPhong, Principled};
+
+/// Roughness of the table's rows.
+pub const ROUGHNESS: [f32; 20] = [
+    0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45, 0.5, 0.55, 0.6, 0.65, 0.7, 0.75, 0.8, 0.85,
+    0.9, 0.95, 1.0,
+];
+/// Base colours of the metal targets.
+pub const METAL_BASE: [f32; 5] = [0.0, 0.25, 0.5, 0.75, 1.0];
+/// Specular F0 of the dielectric targets (0.04 is IOR 1.5 at Specular IOR Level 0.5).
+pub const DIELECTRIC_F0: [f32; 11] = [
+    0.0, 0.01, 0.02, 0.04, 0.06, 0.08, 0.12, 0.16, 0.25, 0.5, 1.0,
+];
+
+/// One roughness row: the fitted exponent, `[Kd, Ks]` per metal base colour and, per
+/// dielectric F0, `[Kd, Ks]` at base colour 0 and at base colour 1.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Row {
+    pub ns: f32,
+    pub metal: [[f32; 2]; 5],
+    pub dielectric: [[[f32; 2]; 2]; 11],
+}
+
+/// The checked-in rows, one per entry of [`ROUGHNESS`].
+pub fn rows() -> &'static [Row; 20] {
+    &table::ROWS
+}
+
+/// Segment and fraction of `x` on the increasing grid `g` (clamped to its ends).
+fn locate(g: &[f32], x: f32) -> (usize, f32) {
+    let x = x.clamp(g[0], g[g.len() - 1]);
+    let i = (0..g.len() - 1)
+        .find(|&i| x <= g[i + 1])
+        .unwrap_or(g.len() - 2);
+    (i, ((x - g[i]) / (g[i + 1] - g[i])).clamp(0.0, 1.0))
+}
+
+fn lerp2(a: [f32; 2], b: [f32; 2], t: f32) -> [f32; 2] {
+    [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t]
+}
+
+/// `[Kd, Ks]` of one channel in one row.
+fn row_channel(row: &Row, metallic: f32, base: f32, f0: f32) -> [f32; 2] {
+    let (i, t) = locate(&METAL_BASE, base);
+    let metal = lerp2(row.metal[i], row.metal[i + 1], t);
+    let (j, u) = locate(&DIELECTRIC_F0, f0);
+    let at_base = |e: [[f32; 2]; 2]| lerp2(e[0], e[1], base);
+    let diel = lerp2(
+        at_base(row.dielectric[j]),
+        at_base(row.dielectric[j + 1]),
+        u,
+    );
+    lerp2(diel, metal, metallic)
+}
+
+fn or_default(x: f32, default: f32) -> f32 {
+    if x.is_nan() {
+        default
+    } else {
+        x
+    }
+}
+
+/// The fitted Blinn–Phong for Principled inputs (module docs). Total like the analytic
+/// mapping: every input gives finite `Kd, Ks ≥ 0`, `Kd + Ks ≤ 1` per channel and `ns` in
+/// [`super::principled::NS_MIN`, `super::principled::NS_MAX`].
+pub fn fitted_blinn_phong(p: &Principled) -> BlinnPhong {
+    let rows = rows();
+    let r = or_default(p.roughness, 0.5).clamp(0.0, 1.0);
+    let m = or_default(p.metallic, 0.0).clamp(0.0, 1.0);
+    let f0 = dielectric_f0(p.ior, p.specular_ior_level);
+    let (i, t) = locate(&ROUGHNESS, r);
+    let ns = if r < ROUGHNESS[0] {
+        rows[0].ns * (roughness_to_ns(r) / roughness_to_ns(ROUGHNESS[0]))
+    } else {
+        (rows[i].ns.ln() * (1.0 - t) + rows[i + 1].ns.ln() * t).exp()
+    };
+    let mut kd = [0.0f32; 3];
+    let mut ks = [0.0f32; 3];
+    for c in 0..3 {
+        let base = or_default(p.base_color[c], 0.8).clamp(0.0, 1.0);
+        let a = row_channel(&rows[i], m, base, f0);
+        let b = row_channel(&rows[i + 1], m, base, f0);
+        let [d, s] = lerp2(a, b, t);
+        let s = if s.is_finite() {
+            s.clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        ks[c] = s;
+        kd[c] = if d.is_finite() {
+            d.clamp(0.0, 1.0 - s)
+        } else {
+            0.0
+        };
+    }
+    BlinnPhong {
+        kd,
+        ks,
+        ns: ns.clamp(super::principled::NS_MIN, super::principled::NS_MAX),
+    }
+}
+
+/// The table as Rust source (what `table.rs` holds), for the generator.
+pub fn render_table(rows: &[Row]) -> String {
+    let mut s = String::from(
+        "//! Generated by `scripts/principled_fit_table.sh` (the ignored test\n\
+         //! `brdf::principled_fit::tests::generate_table`); do not edit by hand.\n\n\
+         use super::Row;\n\n\
+         #[rustfmt::skip]\n\
+         pub(super) const ROWS: [Row; 20] = [\n",
+    );
+    let pair = |p: [f32; 2]| format!("[{:?}, {:?}]", p[0], p[1]);
+    for r in rows {
+        s += &format!("    Row {{\n        ns: {:?},\n        metal: [", r.ns);
+        s += &r
+            .metal
+            .iter()
+            .map(|&p| pair(p))
+            .collect::<Vec<_>>()
+            .join(", ");
+        s += "],\n        dielectric: [\n";
+        for d in &r.dielectric {
+            s += &format!("            [{}, {}],\n", pair(d[0]), pair(d[1]));
+        }
+        s += "        ],\n    },\n";
+    }
+    s += "];\n";
+    s
+}
+
+#[cfg(test)]
+mod tests;
