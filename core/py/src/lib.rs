@@ -70,6 +70,10 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(job::bake, m)?)?;
     m.add_function(wrap_pyfunction!(job::estimate_bake, m)?)?;
     m.add_function(wrap_pyfunction!(materials::principled_to_blinn_phong, m)?)?;
+    m.add_function(wrap_pyfunction!(
+        materials::principled_to_blinn_phong_analytic,
+        m
+    )?)?;
     m.add_function(wrap_pyfunction!(images::write_exr, m)?)?;
     m.add_function(wrap_pyfunction!(images::write_png, m)?)?;
     m.add_function(wrap_pyfunction!(images::read_exr, m)?)?;

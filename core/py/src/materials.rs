@@ -4,6 +4,7 @@
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use relume_engine::brdf::principled::principled_to_blinn_phong_analytic as map_analytic;
 use relume_engine::brdf::{principled_to_blinn_phong as map, BlinnPhong, Principled};
 
 use crate::guard::guard;
@@ -52,8 +53,9 @@ pub fn principled(
     })
 }
 
-/// Blender's Principled BSDF inputs → Blinn–Phong `{"kd", "ks", "ns"}`: the core's one
-/// mapping (total: out-of-range inputs are clamped, see the core's `brdf::principled`).
+/// Blender's Principled BSDF inputs → Blinn–Phong `{"kd", "ks", "ns"}`: the core's mapping,
+/// the Blinn–Phong fitted to Cycles' Principled BSDF (total: out-of-range inputs are clamped,
+/// see the core's `brdf::principled` and `brdf::principled_fit`).
 #[pyfunction]
 #[pyo3(signature = (base_color, metallic = 0.0, roughness = 0.5, ior = 1.5, specular_ior_level = 0.5))]
 pub fn principled_to_blinn_phong<'py>(
@@ -67,5 +69,23 @@ pub fn principled_to_blinn_phong<'py>(
     guard(py, "principled_to_blinn_phong", || {
         let p = principled(base_color, metallic, roughness, ior, specular_ior_level)?;
         blinn_phong_dict(py, &map(&p))
+    })
+}
+
+/// The analytic Principled → Blinn–Phong mapping the fit replaced (F0 = 0.04 at IOR 1.5,
+/// metals Ks = base colour, `ns = 2/α² − 2`): the documented fallback, for comparisons.
+#[pyfunction]
+#[pyo3(signature = (base_color, metallic = 0.0, roughness = 0.5, ior = 1.5, specular_ior_level = 0.5))]
+pub fn principled_to_blinn_phong_analytic<'py>(
+    py: Python<'py>,
+    base_color: &Bound<'py, PyAny>,
+    metallic: f32,
+    roughness: f32,
+    ior: f32,
+    specular_ior_level: f32,
+) -> PyResult<Bound<'py, PyDict>> {
+    guard(py, "principled_to_blinn_phong_analytic", || {
+        let p = principled(base_color, metallic, roughness, ior, specular_ior_level)?;
+        blinn_phong_dict(py, &map_analytic(&p))
     })
 }

@@ -200,6 +200,13 @@ def principled_to_blinn_phong(
     ior: float = 1.5,
     specular_ior_level: float = 0.5,
 ) -> dict[str, Any]: ...
+def principled_to_blinn_phong_analytic(
+    base_color: _Rgb,
+    metallic: float = 0.0,
+    roughness: float = 0.5,
+    ior: float = 1.5,
+    specular_ior_level: float = 0.5,
+) -> dict[str, Any]: ...
 
 # --- images --------------------------------------------------------------------------------
 

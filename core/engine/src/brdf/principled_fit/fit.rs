@@ -117,13 +117,21 @@ impl Normal {
             + self.c
     }
 
+    /// The unconstrained least-squares `(Kd, Ks)`, if the system is not singular.
+    fn solve_free(&self) -> Option<(f64, f64)> {
+        let det = self.g11 * self.g22 - self.g12 * self.g12;
+        (det > 1e-12 * self.g11 * self.g22).then(|| {
+            (
+                (self.b1 * self.g22 - self.b2 * self.g12) / det,
+                (self.b2 * self.g11 - self.b1 * self.g12) / det,
+            )
+        })
+    }
+
     /// The least-squares `(Kd, Ks)` with `Kd, Ks ≥ 0`, `Kd + Ks ≤ 1`: the free minimum when
     /// it is feasible, else the best point on the boundary of the triangle.
     fn solve(&self) -> (f64, f64) {
-        let det = self.g11 * self.g22 - self.g12 * self.g12;
-        if det > 1e-300 * self.g11 * self.g22 {
-            let kd = (self.b1 * self.g22 - self.b2 * self.g12) / det;
-            let ks = (self.b2 * self.g11 - self.b1 * self.g12) / det;
+        if let Some((kd, ks)) = self.solve_free() {
             if kd >= 0.0 && ks >= 0.0 && kd + ks <= 1.0 {
                 return (kd, ks);
             }
@@ -280,7 +288,20 @@ pub fn fit_row(roughness: f64, ns_max: f64) -> FittedRow {
         [kd as f32, ks as f32]
     };
     let metal: Vec<[f32; 2]> = metal_t.iter().map(solve).collect();
-    let dielectric: Vec<[[f32; 2]; 2]> = diel_t.iter().map(|[a, b]| [solve(a), solve(b)]).collect();
+    // Dielectrics: base colour 0 under the constraints; the part linear in the base colour
+    // (the diffuse under the specular layer) unconstrained, so the lookup is exactly linear
+    // in the base colour and only clamps (Kd ≤ 1 − Ks) near base colour 1, where it binds.
+    let dielectric: Vec<[[f32; 2]; 2]> = diel_t
+        .iter()
+        .map(|[a, b]| {
+            let at0 = solve(a);
+            let diff: Vec<f64> = b.iter().zip(a).map(|(b, a)| b - a).collect();
+            let (dkd, dks) = Normal::new(&s, &l, &diff)
+                .solve_free()
+                .unwrap_or((0.0, 0.0));
+            [at0, [at0[0] + dkd as f32, at0[1] + dks as f32]]
+        })
+        .collect();
     let row = Row {
         ns: ns as f32,
         metal: std::array::from_fn(|k| metal[k]),

