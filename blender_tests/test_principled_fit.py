@@ -212,8 +212,8 @@ def test_fitted_mapping_per_material_against_cycles(addon, prefs, blend_dir, res
     assert fit.shape == reference.shape == old.shape
     assert np.isfinite(fit).all() and np.isfinite(old).all()
     ref_m = per_material(reference, ids, names)
-    noise = {n: abs(a - b) / (a + b) for (n, a), b in zip(per_material(c1, ids, names).items(),
-                                                         per_material(c2, ids, names).values())}
+    m1, m2 = per_material(c1, ids, names), per_material(c2, ids, names)
+    noise = {n: abs(m1[n] - m2[n]) / (m1[n] + m2[n]) for n in m1}
     fit_m, old_m = per_material(fit, ids, names), per_material(old, ids, names)
     figures = {}
     for name, colour, metallic, roughness in SPHERES:

@@ -6,7 +6,8 @@
 use serde::{Deserialize, Serialize};
 
 use super::blinn_phong::BlinnPhong;
-use super::principled::{principled_to_blinn_phong, Principled};
+use super::principled::Principled;
+use super::principled_fit::principled_to_blinn_phong;
 use crate::bssrdf::dipole::DipoleParams;
 use crate::bssrdf::mapping::{channel_params, Subsurface};
 

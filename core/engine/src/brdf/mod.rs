@@ -13,4 +13,5 @@ pub use crate::bssrdf::mapping::Subsurface;
 pub use basis::{BasisConfig, BasisCount, BrdfBasis};
 pub use blinn_phong::BlinnPhong;
 pub use material::{MaterialSpec, PrincipledMaterial, ENERGY_SLACK};
-pub use principled::{principled_to_blinn_phong, Principled};
+pub use principled::Principled;
+pub use principled_fit::principled_to_blinn_phong;

@@ -1,10 +1,11 @@
 //! Principled BSDF → Blinn–Phong (docs/design.md §3).
 //!
-//! [`principled_to_blinn_phong`], the mapping every caller uses, looks up the Blinn–Phong
-//! fitted to Cycles' Principled BSDF ([`super::principled_fit`]). The **analytic mapping**
-//! below ([`principled_to_blinn_phong_analytic`]) is the documented fallback and the baseline
-//! of the fit's measurements; the fit keeps its F0 (`dielectric_f0`) and its clamping of
-//! inputs, and uses its exponent's growth below the fitted roughness range.
+//! `principled_to_blinn_phong`, the mapping every caller uses, looks up the Blinn–Phong
+//! fitted to Cycles' Principled BSDF (module `principled_fit`, docs/principled_fit.md). The
+//! **analytic mapping** below ([`principled_to_blinn_phong_analytic`]) is the documented
+//! fallback and the baseline of the fit's measurements; the fit keeps its F0
+//! (`dielectric_f0`) and its clamping of inputs, and uses its exponent's growth below the
+//! fitted roughness range.
 //!
 //! * **Exponent.** Blender's roughness `r` gives the GGX/Beckmann width `α = r²`; the
 //!   Blinn–Phong exponent with the same Beckmann-like width is `ns = 2/α² − 2`. So the paper's
@@ -139,17 +140,9 @@ pub fn dielectric_f0(ior: f32, specular_ior_level: f32) -> f32 {
     ((r * r) * 2.0 * level).clamp(0.0, 1.0) as f32
 }
 
-/// Maps Principled inputs to Blinn–Phong: the Blinn–Phong fitted to Cycles' Principled BSDF
-/// ([`super::principled_fit`], docs/principled_fit.md), which every caller (bake, relight,
-/// CLI, Python, add-on) gets. Total: every input, NaN and ±∞ included, gives finite
-/// `Kd, Ks ≥ 0` with `Kd + Ks ≤ 1` per channel and `ns ∈ [NS_MIN, NS_MAX]`.
-pub fn principled_to_blinn_phong(p: &Principled) -> BlinnPhong {
-    super::principled_fit::fitted_blinn_phong(p)
-}
-
 /// The analytic mapping of the module docs, kept as the documented fallback and the baseline
-/// the fit is measured against. Total, with the same guarantees as
-/// [`principled_to_blinn_phong`].
+/// the fit is measured against. Total: every input, NaN and ±∞ included, gives finite
+/// `Kd, Ks ≥ 0` with `Kd + Ks ≤ 1` per channel and `ns ∈ [NS_MIN, NS_MAX]`.
 pub fn principled_to_blinn_phong_analytic(p: &Principled) -> BlinnPhong {
     let m = or_default(p.metallic, 0.0).clamp(0.0, 1.0);
     let f0 = dielectric_f0(p.ior, p.specular_ior_level);

@@ -33,7 +33,7 @@ use std::f64::consts::PI;
 use ggx::*;
 use quadrature::{incident_nodes, Resolution};
 
-use super::Principled;
+use super::principled::Principled;
 
 /// The smallest roughness the reference model evaluates (α = 0.0025); smaller is clamped.
 pub const ROUGHNESS_MIN: f64 = 0.05;

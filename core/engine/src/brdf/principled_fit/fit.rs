@@ -18,12 +18,12 @@
 
 use std::f64::consts::PI;
 
-use super::{Row, DIELECTRIC_F0, METAL_BASE};
+use super::grid::{Row, DIELECTRIC_F0, METAL_BASE};
 use crate::brdf::blinn_phong::lobe;
 use crate::brdf::cycles_principled::quadrature::{incident_nodes, Resolution};
 use crate::brdf::cycles_principled::CyclesPrincipled;
+use crate::brdf::principled::Principled;
 use crate::brdf::principled::{roughness_to_ns, NS_MAX, NS_MIN};
-use crate::brdf::Principled;
 
 /// View nodes (midpoints in cos θo) of the objective.
 const VIEW_NODES: usize = 24;
