@@ -93,9 +93,16 @@ def _quad(name, corners, material):
     return obj
 
 
-def build_scene():
+#: Where the area light stands: "front" above the camera (light and view close: the
+#: highlights face the camera), "side" to the right at the spheres' height (light and view
+#: about 90° apart, highlights near the silhouettes).
+LIGHTS = {"front": (0.5, -2.0, 3.0), "side": (3.0, 0.3, 1.2)}
+
+
+def build_scene(light_at: str):
     """Six spheres (radius 0.3) in a row on a grey floor before a light wall, one area light
-    above the camera; an editable diffuse floor so the scene has an editable region."""
+    at `LIGHTS[light_at]` aimed at the row's centre; an editable diffuse floor so the scene
+    has an editable region."""
     scene = bpy.context.scene
     floor = cy.diffuse_material("Floor", (0.5, 0.5, 0.5), editable=True)
     floor.relume.use_roughness_range = True
@@ -116,7 +123,7 @@ def build_scene():
     data.size = 2.0
     data.size_y = 1.0
     light = bpy.data.objects.new("Area", data)
-    light.location = (0.5, -2.0, 3.0)
+    light.location = LIGHTS[light_at]
     import mathutils
 
     d = mathutils.Vector((0.0, 0.0, 0.3)) - light.location
@@ -198,8 +205,9 @@ def per_material(image: np.ndarray, ids: np.ndarray, names: list[str]) -> dict[s
     return {name: float(image[ids == k].sum()) for k, name in enumerate(names) if (ids == k).sum() > 0}
 
 
-def test_fitted_mapping_per_material_against_cycles(addon, prefs, blend_dir, results_file):
-    scene = build_scene()
+@pytest.mark.parametrize("light_at", sorted(LIGHTS))
+def test_fitted_mapping_per_material_against_cycles(addon, prefs, blend_dir, results_file, light_at):
+    scene = build_scene(light_at)
     ids, names = material_ids(scene, blend_dir / "ids.exr")
     counts = {name: int((ids == k).sum()) for k, name in enumerate(names)}
     for name, *_ in SPHERES:
@@ -227,10 +235,10 @@ def test_fitted_mapping_per_material_against_cycles(addon, prefs, blend_dir, res
     for name in ("Floor", "Wall"):
         figures[name] = {"pixels": counts.get(name, 0), "ratio_fit": fit_m[name] / ref_m[name],
                          "ratio_analytic": old_m[name] / ref_m[name]}
-    _RESULTS["per_material"] = figures
+    _RESULTS[light_at] = figures
     _RESULTS["settings"] = {"resolution": RES, "cycles_spp": CYCLES_SPP, "bounces": 1,
                             "relume_preset": "final, denoiser off, seed 0"}
-    print("\n[principled fit] Relume/Cycles per material (fit | analytic):")
+    print(f"\n[principled fit] light {light_at}: Relume/Cycles per material (fit | analytic):")
     for name, f in figures.items():
         print(f"  {name:16s} {f['ratio_fit']:.3f} | {f['ratio_analytic']:.3f}  ({f['pixels']} px)")
     for name, _colour, metallic, _r in SPHERES:

@@ -12,9 +12,15 @@
 //! **Unknowns.** `ns` per roughness row (a log-scale search, shared by every colour and IOR
 //! so the basis range of a material does not depend on its colour), then `Kd, Ks` per
 //! target by constrained linear least squares: `Kd, Ks ≥ 0`, `Kd + Ks ≤ 1` (the energy rule
-//! every Relume material meets). Targets: metals at base colours [`METAL_BASE`], dielectrics
-//! at specular F0 [`DIELECTRIC_F0`] with base colour 0 and 1 (the BRDF is linear in the base
-//! colour for a dielectric, so the two ends give the line).
+//! every Relume material meets). Targets: metals at base colours [`METAL_BASE`] — below
+//! roughness [`METAL_DIFFUSE_FROM`] with `Kd = 0` (Cycles' metallic layer has no diffuse
+//! part; on a narrow lobe a `Kd` standing in for the specular energy the lobe cannot carry
+//! matches uniform light but lights the whole sphere where Cycles shows a small highlight:
+//! measured 1.3× too bright at roughness 0.1, docs/principled_fit.md), above it with `Kd`
+//! free for GGX's broad tails; dielectrics at specular F0
+//! [`DIELECTRIC_F0`]: base colour 0 constrained, plus the unconstrained fit of the part
+//! linear in the base colour (a dielectric's BRDF is linear in it), so that the lookup's
+//! clamp only acts near base colour 1.
 
 use std::f64::consts::PI;
 
@@ -24,6 +30,10 @@ use crate::brdf::cycles_principled::quadrature::{incident_nodes, Resolution};
 use crate::brdf::cycles_principled::CyclesPrincipled;
 use crate::brdf::principled::Principled;
 use crate::brdf::principled::{roughness_to_ns, NS_MAX, NS_MIN};
+
+/// Roughness from which a metal's fit may use `Kd` (module docs): an approximation chosen
+/// by measurement, stated as such.
+pub const METAL_DIFFUSE_FROM: f64 = 0.2;
 
 /// View nodes (midpoints in cos θo) of the objective.
 const VIEW_NODES: usize = 24;
@@ -117,6 +127,21 @@ impl Normal {
             + self.c
     }
 
+    /// The least-squares `Ks` with `Kd = 0`, `0 ≤ Ks ≤ 1`: a metal (Cycles' metallic layer has
+    /// no diffuse part, and a `Kd` standing in for its missing specular energy shows as a
+    /// matte haze on a smooth metal).
+    fn solve_specular(&self) -> (f64, f64) {
+        let ks = self.b2 / self.g22;
+        (
+            0.0,
+            if ks.is_finite() {
+                ks.clamp(0.0, 1.0)
+            } else {
+                0.0
+            },
+        )
+    }
+
     /// The unconstrained least-squares `(Kd, Ks)`, if the system is not singular.
     fn solve_free(&self) -> Option<(f64, f64)> {
         let det = self.g11 * self.g22 - self.g12 * self.g12;
@@ -159,14 +184,30 @@ impl Normal {
     }
 }
 
+/// A fit target: Cycles' values at the samples, and whether it is fitted with `Kd = 0`.
+struct Target {
+    values: Vec<f64>,
+    metal: bool,
+}
+
+impl Target {
+    fn solve(&self, n: &Normal) -> (f64, f64) {
+        if self.metal {
+            n.solve_specular()
+        } else {
+            n.solve()
+        }
+    }
+}
+
 /// Relative residual `‖f_BP − f_C‖/‖f_C‖` of the best constrained `(Kd, Ks)` at `ns`.
-fn residual(s: &[Sample], targets: &[Vec<f64>], ns: f64) -> f64 {
+fn residual(s: &[Sample], targets: &[Target], ns: f64) -> f64 {
     let l: Vec<f64> = s.iter().map(|s| lobe(ns, s.cos_h)).collect();
     targets
         .iter()
         .map(|t| {
-            let n = Normal::new(s, &l, t);
-            let (kd, ks) = n.solve();
+            let n = Normal::new(s, &l, &t.values);
+            let (kd, ks) = t.solve(&n);
             (n.objective(kd, ks).max(0.0) / n.c.max(1e-300)).sqrt()
         })
         .sum()
@@ -175,7 +216,7 @@ fn residual(s: &[Sample], targets: &[Vec<f64>], ns: f64) -> f64 {
 /// The exponent minimising [`residual`] for the lobe-shape targets, searched on a log scale
 /// around the analytic `ns` (a scan, then golden-section refinement), at most `ns_max` (the
 /// previous, smoother row's) so that `ns` falls with roughness.
-fn fit_ns(s: &[Sample], shape_targets: &[Vec<f64>], roughness: f64, ns_max: f64) -> f64 {
+fn fit_ns(s: &[Sample], shape_targets: &[Target], roughness: f64, ns_max: f64) -> f64 {
     let ns_a = roughness_to_ns(roughness as f32) as f64;
     let lo = (ns_a / 10.0).max(NS_MIN as f64).ln();
     let hi = (ns_a * 10.0)
@@ -278,8 +319,14 @@ pub fn fit_row(roughness: f64, ns_max: f64) -> FittedRow {
     let f0_04 = DIELECTRIC_F0.iter().position(|&f| f == 0.04).unwrap_or(0);
     // The lobe's shape: white metal (the bare GGX lobe) and the dielectric's specular alone.
     let shape = [
-        metal_t[METAL_BASE.len() - 1].clone(),
-        diel_t[f0_04][0].clone(),
+        Target {
+            values: metal_t[METAL_BASE.len() - 1].clone(),
+            metal: r < METAL_DIFFUSE_FROM - 1e-9,
+        },
+        Target {
+            values: diel_t[f0_04][0].clone(),
+            metal: false,
+        },
     ];
     let ns = fit_ns(&s, &shape, r, ns_max);
     let l: Vec<f64> = s.iter().map(|s| lobe(ns, s.cos_h)).collect();
@@ -287,7 +334,18 @@ pub fn fit_row(roughness: f64, ns_max: f64) -> FittedRow {
         let (kd, ks) = Normal::new(&s, &l, t).solve();
         [kd as f32, ks as f32]
     };
-    let metal: Vec<[f32; 2]> = metal_t.iter().map(solve).collect();
+    let metal: Vec<[f32; 2]> = metal_t
+        .iter()
+        .map(|t| {
+            let n = Normal::new(&s, &l, t);
+            let (kd, ks) = if r < METAL_DIFFUSE_FROM - 1e-9 {
+                n.solve_specular()
+            } else {
+                n.solve()
+            };
+            [kd as f32, ks as f32]
+        })
+        .collect();
     // Dielectrics: base colour 0 under the constraints; the part linear in the base colour
     // (the diffuse under the specular layer) unconstrained, so the lookup is exactly linear
     // in the base colour and only clamps (Kd ≤ 1 − Ks) near base colour 1, where it binds.
