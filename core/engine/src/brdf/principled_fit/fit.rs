@@ -142,10 +142,12 @@ impl Normal {
         )
     }
 
-    /// The unconstrained least-squares `(Kd, Ks)`, if the system is not singular.
+    /// The unconstrained least-squares `(Kd, Ks)`, if the two functions are not nearly
+    /// collinear (a lobe with `ns → 0` is a constant, like the diffuse term: the system is
+    /// then ill-conditioned and would trade huge opposite `Kd`, `Ks`).
     fn solve_free(&self) -> Option<(f64, f64)> {
         let det = self.g11 * self.g22 - self.g12 * self.g12;
-        (det > 1e-12 * self.g11 * self.g22).then(|| {
+        (det > 1e-3 * self.g11 * self.g22).then(|| {
             (
                 (self.b1 * self.g22 - self.b2 * self.g12) / det,
                 (self.b2 * self.g11 - self.b1 * self.g12) / det,
@@ -354,9 +356,8 @@ pub fn fit_row(roughness: f64, ns_max: f64) -> FittedRow {
         .map(|[a, b]| {
             let at0 = solve(a);
             let diff: Vec<f64> = b.iter().zip(a).map(|(b, a)| b - a).collect();
-            let (dkd, dks) = Normal::new(&s, &l, &diff)
-                .solve_free()
-                .unwrap_or((0.0, 0.0));
+            let n = Normal::new(&s, &l, &diff);
+            let (dkd, dks) = n.solve_free().unwrap_or((n.b1 / n.g11, 0.0));
             [at0, [at0[0] + dkd as f32, at0[1] + dks as f32]]
         })
         .collect();
