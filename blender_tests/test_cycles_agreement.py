@@ -182,10 +182,28 @@ def test_light_agrees_with_cycles(addon, prefs, blend_dir, results_file, kind):
     compare(addon, blend_dir, f"light_{kind}", LIGHT_SPP)
 
 
-def test_hdri_world_agrees_with_cycles(addon, prefs, blend_dir, results_file):
+#: Bounds of the HDRI cases, tighter than the shared margins: issue 15 reported an HDRI-lit
+#: diffuse scene 1.8 % brighter than Cycles; measured since, every HDRI case (these two, the
+#: bunny's forest HDRI with diffuse materials) is within 0.1 % of Cycles' mean and these two
+#: are at their tile noise floor (docs/fidelity.md, "HDRI brightness against Cycles").
+HDRI_MEAN_BOUND = 0.002
+HDRI_BLOCK_MARGIN = 0.001
+
+
+@pytest.mark.parametrize("sky", ["blob", "sun_disc"])
+def test_hdri_world_agrees_with_cycles(addon, prefs, blend_dir, results_file, sky):
+    """The 64×32 sky with a broad 12° blob, and the assets' 128×64 sky with a small, very
+    bright sun disc (4°, radiance 2000: a texel and a half across, where the lookup's
+    filtering, the map's resolution and the sampling pdf all matter)."""
     cy.open_scene(LIGHT_RES)
-    set_world({"type": "equirect", "image": cy.sky_image(), "strength": 1.0})
-    compare(addon, blend_dir, "world_hdri", LIGHT_SPP)
+    if sky == "blob":
+        world = {"type": "equirect", "image": cy.sky_image(), "strength": 1.0}
+    else:
+        world = json.loads((ROOT / "assets" / "hdri.scene.json").read_text())["world"]
+    set_world(world)
+    f = compare(addon, blend_dir, f"world_hdri_{sky}", LIGHT_SPP)
+    assert abs(f["mean_ratio_relume_over_cycles"] - 1.0) <= HDRI_MEAN_BOUND, f
+    assert f[f"block{BLOCK}_rel_l2"] <= f[f"block{BLOCK}_noise_floor"] + HDRI_BLOCK_MARGIN, f
 
 
 def test_glossy_model_difference_is_recorded(addon, prefs, blend_dir, results_file):

@@ -2,7 +2,7 @@
 
 use clap::{Args, ValueEnum};
 use relume_engine::bake::presets::Preset;
-use relume_engine::bake::settings::DEFAULT_BOUNCES;
+use relume_engine::bake::settings::{default_ns_range, DEFAULT_BOUNCES};
 use relume_engine::bake::{BakeSettings, IndirectSampling, LightGrouping};
 use relume_engine::brdf::{BasisConfig, BasisCount};
 use relume_engine::scene::Resolution;
@@ -115,11 +115,13 @@ pub struct BakeOptions {
     /// Instead of --bases: the smallest basis whose worst lobe error is at most this (e.g. 0.03).
     #[arg(long)]
     pub tolerance: Option<f32>,
-    /// Blinn–Phong exponent range of editable regions without a range of their own.
-    #[arg(long, default_value_t = 1.0)]
-    pub ns_min: f32,
-    #[arg(long, default_value_t = 200.0)]
-    pub ns_max: f32,
+    /// Blinn–Phong exponent range of editable regions without a range of their own
+    /// [default: Principled roughness 0.1–1, ns ≈ 0.001–20 000, the add-on's].
+    #[arg(long)]
+    pub ns_min: Option<f32>,
+    /// Upper end of that range [default: ns ≈ 20 000, roughness 0.1].
+    #[arg(long)]
+    pub ns_max: Option<f32>,
     /// Worker threads (0: all cores); the result does not depend on it.
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
@@ -171,8 +173,8 @@ impl BakeOptions {
                 PrecisionArg::F32 => Precision::F32,
             },
             basis: BasisConfig {
-                ns_min: self.ns_min,
-                ns_max: self.ns_max,
+                ns_min: self.ns_min.unwrap_or(default_ns_range()[0]),
+                ns_max: self.ns_max.unwrap_or(default_ns_range()[1]),
                 count: BasisCount::Fixed(DEFAULT_BASES),
                 ..BasisConfig::default()
             },

@@ -99,6 +99,7 @@ fn row(ctx: &BakeContext, cap: u32, gx: u32, gy: u32, y: u32) -> Vec<f64> {
                     &mut tracer,
                     &hit,
                     wo,
+                    None,
                     &mut stream,
                     &mut values,
                     &mut light,

@@ -22,16 +22,24 @@
 //! regions at later vertices reflect with their surface BRDF only, as at x″ (subsurface
 //! light is gathered at the eye only). Roulette and direction choices depend on the
 //! bake-time materials only, so the bake and a reference with other materials still trace
-//! the same paths. Emitters and the world are reached by next-event estimation only, at
-//! every vertex, as for the first bounce (a continuation ray that escapes carries nothing).
+//! the same paths.
+//!
+//! **Direct light: two strategies.** Emitters are sampled at every vertex (next-event
+//! estimation, per emitter and light group), and the BSDF-sampled rays a vertex traces
+//! collect the light they meet — an area light's front face, an emissive surface, a point
+//! or spot light's disk, a sun's cone, the world they escape to — both weighted by multiple importance sampling
+//! ([`crate::bake::mis`]): the eye's light goes to its direct layers, a bounce vertex's to
+//! the one-bounce layers. The weights use the pdfs of the sampling strategies, fixed before
+//! the bake, never those of the edited materials, so the layers stay linear. A path's last
+//! vertex traces a ray for this alone only where its region has a lobe; the paper's uniform
+//! sampling at the eye keeps next-event estimation alone there.
 //!
 //! **Emitters seen directly.** A camera ray also collects the emitters it sees before (or
 //! at) its first hit — area lights with camera visibility (front face), emissive surfaces
 //! ([`crate::scene::Light::Emissive`]) — into the world layer of the emitter's light group:
 //! that light depends on no material, so it relights as a constant scaled by the group's
-//! gain. Emissive surfaces light the scene through next-event estimation like any light
-//! (uniform area sampling, no MIS: continuation rays carry no emission, so nothing is
-//! counted twice).
+//! gain. Emissive surfaces light the scene like any area light: uniform area sampling and
+//! the BSDF rays that hit them, MIS-weighted.
 
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
@@ -39,6 +47,9 @@ use std::f32::consts::PI;
 use crate::bake::context::BakeContext;
 use crate::bake::guide::GUIDE_WEIGHT;
 use crate::bake::guide_tree::DirectionTree;
+use crate::bake::mis::{
+    emission_along, indirect_pdf, power_heuristic, traces_bsdf_ray, BsdfStrategy,
+};
 use crate::bake::mixture::DirectionMixture;
 use crate::geometry::bvh::SurfaceHit;
 use crate::geometry::sampling::{cosine_hemisphere, to_world, uniform_hemisphere, SampleStream};
@@ -200,6 +211,20 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(
     sink.eye_hit(hit.region, hit.shading_normal, hit.position);
     let groups = ctx.lights.groups.len();
     let wo = -dir;
+    let region = &ctx.regions[hit.region as usize];
+    let guide = ctx.guide.as_ref().and_then(|g| g.sampler(px, py));
+    // The eye weighs its light samples against its BSDF rays when those follow the region's
+    // lobes (not the paper's uniform directions, `mis` module docs); it traces them for its
+    // bounce, or (no bounce) for the light a lobe meets.
+    let eye_mis = settings.sampling != IndirectSampling::Uniform
+        && (settings.bounces > 0 || traces_bsdf_ray(&region.mixture));
+    let eye_rays = settings.bounces > 0 || eye_mis;
+    let eye_strategy = eye_mis.then_some(BsdfStrategy {
+        sampling: settings.sampling,
+        mixture: &region.mixture,
+        guide,
+        count: settings.indirect_samples,
+    });
     let mut values = [Rgb::ZERO; MAX_BASES];
     let mut eye_light = [Rgb::ZERO; MAX_GROUPS * MAX_BASES];
     let (first, count) = direct_light(
@@ -208,6 +233,7 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(
         tracer,
         &hit,
         wo,
+        eye_strategy.as_ref(),
         &mut stream,
         &mut values,
         &mut eye_light,
@@ -234,10 +260,9 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(
             }
         }
     }
-    if settings.bounces == 0 {
+    if !eye_rays {
         return;
     }
-    let region = &ctx.regions[hit.region as usize];
     let n = hit.shading_normal;
     let inv_indirect = 1.0 / settings.indirect_samples as f32;
     let mut eye_values = [Rgb::ZERO; MAX_BASES];
@@ -245,7 +270,6 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(
     let indirect = stream.branch();
     for i in 0..settings.indirect_samples {
         let mut stream = indirect.child(i, settings.indirect_samples);
-        let guide = ctx.guide.as_ref().and_then(|g| g.sampler(px, py));
         let Some((wi, pdf)) = sample_indirect(
             settings.sampling,
             &region.mixture,
@@ -260,28 +284,59 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(
         if cos_i <= 0.0 || hit.geometric_normal.dot(wi) <= 0.0 || !(pdf > 0.0) {
             continue;
         }
-        let Some(hit2) = tracer.intersect(
+        let hit2 = tracer.intersect(
             ctx,
             ctx.geometry.offset(hit.position, hit.geometric_normal),
             wi,
             0.0,
             f32::INFINITY,
-        ) else {
-            continue;
-        };
+        );
         let (eye_first, eye_count) = brdf.eval(hit.region, hit.uv, n, wi, wo, &mut eye_values);
         let weight = cos_i / pdf * inv_indirect;
+        // The light this BSDF ray meets is direct light at the eye (the second strategy).
+        let mut emitted = [Rgb::ZERO; MAX_GROUPS];
+        let density = settings.indirect_samples as f32 * pdf;
+        if eye_mis
+            && emission_along(
+                ctx,
+                &hit,
+                wi,
+                density,
+                hit2.as_ref(),
+                &mut emitted[..groups],
+            )
+        {
+            for (e, value) in eye_values.iter().enumerate().take(eye_count) {
+                let fe = *value * weight;
+                for (g, l) in emitted[..groups].iter().enumerate() {
+                    if fe != Rgb::ZERO && *l != Rgb::ZERO {
+                        sink.direct(g, eye_slot(ctx, hit.region, eye_first, e), fe * *l);
+                    }
+                }
+            }
+        }
+        if settings.bounces == 0 {
+            continue;
+        }
+        let Some(hit2) = hit2 else {
+            continue;
+        };
+        // The bounce vertex traces a BSDF ray when the path goes on, or for a lobe's light.
+        let mixture2 = &ctx.regions[hit2.region as usize].mixture;
+        let bounce_rays = settings.bounces >= 2 || traces_bsdf_ray(mixture2);
+        let bounce_strategy = bounce_rays.then(|| BsdfStrategy::mixture(ctx, hit2.region));
         let (mut bounce_first, mut bounce_count) = direct_light(
             ctx,
             brdf,
             tracer,
             &hit2,
             -wi,
+            bounce_strategy.as_ref(),
             &mut stream,
             &mut values,
             &mut bounce_light,
         );
-        if settings.bounces >= 2 {
+        if bounce_rays {
             let mut tail = stream.branch();
             frozen_tail(
                 ctx,
@@ -324,7 +379,10 @@ pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(
 /// of the vertex times cos θ times radiance/pdf, averaged over the light samples, summed per
 /// light group and slot into `light[group · MAX_BASES + slot]` (cleared first). Returns the
 /// vertex's first slot and slot count (count 0 when no sample arrived). Takes one branch of
-/// `stream` per emitter, whose children are the light samples, always.
+/// `stream` per emitter, whose children are the light samples, always. With `bsdf` (the
+/// vertex also traces BSDF rays that collect light, [`crate::bake::mis`]) each light sample
+/// an emitter can also be met by carries its multiple-importance weight against that
+/// strategy; with `None` every light sample has full weight.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn direct_light<B: VertexBrdf, T: Tracer>(
     ctx: &BakeContext,
@@ -332,6 +390,7 @@ pub(crate) fn direct_light<B: VertexBrdf, T: Tracer>(
     tracer: &mut T,
     hit: &SurfaceHit,
     wo: Vec3,
+    bsdf: Option<&BsdfStrategy>,
     stream: &mut SampleStream,
     values: &mut [Rgb; MAX_BASES],
     light: &mut [Rgb; MAX_GROUPS * MAX_BASES],
@@ -369,7 +428,13 @@ pub(crate) fn direct_light<B: VertexBrdf, T: Tracer>(
                     light[g * MAX_BASES..g * MAX_BASES + c].fill(Rgb::ZERO);
                 }
             }
-            let li = s.radiance_over_pdf * (cos * inv);
+            let mis = match (bsdf, s.pdf) {
+                (Some(b), Some(pdf)) => {
+                    power_heuristic(samples as f32 * pdf, b.density(n, wo, s.wi))
+                }
+                _ => 1.0,
+            };
+            let li = s.radiance_over_pdf * (cos * inv * mis);
             let g = ctx.lights.group_of(emitter);
             for (l, v) in light[g * MAX_BASES..]
                 .iter_mut()
@@ -385,8 +450,10 @@ pub(crate) fn direct_light<B: VertexBrdf, T: Tracer>(
 
 /// Adds to `light` (laid out as [`direct_light`]'s, whose `(first, count)` it updates when
 /// that found nothing) the light that leaves the first-bounce vertex `hit` towards `wo`
-/// after bounces 2..=n: one direction drawn from the region's mixture, the radiance coming
-/// back along it ([`tail_radiance`]) times each basis value of the vertex, cos θ over the pdf.
+/// along one direction drawn from the region's mixture: the emitters that direction meets
+/// (MIS-weighted against the vertex's light samples) and, with bounces ≥ 2, the light of
+/// bounces 2..=n ([`tail_radiance`]), times each basis value of the vertex, cos θ over the
+/// pdf.
 #[allow(clippy::too_many_arguments)]
 fn frozen_tail<B: VertexBrdf, T: Tracer>(
     ctx: &BakeContext,
@@ -405,7 +472,16 @@ fn frozen_tail<B: VertexBrdf, T: Tracer>(
     };
     let groups = ctx.lights.groups.len();
     let mut radiance = [Rgb::ZERO; MAX_GROUPS];
-    if !tail_radiance(ctx, brdf, tracer, hit, wi, stream, &mut radiance[..groups]) {
+    if !tail_radiance(
+        ctx,
+        brdf,
+        tracer,
+        hit,
+        wi,
+        pdf,
+        stream,
+        &mut radiance[..groups],
+    ) {
         return;
     }
     let (f, c) = brdf.eval(hit.region, hit.uv, n, wi, wo, values);
@@ -426,11 +502,14 @@ fn frozen_tail<B: VertexBrdf, T: Tracer>(
     }
 }
 
-/// The radiance, per light group, that arrives at `from` along `dir` from vertices at
-/// bounces 2..=`ctx.settings.bounces` evaluated with [`VertexBrdf::tail`] (next-event
-/// estimation at each, mixture continuation, Russian roulette from [`RR_START`] driven by
-/// the bake-time throughput). Adds into `out` (one entry per group); returns whether
-/// anything arrived.
+/// The radiance, per light group, that arrives at `from` along `dir` (drawn there from its
+/// region's mixture with pdf `pdf`): the emitters met along each segment, MIS-weighted
+/// against the light samples of the vertex the segment leaves, and the light of the
+/// vertices at bounces 2..=`ctx.settings.bounces` evaluated with [`VertexBrdf::tail`]
+/// (next-event estimation at each, mixture continuation, Russian roulette from
+/// [`RR_START`] driven by the bake-time throughput). The last vertex traces one more
+/// segment, for emitters only, where its region has a lobe ([`crate::bake::mis`]). Adds
+/// into `out` (one entry per group); returns whether anything arrived.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
     ctx: &BakeContext,
@@ -438,26 +517,55 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
     tracer: &mut T,
     from: &SurfaceHit,
     dir: Vec3,
+    pdf: f32,
     stream: &mut SampleStream,
     out: &mut [Rgb],
 ) -> bool {
     let tail = TailBrdf(brdf);
+    let max_bounce = ctx.settings.bounces;
     let mut values = [Rgb::ZERO; MAX_BASES];
     let mut light = [Rgb::ZERO; MAX_GROUPS * MAX_BASES];
+    let mut emitted = [Rgb::ZERO; MAX_GROUPS];
     let mut throughput = Rgb::ONE;
     let mut frozen = Rgb::ONE;
-    let mut origin = ctx.geometry.offset(from.position, from.geometric_normal);
+    let mut vertex = *from;
     let mut dir = dir;
+    let mut pdf = pdf;
     let mut any = false;
+    // The bounce of the vertex the current segment leads to.
     let mut bounce = 2u32;
-    while let Some(hit) = tracer.intersect(ctx, origin, dir, 0.0, f32::INFINITY) {
+    loop {
+        let origin = ctx
+            .geometry
+            .offset(vertex.position, vertex.geometric_normal);
+        let next = tracer.intersect(ctx, origin, dir, 0.0, f32::INFINITY);
+        let emitted = &mut emitted[..out.len()];
+        emitted.fill(Rgb::ZERO);
+        if emission_along(ctx, &vertex, dir, pdf, next.as_ref(), emitted) {
+            for (o, e) in out.iter_mut().zip(emitted.iter()) {
+                if *e != Rgb::ZERO {
+                    *o += throughput * *e;
+                    any = true;
+                }
+            }
+        }
+        let Some(hit) = next else {
+            break;
+        };
+        if bounce > max_bounce {
+            break; // the last vertex's segment, for emitters only
+        }
         let wo = -dir;
+        let last = bounce == max_bounce;
+        let rays = !last || traces_bsdf_ray(&ctx.regions[hit.region as usize].mixture);
+        let strategy = rays.then(|| BsdfStrategy::mixture(ctx, hit.region));
         let (_, c) = direct_light(
             ctx,
             &tail,
             tracer,
             &hit,
             wo,
+            strategy.as_ref(),
             stream,
             &mut values,
             &mut light,
@@ -471,18 +579,18 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
                 }
             }
         }
-        if bounce >= ctx.settings.bounces {
+        if !rays {
             break;
         }
         let n = hit.shading_normal;
-        let Some((wi, cos, pdf)) = continuation(ctx, &hit, wo, stream) else {
+        let Some((wi, cos, next_pdf)) = continuation(ctx, &hit, wo, stream) else {
             break;
         };
-        let w = cos / pdf;
+        let w = cos / next_pdf;
         throughput *= brdf.tail(hit.region, hit.uv, n, wi, wo) * w;
         frozen *= crate::bake::frozen::frozen_value(ctx, hit.region, hit.uv, n, wi, wo) * w;
         bounce += 1;
-        if bounce >= RR_START {
+        if bounce >= RR_START && bounce <= max_bounce {
             let q = crate::luminance(frozen).clamp(RR_MIN_SURVIVAL, 1.0);
             let u = stream.next();
             if u >= q {
@@ -494,8 +602,9 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
         if throughput == Rgb::ZERO {
             break;
         }
-        origin = ctx.geometry.offset(hit.position, hit.geometric_normal);
+        vertex = hit;
         dir = wi;
+        pdf = next_pdf;
     }
     any
 }
@@ -559,11 +668,7 @@ pub fn sample_indirect(
     if n.dot(wi) <= 0.0 {
         return None;
     }
-    let mut pdf = (1.0 - guide_weight) * mixture.pdf(n, wo, wi);
-    if let Some(g) = guide {
-        pdf += guide_weight * g.pdf(wi);
-    }
-    Some((wi, pdf))
+    Some((wi, indirect_pdf(sampling, mixture, guide, n, wo, wi)))
 }
 
 /// One sample of the guide pass ([`crate::bake::guide`]) for pixel (`px`, `py`): a
@@ -608,6 +713,7 @@ pub fn guide_sample<B: VertexBrdf, T: Tracer>(
         tracer,
         &hit2,
         -wi,
+        None,
         &mut stream,
         &mut values,
         &mut light,

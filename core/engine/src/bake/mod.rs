@@ -30,6 +30,7 @@ pub mod guide_pass;
 pub mod guide_tree;
 pub mod integrator;
 pub mod layout;
+pub mod mis;
 pub mod mixture;
 pub mod partial;
 pub mod partition;

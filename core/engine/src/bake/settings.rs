@@ -2,6 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::brdf::principled::roughness_to_ns;
 use crate::brdf::BasisConfig;
 pub use crate::options::{Denoise, IndirectSampling, LightGrouping, Precision};
 use crate::scene::Resolution;
@@ -62,6 +63,21 @@ pub struct BakeSettings {
     pub memory_budget: Option<u64>,
 }
 
+/// The Principled roughness range an editable region is baked for when neither the region
+/// nor the settings name one: the add-on's default (its material panel's Min and Max), so
+/// that the command line, Python and the add-on bake the same range and a smooth material
+/// (down to roughness 0.1) is not silently rendered rough.
+pub const DEFAULT_ROUGHNESS_RANGE: [f32; 2] = [0.1, 1.0];
+
+/// [`DEFAULT_ROUGHNESS_RANGE`] as the Blinn–Phong exponent range `[ns_min, ns_max]` of the
+/// core's mapping (roughness 1 → [`crate::brdf::principled::NS_MIN`], 0.1 → ns ≈ 20 000).
+pub fn default_ns_range() -> [f32; 2] {
+    [
+        roughness_to_ns(DEFAULT_ROUGHNESS_RANGE[1]),
+        roughness_to_ns(DEFAULT_ROUGHNESS_RANGE[0]),
+    ]
+}
+
 fn default_subsurface_samples() -> u32 {
     65_536
 }
@@ -81,7 +97,14 @@ impl Default for BakeSettings {
             seed: 0,
             resolution: None,
             precision: Precision::F16,
-            basis: BasisConfig::default(),
+            basis: {
+                let [ns_min, ns_max] = default_ns_range();
+                BasisConfig {
+                    ns_min,
+                    ns_max,
+                    ..BasisConfig::default()
+                }
+            },
             threads: 0,
             drop_budget: 0.0,
             light_grouping: LightGrouping::All,

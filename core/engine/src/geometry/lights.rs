@@ -16,12 +16,13 @@
 //! - World: radiance from every direction. A constant world is sampled cosine-weighted
 //!   around the normal (zero variance on a diffuse surface). An image world is sampled from
 //!   a defensive one-sample mixture, ½ luminance-warped ([`EnvSampler`]) + ½ cosine, with
-//!   pdf ½·p_env + ½·p_cos: escaping indirect rays carry no world light (it arrives only
-//!   through this sampling), so no MIS weights are needed and the mixture is exact and
-//!   unbiased; the cosine half bounds the weight at 2π/cos θ·L where the image pdf is small.
+//!   pdf ½·p_env + ½·p_cos; the cosine half bounds the weight at 2π/cos θ·L where the image
+//!   pdf is small.
 //!
 //! Every sample returns incident radiance divided by the solid-angle pdf, so an estimator
-//! is f·cos θ·`radiance_over_pdf` whatever the light.
+//! is f·cos θ·`radiance_over_pdf` whatever the light, and the pdf itself, so that the bake
+//! can weigh it against BSDF-sampled rays that meet the same light (multiple importance
+//! sampling; [`LightSet::emitted_along`] gives what such a ray receives).
 
 use glam::Vec3;
 use std::f32::consts::PI;
@@ -34,6 +35,8 @@ use crate::options::LightGrouping;
 use crate::scene::{AreaShape, Light, Scene, World};
 use crate::Rgb;
 
+pub mod bsdf_hits;
+
 /// One light sample at a shading point.
 #[derive(Clone, Copy, Debug)]
 pub struct LightSample {
@@ -43,6 +46,10 @@ pub struct LightSample {
     pub distance: f32,
     /// Incident radiance / solid-angle pdf.
     pub radiance_over_pdf: Rgb,
+    /// The solid-angle pdf itself, for multiple importance sampling against BSDF-sampled
+    /// directions ([`LightSet::emitted_along`] is the other side); `None` for a light no
+    /// BSDF direction can meet (a point or spot without a radius, a sun without an angle).
+    pub pdf: Option<f32>,
 }
 
 #[derive(Clone, Debug)]
@@ -66,6 +73,10 @@ enum Emitter {
     },
     /// An emissive region's triangles, sampled uniformly by area (two-sided emission).
     Mesh {
+        /// The scene region whose triangles these are (what a BSDF ray's hit names).
+        region: u32,
+        /// Total area, m².
+        area: f32,
         /// Per triangle: v0, e1 = v1 − v0, e2 = v2 − v0, unit normal.
         triangles: Vec<[Vec3; 4]>,
         /// Cumulative area fraction per triangle (last = 1).
@@ -146,6 +157,22 @@ struct Spot {
     axis: Vec3,
     cos_half: f32,
     smooth: f32,
+}
+
+impl Spot {
+    /// Cycles' smoothstep cone for the unit direction `wi` from a shading point towards the
+    /// light: 1 inside, 0 outside, the blend between.
+    fn mask(&self, wi: Vec3) -> f32 {
+        let cos = (-wi).dot(self.axis);
+        if self.smooth > 0.0 {
+            let t = ((cos - self.cos_half) / self.smooth).clamp(0.0, 1.0);
+            t * t * (3.0 - 2.0 * t)
+        } else if cos > self.cos_half {
+            1.0
+        } else {
+            0.0
+        }
+    }
 }
 
 /// How an image world is sampled (a constant world is always sampled by cosine).
@@ -456,8 +483,9 @@ impl LightSet {
                 spot,
             } => {
                 let mut target = *position;
+                let mut axis = Vec3::ZERO;
                 if *radius > 0.0 {
-                    let axis = (p - *position).normalize_or_zero();
+                    axis = (p - *position).normalize_or_zero();
                     if axis != Vec3::ZERO {
                         let (t, b) = frame(axis);
                         let (dx, dy) = concentric_disk(u1, u2);
@@ -473,24 +501,21 @@ impl LightSet {
                 let wi = d / dist;
                 let mut li = *intensity / dist2;
                 if let Some(s) = spot {
-                    let cos = (-wi).dot(s.axis);
-                    let mask = if s.smooth > 0.0 {
-                        let t = ((cos - s.cos_half) / s.smooth).clamp(0.0, 1.0);
-                        t * t * (3.0 - 2.0 * t)
-                    } else if cos > s.cos_half {
-                        1.0
-                    } else {
-                        0.0
-                    };
+                    let mask = s.mask(wi);
                     if mask <= 0.0 {
                         return None;
                     }
                     li *= mask;
                 }
+                // The disk of a light with a radius, drawn uniformly by area: solid-angle pdf
+                // d²/(π r² cos θ_l); a point without one is a single direction.
+                let pdf = (axis != Vec3::ZERO)
+                    .then(|| dist2 / (PI * radius * radius * wi.dot(axis).abs()));
                 Some(LightSample {
                     wi,
                     distance: dist,
                     radiance_over_pdf: li,
+                    pdf,
                 })
             }
             Emitter::Sun {
@@ -507,6 +532,7 @@ impl LightSet {
                     wi,
                     distance: f32::INFINITY,
                     radiance_over_pdf: *radiance_over_pdf,
+                    pdf: sun_cone_pdf(*cos_half),
                 })
             }
             Emitter::Area {
@@ -542,6 +568,7 @@ impl LightSet {
                         distance: dist,
                         radiance_over_pdf: *radiance_times_area
                             * ((rect.solid_angle / *area as f64) as f32),
+                        pdf: Some((1.0 / rect.solid_angle) as f32),
                     });
                 }
                 let (a, b) = if *elliptic {
@@ -551,7 +578,7 @@ impl LightSet {
                 };
                 let q = *centre + *u * (a * half_u) + *v * (b * half_v);
                 // One-sided emission.
-                sampled_by_area(p, q, *radiance_times_area, |wi| {
+                sampled_by_area(p, q, *radiance_times_area, *area, |wi| {
                     let cos_light = -wi.dot(*normal);
                     (!(cos_light <= 0.0)).then_some(cos_light)
                 })
@@ -560,6 +587,8 @@ impl LightSet {
                 triangles,
                 cdf,
                 radiance_times_area,
+                area,
+                ..
             } => {
                 // Pick a triangle by area with u1 (rescaled for reuse), a uniform point on it.
                 let i = cdf.partition_point(|c| *c <= u1).min(cdf.len() - 1);
@@ -575,7 +604,7 @@ impl LightSet {
                 let (b1, b2) = (su * (1.0 - u2), su * u2);
                 let q = v0 + e1 * b1 + e2 * b2;
                 // Two-sided emission.
-                sampled_by_area(p, q, *radiance_times_area, |wi| {
+                sampled_by_area(p, q, *radiance_times_area, *area, |wi| {
                     let cos_light = wi.dot(nl).abs();
                     (cos_light > 0.0).then_some(cos_light)
                 })
@@ -595,6 +624,7 @@ impl LightSet {
                         wi,
                         distance: f32::INFINITY,
                         radiance_over_pdf: li * (PI / local.z),
+                        pdf: Some(local.z / PI),
                     })
                 }
             },
@@ -627,7 +657,7 @@ fn sample_world_mixture(
     }
     // Both branches can produce any direction the other does, so the pdf is the full
     // mixture's whichever branch drew it.
-    let pdf = 0.5 * env.pdf(wi) + 0.5 * cos / PI;
+    let pdf = world_mixture_pdf(env, cos, wi);
     if !(pdf > 0.0) {
         return None;
     }
@@ -635,18 +665,28 @@ fn sample_world_mixture(
         wi,
         distance: f32::INFINITY,
         radiance_over_pdf: environment.radiance(wi) / pdf,
+        pdf: Some(pdf),
     })
+}
+
+/// The solid-angle pdf of [`sample_world_mixture`] for direction `wi` at cosine `cos` to the
+/// normal.
+#[inline]
+fn world_mixture_pdf(env: &EnvSampler, cos: f32, wi: Vec3) -> f32 {
+    0.5 * env.pdf(wi) + 0.5 * cos / PI
 }
 
 /// The sample from shading point `p` towards point `q` of an emitter sampled uniformly by
 /// area (an area light drawn on its surface, an emissive region): the area pdf 1/A turned
-/// into solid angle gives the weight L·A·cos θ_l/d². `cos_light` says how the emitter faces
-/// the direction towards it: cos θ_l, or `None` where it sends nothing that way.
+/// into solid angle gives the weight L·A·cos θ_l/d² and the pdf d²/(A·cos θ_l) (`area` is
+/// A). `cos_light` says how the emitter faces the direction towards it: cos θ_l, or `None`
+/// where it sends nothing that way.
 #[inline]
 fn sampled_by_area(
     p: Vec3,
     q: Vec3,
     radiance_times_area: Rgb,
+    area: f32,
     cos_light: impl FnOnce(Vec3) -> Option<f32>,
 ) -> Option<LightSample> {
     let d = q - p;
@@ -661,7 +701,15 @@ fn sampled_by_area(
         wi,
         distance: dist,
         radiance_over_pdf: radiance_times_area * (cos_light / dist2),
+        pdf: Some(dist2 / (area * cos_light)),
     })
+}
+
+/// The solid-angle pdf of a sun's uniform cone of half-angle cosine `cos_half`: 1/Ω with
+/// Ω = 2π(1 − cos h); `None` for a sun without an angle (a single direction).
+#[inline]
+fn sun_cone_pdf(cos_half: f32) -> Option<f32> {
+    (cos_half < 1.0).then(|| 1.0 / (2.0 * PI * (1.0 - cos_half)))
 }
 
 /// The largest f32 below 1.
@@ -735,12 +783,16 @@ fn prepare(light: &Light, tint: Rgb, scene: &Scene) -> Option<Emitter> {
             if triangles.is_empty() || !(*strength > 0.0) {
                 // Keep the emitter count equal to the light count (groups index by light).
                 return Some(Emitter::Mesh {
+                    region: *region,
+                    area: 1.0,
                     triangles: vec![[Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z]],
                     cdf: vec![1.0],
                     radiance_times_area: Rgb::ZERO,
                 });
             }
             Some(Emitter::Mesh {
+                region: *region,
+                area: total as f32,
                 triangles,
                 cdf: cdf.iter().map(|c| (c / total) as f32).collect(),
                 radiance_times_area: colour(color) * (*strength * total as f32),
