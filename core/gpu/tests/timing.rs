@@ -71,14 +71,12 @@ fn tiled_relight_gpu_against_cpu() {
     });
     let regions = gpu.editable_count();
     let (mut gpu_inc, mut cpu_inc, mut inc_bytes) = (Vec::new(), Vec::new(), Vec::new());
-    for region in 0..regions {
+    for (region, base) in coefs.iter().enumerate() {
         gpu_inc.push(time(|i| {
-            gpu.relight_region(region, &perturbed(&coefs[region], i))
-                .unwrap();
+            gpu.relight_region(region, &perturbed(base, i)).unwrap();
         }));
         cpu_inc.push(time(|i| {
-            cpu.relight_region(region, &perturbed(&coefs[region], i))
-                .unwrap();
+            cpu.relight_region(region, &perturbed(base, i)).unwrap();
         }));
         inc_bytes.push(cpu.last_stats().bytes_read);
     }
