@@ -56,24 +56,32 @@ fn tiled_relight_gpu_against_cpu() {
     let (_, coefs) = default_coefs(&stack.header);
 
     let t = Instant::now();
-    let mut gpu = GpuRelighter::new(stack.clone(), &adapter, GpuOptions::default()).unwrap();
+    let options = GpuOptions {
+        timestamps: true,
+        ..Default::default()
+    };
+    let mut gpu = GpuRelighter::new(stack.clone(), &adapter, options).unwrap();
     let build_ms = t.elapsed().as_secs_f64() * 1e3;
     let mut cpu = CpuRelighter::from_tiled(stack.clone()).unwrap();
     // Untimed first relights: the driver finishes compiling the pipeline on first use.
     gpu.relight(&coefs).unwrap();
     cpu.relight(&coefs).unwrap();
     let scaled = |i: usize| -> Vec<Vec<Rgb>> { coefs.iter().map(|c| perturbed(c, i)).collect() };
+    let mut kernel_full = Vec::new();
     let gpu_full = time(|i| {
         gpu.relight(&scaled(i)).unwrap();
+        kernel_full.extend(gpu.last_timings().kernel_ms);
     });
     let cpu_full = time(|i| {
         cpu.relight(&scaled(i)).unwrap();
     });
     let regions = gpu.editable_count();
     let (mut gpu_inc, mut cpu_inc, mut inc_bytes) = (Vec::new(), Vec::new(), Vec::new());
+    let mut kernel_inc = Vec::new();
     for (region, base) in coefs.iter().enumerate() {
         gpu_inc.push(time(|i| {
             gpu.relight_region(region, &perturbed(base, i)).unwrap();
+            kernel_inc.extend(gpu.last_timings().kernel_ms);
         }));
         cpu_inc.push(time(|i| {
             cpu.relight_region(region, &perturbed(base, i)).unwrap();
@@ -88,6 +96,13 @@ fn tiled_relight_gpu_against_cpu() {
     let e = rel_l2(gpu.image(), cpu.image());
     let m = gpu.memory();
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let kernel = |v: Vec<f64>| {
+        if v.is_empty() {
+            "not timed (no TIMESTAMP_QUERY)".to_string()
+        } else {
+            format!("{:.3} ms median", median(v))
+        }
+    };
     eprintln!(
         "{name} on {}: {} layers, {} tile entries, {} B of values ({} B dense)\n\
          GPU memory: stack {} B (values {} + tables {}), image {} B, weights {} B, read-back {} B\n\
@@ -96,6 +111,7 @@ fn tiled_relight_gpu_against_cpu() {
          incremental, mean over {regions} regions of the median: GPU {:.2} ms, CPU {:.2} ms \
          (bytes read per edit: {inc_bytes:?})\n\
          per region GPU {gpu_inc:.2?} ms, CPU {cpu_inc:.2?} ms\n\
+         compute pass alone: full {}, incremental {}\n\
          last images GPU vs CPU relative L2 {e:.2e}",
         gpu.adapter(),
         stack.layers.len(),
@@ -111,6 +127,8 @@ fn tiled_relight_gpu_against_cpu() {
         gpu.upload_ms(),
         mean(&gpu_inc),
         mean(&cpu_inc),
+        kernel(kernel_full),
+        kernel(kernel_inc),
     );
     assert!(e <= TOLERANCE);
 }
