@@ -3,15 +3,15 @@
 //!
 //! Built once per stack, like wgpu's `repeated_compute` example: per edit the host writes
 //! only the per-layer weights (16 bytes a layer) and a 32-byte parameter block per bind
-//! group, records one compute pass (one dispatch per group of [`CHUNKS_PER_GROUP`] value
-//! chunks; one for any stack up to 4 × the binding limit), copies the RGBA f32 image
-//! (16 bytes a pixel) into a mappable buffer and maps it. The image stays on the GPU
+//! group, records one compute pass (one dispatch per group of
+//! [`CHUNKS_PER_GROUP`](crate::layout::CHUNKS_PER_GROUP) value chunks; one for any stack
+//! up to 4 × the binding limit), copies the RGBA f32 image (16 bytes a pixel) into a
+//! mappable buffer and maps it. The image stays on the GPU
 //! between edits, so an incremental edit adds its weight changes to it.
 //!
 //! Failures are values: the upload runs inside out-of-memory and validation error scopes,
 //! [`Health`] records device loss and uncaptured errors, and every submission checks it.
 
-use std::borrow::Cow;
 use std::sync::{mpsc, Arc};
 use std::time::Instant;
 
@@ -21,12 +21,11 @@ use crate::device::adapter_label;
 use crate::error::GpuError;
 use crate::gpu_memory::GpuMemory;
 use crate::health::Health;
-use crate::layout::{Layout, CHUNKS_PER_GROUP};
+use crate::layout::Layout;
+use crate::pipeline::{self, Bindings, Dispatch, Params};
 use crate::tiles::{entries_at, table_words};
 use crate::upload::{upload_tables, upload_values};
 
-/// Bytes of the parameter block (`struct Params` in `kernel.wgsl`).
-const PARAMS_BYTES: u64 = 32;
 /// Bytes of one layer's weight (`vec4<f32>`).
 pub(crate) const WEIGHT_BYTES: u64 = 16;
 /// Two u64 timestamps: start and end of the compute pass.
@@ -50,14 +49,6 @@ struct Timestamps {
     period_ns: f64,
 }
 
-/// One dispatch: a bind group and the tiles it covers.
-struct Dispatch {
-    bind_group: wgpu::BindGroup,
-    params: wgpu::Buffer,
-    first_tile: u32,
-    tile_count: u32,
-}
-
 /// The uploaded stack and the objects of the pipeline.
 pub(crate) struct Kernel {
     pub adapter: wgpu::AdapterInfo,
@@ -74,9 +65,6 @@ pub(crate) struct Kernel {
     readback: wgpu::Buffer,
     timestamps: Option<Timestamps>,
     health: Arc<Health>,
-    /// Constant words of the parameter block: width, height, tiles_x; format, entries_at.
-    size: [u32; 3],
-    format_and_tables: [u32; 2],
     pixels: u64,
     max_workgroups: u32,
 }
@@ -224,52 +212,24 @@ impl Kernel {
         });
 
         let invalid = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("relume relight kernel"),
-            source: wgpu::ShaderSource::Wgsl(Cow::Borrowed(include_str!("kernel.wgsl"))),
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("relume relight"),
-            layout: None,
-            module: &module,
-            entry_point: Some("main"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
-        let bind_layout = pipeline.get_bind_group_layout(0);
-        let dispatches: Vec<Dispatch> = (0..layout.groups())
-            .map(|g| {
-                let params = buffer(
-                    "relume params",
-                    PARAMS_BYTES,
-                    wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                );
-                let mut entries = vec![
-                    bind(0, &image),
-                    bind(1, &params),
-                    bind(2, &weights),
-                    bind(3, &tables),
-                ];
-                for slot in 0..CHUNKS_PER_GROUP {
-                    let chunk = chunks
-                        .get(g * CHUNKS_PER_GROUP + slot)
-                        .unwrap_or(&placeholder);
-                    entries.push(bind(4 + slot as u32, chunk));
-                }
-                let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("relume stack"),
-                    layout: &bind_layout,
-                    entries: &entries,
-                });
-                let (first_tile, tile_count) = layout.group_tiles(g);
-                Dispatch {
-                    bind_group,
-                    params,
-                    first_tile,
-                    tile_count,
-                }
-            })
-            .collect();
+        let base = Params {
+            width,
+            height,
+            tiles_x: stack.tiles_x(),
+            first_tile: 0,
+            tile_count: 0,
+            reset: 1,
+            format: layout.format as u32,
+            entries_at: entries_at(stack.tiles.len()) as u32,
+        };
+        let bindings = Bindings {
+            image: &image,
+            weights: &weights,
+            tables: &tables,
+            chunks: &chunks,
+            placeholder: &placeholder,
+        };
+        let (pipeline, dispatches) = pipeline::build(&device, &layout, &bindings, base);
         if let Some(e) = pollster::block_on(invalid.pop()) {
             return Err(GpuError::Backend {
                 during: "building the relight pipeline".into(),
@@ -283,10 +243,12 @@ impl Kernel {
             weights: weights.size(),
             readback: readback.size(),
             other: placeholder.size()
-                + dispatches.iter().map(|d| d.params.size()).sum::<u64>()
+                + dispatches
+                    .iter()
+                    .map(|d| d.params_buffer.size())
+                    .sum::<u64>()
                 + timestamps.as_ref().map_or(0, |t| t.resolve.size()),
         };
-        let format_and_tables = [layout.format as u32, entries_at(stack.tiles.len()) as u32];
         Ok(Kernel {
             adapter: info,
             layout,
@@ -301,8 +263,6 @@ impl Kernel {
             readback,
             timestamps,
             health,
-            size: [width, height, stack.tiles_x()],
-            format_and_tables,
             pixels,
             max_workgroups: limits.max_compute_workgroups_per_dimension.max(1),
         })
@@ -328,21 +288,8 @@ impl Kernel {
             self.queue
                 .write_buffer(&self.weights, 0, bytemuck::cast_slice(weights));
         }
-        for d in &self.dispatches {
-            let [width, height, tiles_x] = self.size;
-            let [format, entries_at] = self.format_and_tables;
-            let params = [
-                width,
-                height,
-                tiles_x,
-                d.first_tile,
-                d.tile_count,
-                reset as u32,
-                format,
-                entries_at,
-            ];
-            self.queue
-                .write_buffer(&d.params, 0, bytemuck::cast_slice(&params));
+        for d in &mut self.dispatches {
+            d.write_params(&self.queue, reset);
         }
         let mut encoder = self
             .device
@@ -360,7 +307,7 @@ impl Kernel {
             });
             pass.set_pipeline(&self.pipeline);
             for d in &self.dispatches {
-                let [x, y] = fold(d.tile_count, self.max_workgroups);
+                let [x, y] = fold(d.params.tile_count, self.max_workgroups);
                 pass.set_bind_group(0, &d.bind_group, &[]);
                 pass.dispatch_workgroups(x, y, 1);
             }
@@ -452,13 +399,6 @@ fn fold(tiles: u32, max: u32) -> [u32; 2] {
         [tiles, 1]
     } else {
         [max, tiles.div_ceil(max)]
-    }
-}
-
-fn bind(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
-    wgpu::BindGroupEntry {
-        binding,
-        resource: buffer.as_entire_binding(),
     }
 }
 

@@ -15,7 +15,8 @@
 //!   binding limit), f16 pairs / f32 packing.
 //! - [`tiles`]: the tile and entry tables the kernel reads, and the entry kind byte.
 //! - `upload`: streaming the stack into its buffers in bounded pieces.
-//! - `kernel` (+ `kernel.wgsl`): device, pipeline, one submission per edit.
+//! - `kernel` (+ `kernel.wgsl`): device, buffers, one submission per edit.
+//! - `pipeline`: the compute pipeline and one dispatch per bind group of value chunks.
 //! - `health`: device loss and uncaptured errors, as values.
 //! - [`gpu_memory`]: [`GpuMemory`], the bytes on the GPU by purpose.
 //! - [`relight`]: [`GpuRelighter`], the engine's relight bookkeeping
@@ -29,6 +30,7 @@ pub mod gpu_memory;
 mod health;
 mod kernel;
 pub mod layout;
+mod pipeline;
 pub mod relight;
 pub mod relighter;
 pub mod tiles;
