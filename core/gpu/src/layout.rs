@@ -1,30 +1,29 @@
-//! Where every layer lives on the GPU: which storage buffer ("chunk") and at which 32-bit
-//! word, and how its samples are packed into words.
+//! Where the tiled stack's values live on the GPU: which storage buffer ("chunk") holds
+//! each tile, and how samples are packed into 32-bit words.
 //!
-//! **Packing.** f16 layers go up as they are stored, two halves per `u32` (low half first,
-//! what WGSL's `unpack2x16float` reads as `.x`): the GPU converts them exactly as the CPU
-//! does, so the two relights differ only by summation order (≈ 1e-6 relative). f32 layers
-//! go up as f32 bits, one word per sample, *not* converted to f16: an f32 layer carries
-//! scale 1 and any magnitude, so converting would need a new scale and would add up to
-//! 2⁻¹² relative error per sample — on basis layers of both signs that cancel, enough to
-//! break the 1e-3 agreement with the CPU. A stack baked in f32 costs twice the GPU memory,
-//! as it does on the CPU.
+//! **Packing.** Values go up as the stack stores them, in its precision: f16 two halves per
+//! `u32` (low half first), f32 one word per sample. Nothing is converted or re-scaled, so
+//! the GPU reads exactly the numbers the CPU reads and the two relights differ only in
+//! rounding. Tiles are packed back to back in sample units, with no padding between them:
+//! an f16 tile may start in the middle of a word. Only a chunk's end is padded, to a whole
+//! word (wgpu buffers are sized in words).
 //!
 //! **Chunks.** A storage binding may not exceed the adapter's
-//! `max_storage_buffer_binding_size` (128 MiB by default, the paper's 84 layers at 512² in
-//! f16 are 74 MB), so layers are laid out greedily, whole, into chunks of at most that many
-//! bytes; one layer is never split. [`CHUNKS_PER_GROUP`] chunks share one bind group; a
-//! stack that needs more chunks gets one dispatch per group in the same compute pass.
+//! `max_storage_buffer_binding_size`, so tiles are laid out greedily, whole and in raster
+//! order, into chunks of at most that many bytes; a tile is never split. Raster order makes
+//! the tiles of each chunk, and of each group of [`CHUNKS_PER_GROUP`] chunks sharing one
+//! bind group, a contiguous range: one dispatch per group covers its range, and every tile
+//! is summed by exactly one dispatch.
 
-use relume_engine::stack::{Layer, LayerSamples};
+use relume_engine::stack::tiled::TiledStack;
+use relume_engine::stack::Precision;
 
 /// Chunk bindings in the shader (`chunk0` … `chunk3` in `kernel.wgsl`). With the image,
-/// the layer list and the parameters that is 6 storage buffers per stage, within the
-/// default limit of 8; four chunks of the default 128 MiB hold 512 MiB of layers (≈ 7× the
-/// paper's stack) in one dispatch.
+/// the weights and the tables that is 7 storage buffers per stage, within the WebGPU
+/// default limit of 8.
 pub const CHUNKS_PER_GROUP: usize = 4;
 
-/// Sample encoding of a layer on the GPU (the `format` field of an entry in the shader).
+/// Sample encoding of the values on the GPU (the `format` parameter of the kernel).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Format {
     /// Two f16 per word, low half first.
@@ -33,182 +32,171 @@ pub enum Format {
     F32 = 1,
 }
 
-/// One layer's place on the GPU.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Placement {
-    pub chunk: u32,
-    /// First word of the layer in its chunk.
-    pub offset_words: u32,
-    pub words: u64,
-    pub format: Format,
-    /// 1 (grey) or 3 (RGB interleaved), as in the stack.
-    pub channels: u32,
+impl Format {
+    /// The encoding of a stack of `precision`.
+    pub fn of(precision: Precision) -> Format {
+        match precision {
+            Precision::F16 => Format::F16Pairs,
+            Precision::F32 => Format::F32,
+        }
+    }
+
+    /// Bytes of one sample.
+    pub fn sample_bytes(self) -> u64 {
+        match self {
+            Format::F16Pairs => 2,
+            Format::F32 => 4,
+        }
+    }
+
+    /// Bytes of a buffer of `samples` samples: whole words, at least one (a binding cannot
+    /// be empty).
+    pub fn buffer_bytes(self, samples: u64) -> u64 {
+        (samples * self.sample_bytes()).div_ceil(4).max(1) * 4
+    }
 }
 
-/// The layout of a whole stack.
+/// A run of consecutive tiles whose values share one storage buffer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Chunk {
+    pub first_tile: u32,
+    pub tiles: u32,
+    /// Samples of those tiles, back to back.
+    pub samples: u64,
+}
+
+/// The layout of a whole stack's values.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Layout {
-    pub placements: Vec<Placement>,
-    /// Words of each chunk.
-    pub chunk_words: Vec<u64>,
+    pub format: Format,
+    /// In tile order; at least one (possibly empty) chunk.
+    pub chunks: Vec<Chunk>,
 }
 
 impl Layout {
-    /// Lays `layers` out in chunks of at most `max_chunk_bytes` (rounded down to whole
-    /// words). Errors (as a message) if one layer alone is larger than a chunk, or if a
-    /// chunk would hold more than 2³² words (offsets are u32 in the shader).
-    pub fn new(layers: &[Layer], max_chunk_bytes: u64) -> Result<Layout, String> {
-        let cap = (max_chunk_bytes / 4).min(1u64 << 32);
-        let mut placements = Vec::with_capacity(layers.len());
-        let mut chunk_words: Vec<u64> = Vec::new();
-        for layer in layers {
-            let (format, words) = match &layer.samples {
-                LayerSamples::F16(v) => (Format::F16Pairs, v.len().div_ceil(2) as u64),
-                LayerSamples::F32(v) => (Format::F32, v.len() as u64),
-            };
-            if words > cap {
-                return Err(format!(
-                    "layer {} needs {} bytes on the GPU, more than one storage binding may hold \
-                     ({} bytes, the adapter's max_storage_buffer_binding_size)",
-                    layer.key.layer_name(),
-                    words * 4,
-                    cap * 4
-                ));
-            }
-            let n_chunks = chunk_words.len();
-            match chunk_words.last_mut() {
-                Some(used) if *used + words <= cap => {
-                    placements.push(Placement {
-                        chunk: (n_chunks - 1) as u32,
-                        offset_words: *used as u32,
-                        words,
-                        format,
-                        channels: layer.channels,
-                    });
-                    *used += words;
-                }
-                _ => {
-                    placements.push(Placement {
-                        chunk: chunk_words.len() as u32,
-                        offset_words: 0,
-                        words,
-                        format,
-                        channels: layer.channels,
-                    });
-                    chunk_words.push(words);
-                }
-            }
-        }
-        Ok(Layout {
-            placements,
-            chunk_words,
+    /// Lays the tiles of `stack` out in chunks of at most `max_chunk_bytes`. Errors (as a
+    /// message) when one tile alone holds more, naming the tile.
+    pub fn new(stack: &TiledStack, max_chunk_bytes: u64) -> Result<Layout, String> {
+        Self::from_tile_samples(
+            Format::of(stack.header.precision),
+            stack.tiles.iter().map(|t| t.values.len() as u64),
+            max_chunk_bytes,
+        )
+        .map_err(|(t, bytes, cap)| {
+            let rect = stack.tile_rect(t);
+            format!(
+                "the tile at pixel ({}, {}) holds {bytes} bytes of values, more than one \
+                 storage binding may hold ({cap} bytes, the adapter's \
+                 max_storage_buffer_binding_size)",
+                rect.x0, rect.y0
+            )
         })
     }
 
-    /// Bind groups needed: one per [`CHUNKS_PER_GROUP`] chunks, at least one.
+    /// [`new`](Self::new) from each tile's sample count, in raster order. The error is
+    /// (tile, its bytes, the chunk's capacity in bytes).
+    pub fn from_tile_samples(
+        format: Format,
+        tile_samples: impl Iterator<Item = u64>,
+        max_chunk_bytes: u64,
+    ) -> Result<Layout, (usize, u64, u64)> {
+        // Offsets in the entry records are u32 sample indices.
+        let cap = (max_chunk_bytes / 4 * 4 / format.sample_bytes()).min(1u64 << 32);
+        let mut chunks = vec![Chunk {
+            first_tile: 0,
+            tiles: 0,
+            samples: 0,
+        }];
+        for (t, n) in tile_samples.enumerate() {
+            if n > cap {
+                let b = format.sample_bytes();
+                return Err((t, n * b, cap * b));
+            }
+            let last = chunks.last_mut().expect("one chunk at least");
+            if last.samples + n > cap {
+                chunks.push(Chunk {
+                    first_tile: t as u32,
+                    tiles: 1,
+                    samples: n,
+                });
+            } else {
+                last.tiles += 1;
+                last.samples += n;
+            }
+        }
+        Ok(Layout { format, chunks })
+    }
+
+    /// Bind groups: one per [`CHUNKS_PER_GROUP`] chunks.
     pub fn groups(&self) -> usize {
-        self.chunk_words.len().div_ceil(CHUNKS_PER_GROUP).max(1)
+        self.chunks.len().div_ceil(CHUNKS_PER_GROUP)
     }
 
-    /// Total bytes of layer data on the GPU.
-    pub fn bytes(&self) -> u64 {
-        self.chunk_words.iter().sum::<u64>() * 4
+    /// First tile and number of tiles of group `g`'s dispatch.
+    pub fn group_tiles(&self, g: usize) -> (u32, u32) {
+        let chunks = &self.chunks[g * CHUNKS_PER_GROUP..]
+            [..CHUNKS_PER_GROUP.min(self.chunks.len() - g * CHUNKS_PER_GROUP)];
+        let first = chunks[0].first_tile;
+        (first, chunks.iter().map(|c| c.tiles).sum())
     }
-}
 
-/// Writes `layer`'s samples as words (little-endian bytes) into `out`, which is exactly
-/// the layer's words long. Returns the index of the first non-finite sample, if any (the
-/// CPU relighter refuses such a layer too).
-pub fn pack_layer(layer: &Layer, out: &mut [u8]) -> Result<(), usize> {
-    match &layer.samples {
-        LayerSamples::F16(v) => {
-            for (k, (pair, dst)) in v.chunks(2).zip(out.chunks_exact_mut(4)).enumerate() {
-                let lo = pair[0].to_bits();
-                let hi = pair.get(1).map_or(0, |h| h.to_bits());
-                for (j, h) in [lo, hi].into_iter().enumerate() {
-                    if h & 0x7c00 == 0x7c00 && 2 * k + j < v.len() {
-                        return Err(2 * k + j);
-                    }
-                }
-                dst.copy_from_slice(&(u32::from(lo) | u32::from(hi) << 16).to_le_bytes());
-            }
-        }
-        LayerSamples::F32(v) => {
-            for (i, (x, dst)) in v.iter().zip(out.chunks_exact_mut(4)).enumerate() {
-                if !x.is_finite() {
-                    return Err(i);
-                }
-                dst.copy_from_slice(&x.to_le_bytes());
-            }
-        }
+    /// Bytes of the value buffers on the GPU.
+    pub fn value_bytes(&self) -> u64 {
+        self.chunks
+            .iter()
+            .map(|c| self.format.buffer_bytes(c.samples))
+            .sum()
     }
-    Ok(())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use relume_engine::bake::signature::LayerKey;
-    use relume_engine::stack::Precision;
 
-    fn layer(n: usize, precision: Precision) -> Layer {
-        let v: Vec<f32> = (0..n).map(|i| i as f32 - 2.5).collect();
-        Layer::from_f32(LayerKey::new(vec![]), 1, &v, precision)
+    fn layout(format: Format, samples: [u64; 6], max: u64) -> Result<Layout, (usize, u64, u64)> {
+        Layout::from_tile_samples(format, samples.into_iter(), max)
     }
 
     #[test]
-    fn layers_fill_chunks_whole_and_in_order() {
-        // 5 halves → 3 words, 4 f32 → 4 words: a 10-word chunk takes the first three
-        // layers exactly (3 + 4 + 3), and the fourth opens chunk 1.
-        let layers = [
-            layer(5, Precision::F16),
-            layer(4, Precision::F32),
-            layer(5, Precision::F16),
-            layer(4, Precision::F32),
-        ];
-        let l = Layout::new(&layers, 40).unwrap();
+    fn tiles_fill_chunks_whole_and_in_raster_order() {
+        // f16, 24-byte chunks = 12 samples: 5 + 0 + 7 fill chunk 0 exactly, 3 + 9 chunk 1,
+        // 1 opens chunk 2.
+        let l = layout(Format::F16Pairs, [5, 0, 7, 3, 9, 1], 24).unwrap();
         let got: Vec<(u32, u32, u64)> = l
-            .placements
+            .chunks
             .iter()
-            .map(|p| (p.chunk, p.offset_words, p.words))
+            .map(|c| (c.first_tile, c.tiles, c.samples))
             .collect();
-        assert_eq!(got, [(0, 0, 3), (0, 3, 4), (0, 7, 3), (1, 0, 4)]);
-        assert_eq!(l.chunk_words, [10, 4]);
-        assert_eq!((l.groups(), l.bytes()), (1, 56));
-        // A chunk smaller than one layer is refused with the layer's name.
-        let e = Layout::new(&layers, 12).unwrap_err();
-        assert!(
-            e.contains("World") && e.contains("max_storage_buffer_binding_size"),
-            "{e}"
+        assert_eq!(got, [(0, 3, 12), (3, 2, 12), (5, 1, 1)]);
+        // Odd sample counts round up to a whole word per chunk only.
+        assert_eq!(l.value_bytes(), 24 + 24 + 4);
+        assert_eq!((l.groups(), l.group_tiles(0)), (1, (0, 6)));
+        // f32, 9 samples a chunk: 5 + 0 | 7 | 3 | 9 | 1 — 5 chunks, 2 groups.
+        let l = layout(Format::F32, [5, 0, 7, 3, 9, 1], 36).unwrap();
+        assert_eq!(l.chunks.len(), 5, "{:?}", l.chunks);
+        assert_eq!(l.groups(), 2);
+        let (a, b) = (l.group_tiles(0), l.group_tiles(1));
+        assert_eq!(a, (0, 5));
+        assert_eq!(b, (5, 1), "groups cover consecutive tiles, every tile once");
+    }
+
+    #[test]
+    fn a_tile_larger_than_a_chunk_is_refused() {
+        let e = layout(Format::F32, [1, 1, 1, 1, 40, 1], 64).unwrap_err();
+        assert_eq!(e, (4, 160, 64));
+    }
+
+    #[test]
+    fn an_empty_stack_has_one_empty_chunk() {
+        let l = layout(Format::F16Pairs, [0; 6], 1024).unwrap();
+        assert_eq!(
+            l.chunks,
+            [Chunk {
+                first_tile: 0,
+                tiles: 6,
+                samples: 0
+            }]
         );
-    }
-
-    #[test]
-    fn f16_pairs_pack_low_half_first_and_pad_the_tail() {
-        let l = layer(3, Precision::F16);
-        let mut out = vec![0xffu8; 8];
-        pack_layer(&l, &mut out).unwrap();
-        let LayerSamples::F16(v) = &l.samples else {
-            unreachable!("built as f16")
-        };
-        let w0 = u32::from_le_bytes(out[0..4].try_into().unwrap());
-        let w1 = u32::from_le_bytes(out[4..8].try_into().unwrap());
-        assert_eq!(w0 & 0xffff, u32::from(v[0].to_bits()));
-        assert_eq!(w0 >> 16, u32::from(v[1].to_bits()));
-        assert_eq!(w1, u32::from(v[2].to_bits()), "odd tail: high half zero");
-    }
-
-    #[test]
-    fn non_finite_samples_are_found() {
-        let mut l = layer(4, Precision::F32);
-        if let LayerSamples::F32(v) = &mut l.samples {
-            v[2] = f32::NAN;
-        }
-        assert_eq!(pack_layer(&l, &mut [0u8; 16]), Err(2));
-        let mut h = layer(4, Precision::F16);
-        if let LayerSamples::F16(v) = &mut h.samples {
-            v[3] = half::f16::INFINITY;
-        }
-        assert_eq!(pack_layer(&h, &mut [0u8; 8]), Err(3));
+        assert_eq!((l.value_bytes(), l.groups()), (4, 1));
     }
 }

@@ -3,20 +3,23 @@
 //! full re-sum, exactly as on the CPU), with the kernel as its [`LayerSum`].
 //!
 //! Weight semantics are therefore the engine's: layer `l` adds
-//! `layer_weight(key, coefs) · group factor · scale · value` — grey layers to R, G and B,
-//! RGB layers channel by channel — into an RGBA f32 image with alpha 1, rows top-down. The
-//! image stays on the GPU between edits, so an incremental edit sends only the weight
-//! changes of the layers its region appears in.
+//! `layer_weight(key, coefs) · group factor · entry scale · value` — grey entries to R, G
+//! and B, RGB entries channel by channel — into an RGBA f32 image with alpha 1, rows
+//! top-down. The stack stays on the GPU in its tiled layout and the image between edits,
+//! so an edit sends only the weights: every layer's for a full relight, the weight
+//! changes of the edited region's layers (zero elsewhere) for an incremental one.
 
+use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
 
 use relume_engine::relight::{LayerSum, RelightBookkeeping, RelightStats};
-use relume_engine::stack::TransferStack;
+use relume_engine::stack::tiled::{validate::validate, TiledStack};
 use relume_engine::Rgb;
 
 use crate::device::adapter_label;
 use crate::error::GpuError;
+use crate::gpu_memory::GpuMemory;
 use crate::kernel::{GpuOptions, Kernel};
 
 /// Times of the last GPU relight.
@@ -29,40 +32,45 @@ pub struct GpuTimings {
     pub kernel_ms: Option<f64>,
 }
 
-/// The kernel as the bookkeeping's sum: the layers on the GPU and the host copy of the image.
+/// The kernel as the bookkeeping's sum: the stack on the GPU and the host copy of the image.
 struct KernelSum {
     kernel: Kernel,
     image: Vec<f32>,
+    /// Scratch: the weights written per relight, one `vec4<f32>` per layer.
+    weights: Vec<[f32; 4]>,
+    /// Bytes of stored values per layer id (what adding the layer reads), as the CPU
+    /// sum counts them.
+    layer_bytes: Vec<usize>,
     timings: GpuTimings,
 }
 
 impl KernelSum {
-    /// Adds the listed layers (those of non-zero weight) on the GPU, after clearing the
-    /// image when `reset`, and reads the image back.
+    /// Writes `weights` for `layers` (zero for the others), sums on the GPU — the whole
+    /// image when `reset`, added to it otherwise — and reads the image back.
     fn submit(
         &mut self,
-        layers: impl Iterator<Item = usize>,
+        layers: impl Iterator<Item = usize> + Clone,
         effective: &[Rgb],
         reset: bool,
     ) -> Result<RelightStats, GpuError> {
-        let adds: Vec<(u32, Rgb)> = layers
-            .filter(|&l| effective[l] != Rgb::ZERO)
-            .map(|l| (l as u32, effective[l]))
-            .collect();
+        self.weights.fill([0.0; 4]);
+        let mut stats = RelightStats::default();
+        for l in layers {
+            let w = effective[l];
+            self.weights[l] = [w.x, w.y, w.z, 0.0];
+            // As the CPU counts: a layer of zero weight, or held by no tile, is not added.
+            if w != Rgb::ZERO && self.layer_bytes[l] > 0 {
+                stats.layers_summed += 1;
+                stats.bytes_read += self.layer_bytes[l];
+            }
+        }
         let t = Instant::now();
-        let kernel_ms = self.kernel.run(&adds, reset, &mut self.image)?;
+        let kernel_ms = self.kernel.run(&self.weights, reset, &mut self.image)?;
         self.timings = GpuTimings {
             edit_to_image_ms: t.elapsed().as_secs_f64() * 1e3,
             kernel_ms,
         };
-        Ok(RelightStats {
-            layers_summed: adds.len(),
-            bytes_read: adds
-                .iter()
-                .map(|&(l, _)| self.kernel.read_bytes[l as usize])
-                .sum(),
-            incremental: false,
-        })
+        Ok(stats)
     }
 }
 
@@ -84,32 +92,38 @@ impl LayerSum for KernelSum {
 
 /// The relight context of one stack on one GPU: build once per loaded stack.
 pub struct GpuRelighter {
-    stack: Arc<TransferStack>,
+    stack: Arc<TiledStack>,
     book: RelightBookkeeping,
     sum: KernelSum,
 }
 
 impl GpuRelighter {
-    /// Checks the stack as the CPU relighter does, opens a device on `adapter` and uploads
-    /// the layers.
+    /// Checks the stack as the CPU relighter does, and its tables and values as the stack
+    /// reader does ([`validate`]: the upload and the kernel index by them), opens a device
+    /// on `adapter` and uploads the stack. The stack is shared, not copied: the host keeps
+    /// it, the image and a few numbers per layer.
     pub fn new(
-        stack: Arc<TransferStack>,
+        stack: Arc<TiledStack>,
         adapter: &wgpu::Adapter,
         options: GpuOptions,
     ) -> Result<GpuRelighter, GpuError> {
-        let book = RelightBookkeeping::new(&stack)?;
-        let kernel = Kernel::new(adapter, &stack, options)?;
+        let book = RelightBookkeeping::from_tiled(&stack)?;
+        validate(Path::new(""), &stack)?;
         let (width, height) = book.shape().size();
-        let mut image = vec![0.0f32; width * height * 4];
+        let mut image: Vec<f32> =
+            relume_engine::memory::try_zeroed(width * height * 4, "GPU relight image")?;
         image.chunks_exact_mut(4).for_each(|p| p[3] = 1.0);
+        let kernel = Kernel::new(adapter, &stack, options)?;
         Ok(GpuRelighter {
-            stack,
-            book,
             sum: KernelSum {
                 kernel,
                 image,
+                weights: vec![[0.0; 4]; stack.layers.len()],
+                layer_bytes: stack.layer_bytes(),
                 timings: GpuTimings::default(),
             },
+            stack,
+            book,
         })
     }
 
@@ -123,15 +137,23 @@ impl GpuRelighter {
         crate::device::is_real_gpu(self.sum.kernel.adapter.device_type)
     }
 
-    /// Time to create the GPU buffers and copy the layers in, ms.
+    /// Time to create the GPU buffers and copy the stack in, ms.
     pub fn upload_ms(&self) -> f64 {
         self.sum.kernel.upload_ms
     }
 
-    /// Bytes of layers on the GPU, and in how many storage buffers.
+    /// Bytes of the stack's values on the GPU, and in how many storage buffers.
     pub fn layer_bytes_and_chunks(&self) -> (u64, usize) {
-        let layout = &self.sum.kernel.layout;
-        (layout.bytes(), layout.chunk_words.len())
+        (
+            self.sum.kernel.memory.values,
+            self.sum.kernel.layout.chunks.len(),
+        )
+    }
+
+    /// Bytes of every buffer on the GPU, by purpose: the stack (values and tables), the
+    /// image, the weights, the read-back copy.
+    pub fn memory(&self) -> GpuMemory {
+        self.sum.kernel.memory
     }
 
     /// Whether the compute pass is timed by timestamp queries.
@@ -152,7 +174,8 @@ impl GpuRelighter {
         self.book.shape().size()
     }
 
-    pub fn stack(&self) -> &Arc<TransferStack> {
+    /// The stack relit (tiled, shared with the caller).
+    pub fn stack(&self) -> &Arc<TiledStack> {
         &self.stack
     }
 

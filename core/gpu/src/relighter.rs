@@ -29,7 +29,7 @@ enum Engine {
 }
 
 /// A stack to relight, in either layout. Loaders hand over the tiled layout
-/// (`read_tiled`); the dense one is accepted for tests and older callers.
+/// (`read_tiled`); the dense one is accepted for tests and older callers, and converted.
 pub enum StackSource {
     Tiled(Arc<TiledStack>),
     Dense(Arc<TransferStack>),
@@ -74,22 +74,18 @@ impl Relighter {
 
     /// [`new`](Self::new) with options for the GPU context.
     ///
-    /// The GPU kernel still sums the dense layout: a tiled stack bound for the GPU is
-    /// expanded once ([`TiledStack::to_dense`]) for the upload, and the host keeps both
-    /// layouts while the GPU relights. The CPU relights the tiled layout only.
+    /// Both devices relight the tiled layout, shared with the caller: the GPU holds its own
+    /// copy in device memory, the host none. A dense stack is checked in the dense layout's
+    /// words, then converted once.
     pub fn with_options(
         stack: impl Into<StackSource>,
         preference: DevicePreference,
         options: GpuOptions,
     ) -> Result<Self, GpuError> {
         let choice = choose_device(preference)?;
-        let (tiled, dense) = match stack.into() {
-            StackSource::Tiled(t) => (t, None),
-            StackSource::Dense(d) => {
-                // The checks in the dense layout's words before the conversion.
-                let cpu = CpuRelighter::new(d.clone())?;
-                (cpu.stack().clone(), Some(d))
-            }
+        let tiled = match stack.into() {
+            StackSource::Tiled(t) => t,
+            StackSource::Dense(d) => CpuRelighter::new(d)?.stack().clone(),
         };
         let cpu = |tiled: &Arc<TiledStack>| -> Result<Engine, GpuError> {
             Ok(Engine::Cpu(Box::new(CpuRelighter::from_tiled(
@@ -98,25 +94,15 @@ impl Relighter {
         };
         let (engine, fallback) = match &choice.adapter {
             None => (cpu(&tiled)?, None),
-            Some(adapter) => {
-                let dense = match dense {
-                    Some(d) => d,
-                    None => {
-                        // The stack's own checks first, in the CPU's words.
-                        CpuRelighter::from_tiled(tiled.clone())?;
-                        Arc::new(tiled.to_dense()?)
-                    }
-                };
-                match GpuRelighter::new(dense, adapter, options) {
-                    Ok(g) => (Engine::Gpu(Box::new(g)), None),
-                    Err(e @ GpuError::Engine(_)) => return Err(e),
-                    Err(e) if preference == DevicePreference::Auto => {
-                        let why = format!("CPU: the GPU could not be used ({e})");
-                        (cpu(&tiled)?, Some(why))
-                    }
-                    Err(e) => return Err(e),
+            Some(adapter) => match GpuRelighter::new(tiled.clone(), adapter, options) {
+                Ok(g) => (Engine::Gpu(Box::new(g)), None),
+                Err(e @ GpuError::Engine(_)) => return Err(e),
+                Err(e) if preference == DevicePreference::Auto => {
+                    let why = format!("CPU: the GPU could not be used ({e})");
+                    (cpu(&tiled)?, Some(why))
                 }
-            }
+                Err(e) => return Err(e),
+            },
         };
         Ok(Relighter {
             engine,

@@ -1,65 +1,58 @@
-//! Which tiles of each layer hold a non-zero sample, so the kernel skips the rest unread.
+//! The tables the kernel reads per tile, in one storage buffer of `u32` words:
 //!
-//! A tile is the [`TILE_PIXELS`] consecutive pixels (row-major) of one workgroup, so the
-//! skip is the same for every invocation of a workgroup and costs no divergence. Layers of
-//! a path that starts at a region cover only that region's pixels, so the CPU relight reads
-//! a fraction of the stack's bytes, and the tiles let the GPU skip about as much (its
-//! granularity is 256 pixels, the CPU's a span per row). The masks cost one bit per tile
-//! and layer.
+//! - **Tile starts** (words `0 ..= tiles`): tile `t`'s entries are records
+//!   `starts[t] .. starts[t + 1]`, so the table costs one word per tile.
+//! - **Entry records** (from word [`entries_at`], [`ENTRY_WORDS`] words each), the tiled
+//!   stack's entries in tile order and, within a tile, in its (ascending) layer order —
+//!   the order the CPU's tiled sum adds them in:
+//!   `[layer, flags, scale (f32 bits), offset]`, where `offset` is the entry's first sample
+//!   in its chunk and `flags` packs the channels (bits 0–7: 1 grey, 3 RGB), the entry kind
+//!   (bits 8–15, [`EntryKind`]) and the chunk's slot in its bind group (bits 16–23).
+//!
+//! Sixteen bytes an entry, as the stack's own table in host memory. The kind byte is where a
+//! second way of storing an entry's values goes: the kernel switches on it per entry (see
+//! `kernel.wgsl`); today every entry is [`EntryKind::Values`].
 
-use relume_engine::stack::{Layer, LayerSamples};
+/// Words of one entry record.
+pub const ENTRY_WORDS: usize = 4;
 
-/// Pixels per tile: the workgroup size of `kernel.wgsl`.
-pub const TILE_PIXELS: usize = 256;
-
-/// Words of mask per layer for an image of `pixels` pixels.
-pub fn mask_words(pixels: usize) -> usize {
-    pixels.div_ceil(TILE_PIXELS).div_ceil(32).max(1)
+/// How an entry's values are stored (the kind byte of its flags).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EntryKind {
+    /// One value per pixel of the tile and channel, row-major, channels interleaved.
+    Values = 0,
 }
 
-/// Bit `t` of the mask is set when tile `t` of `layer` holds a non-zero sample (negative
-/// zero counts as zero). Writes [`mask_words`] words into `out` and returns the number of
-/// tiles set.
-pub fn layer_mask(layer: &Layer, pixels: usize, out: &mut [u32]) -> usize {
-    out.fill(0);
-    let ch = layer.channels as usize;
-    let mut set = 0;
-    for t in 0..pixels.div_ceil(TILE_PIXELS) {
-        let range = t * TILE_PIXELS * ch..((t + 1) * TILE_PIXELS).min(pixels) * ch;
-        let any = match &layer.samples {
-            LayerSamples::F16(v) => v[range].iter().any(|h| h.to_bits() & 0x7fff != 0),
-            LayerSamples::F32(v) => v[range].iter().any(|&x| x != 0.0),
-        };
-        if any {
-            out[t / 32] |= 1 << (t % 32);
-            set += 1;
-        }
-    }
-    set
+/// The flags word of an entry record.
+pub fn entry_flags(channels: u8, kind: EntryKind, slot: u32) -> u32 {
+    u32::from(channels) | (kind as u32) << 8 | (slot & 0xff) << 16
+}
+
+/// One entry record: layer id, flags ([`entry_flags`]), scale, first sample in the chunk.
+pub fn entry_record(layer: u32, flags: u32, scale: f32, offset: u32) -> [u32; ENTRY_WORDS] {
+    [layer, flags, scale.to_bits(), offset]
+}
+
+/// Word at which the entry records start, for a stack of `tiles` tiles.
+pub fn entries_at(tiles: usize) -> u64 {
+    tiles as u64 + 1
+}
+
+/// Words of the whole table.
+pub fn table_words(tiles: usize, entries: usize) -> u64 {
+    entries_at(tiles) + (entries * ENTRY_WORDS) as u64
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use relume_engine::bake::signature::LayerKey;
-    use relume_engine::stack::Precision;
 
     #[test]
-    fn only_tiles_with_a_non_zero_sample_are_set() {
-        // 40 tiles and a partial 41st: two mask words. RGB, so tile t spans samples
-        // [768 t, 768 (t + 1)).
-        let pixels = 40 * TILE_PIXELS + 7;
-        let mut v = vec![0.0f32; pixels * 3];
-        v[3 * TILE_PIXELS * 2 + 5] = 1.0; // tile 2, last channel of a pixel
-        v[3 * TILE_PIXELS * 33] = -2.0; // first sample of tile 33
-        v[pixels * 3 - 1] = 0.5; // the partial last tile, 40
-        v[3 * TILE_PIXELS * 5] = -0.0; // negative zero is zero
-        for precision in [Precision::F16, Precision::F32] {
-            let layer = Layer::from_f32(LayerKey::new(vec![]), 3, &v, precision);
-            let mut mask = vec![0u32; mask_words(pixels)];
-            assert_eq!(mask.len(), 2);
-            assert_eq!(layer_mask(&layer, pixels, &mut mask), 3, "{precision:?}");
-            assert_eq!(mask, [1 << 2, (1 << 1) | (1 << 8)], "{precision:?}");
-        }
+    fn flags_pack_channels_kind_and_slot_in_separate_bytes() {
+        let f = entry_flags(3, EntryKind::Values, 2);
+        assert_eq!((f & 0xff, (f >> 8) & 0xff, f >> 16), (3, 0, 2));
+        let r = entry_record(7, f, 0.25, 1234);
+        assert_eq!(r, [7, f, 0.25f32.to_bits(), 1234]);
+        assert_eq!((entries_at(6), table_words(6, 10)), (7, 47));
     }
 }

@@ -1,6 +1,8 @@
-//! On every assets stack, f16 and f32, the GPU relight (forced: lavapipe in CI) matches
-//! the CPU relight within 1e-3 relative L2 — full, then several single-region edits in a
-//! row, each compared after it — and across the periodic full re-sum of incremental edits.
+//! On every assets stack baked by the streaming bake into the tiled layout, f16 and f32,
+//! the GPU relight of that layout (forced: lavapipe in CI) matches the CPU tiled relight
+//! within 1e-6 relative L2 — full, then several single-region edits in a row, each
+//! compared after it — and across the periodic full re-sum of incremental edits; also
+//! with the values spread over many chunks and bind groups.
 
 mod common;
 
@@ -8,14 +10,16 @@ use std::sync::Arc;
 
 use common::*;
 use relume_engine::relight::{CpuRelighter, FULL_RESUM_EVERY};
-use relume_engine::stack::{Precision, TransferStack};
+use relume_engine::stack::tiled::TiledStack;
+use relume_engine::stack::Precision;
 use relume_gpu::{GpuOptions, GpuRelighter};
 
 /// Full relight, then `edits` single-region edits cycling over the editable regions; the
-/// two relighters are compared after every step. Returns the worst error seen.
-fn compare(name: &str, stack: &Arc<TransferStack>, gpu: &mut GpuRelighter, edits: usize) -> f64 {
-    let mut cpu = CpuRelighter::new(stack.clone()).unwrap();
-    let (bases, coefs) = default_coefs(stack);
+/// two relighters are compared after every step, images and what they read. Returns the
+/// worst error seen.
+fn compare(name: &str, stack: &Arc<TiledStack>, gpu: &mut GpuRelighter, edits: usize) -> f64 {
+    let mut cpu = CpuRelighter::from_tiled(stack.clone()).unwrap();
+    let (bases, coefs) = default_coefs(&stack.header);
     let mut worst: f64 = 0.0;
     let mut check = |step: &str, g: &[f32], c: &[f32]| {
         let e = rel_l2(g, c);
@@ -29,6 +33,7 @@ fn compare(name: &str, stack: &Arc<TransferStack>, gpu: &mut GpuRelighter, edits
     let g = gpu.relight(&coefs).unwrap().to_vec();
     check("full relight", &g, &c);
     assert!(!gpu.last_stats().incremental);
+    assert_eq!(gpu.last_stats(), cpu.last_stats(), "{name}: full relight");
     let n = gpu.editable_count();
     assert_eq!(n, cpu.editable_count(), "{name}");
     for k in 0..edits {
@@ -37,6 +42,7 @@ fn compare(name: &str, stack: &Arc<TransferStack>, gpu: &mut GpuRelighter, edits
         let c = cpu.relight_region(region, &new).unwrap().to_vec();
         let g = gpu.relight_region(region, &new).unwrap().to_vec();
         check(&format!("edit {k} of region {region}"), &g, &c);
+        assert_eq!(gpu.last_stats(), cpu.last_stats(), "{name}: edit {k}");
     }
     worst
 }
@@ -45,7 +51,7 @@ fn all_assets(precision: Precision) {
     let Some(adapter) = gpu_or_skip("all_assets") else {
         return;
     };
-    for (name, stack) in assets_stacks(precision) {
+    for (name, stack) in ASSETS.iter().map(|a| asset_tiled(a, precision)) {
         let mut gpu = GpuRelighter::new(stack.clone(), &adapter, GpuOptions::default()).unwrap();
         let worst = compare(&name, &stack, &mut gpu, 6);
         eprintln!(
@@ -65,23 +71,24 @@ fn assets_stacks_f32_agree_full_and_incremental() {
     all_assets(Precision::F32);
 }
 
-/// Chunks of 2 KiB put each 32×32 layer (2–6 KiB) in a chunk of its own, so the stack
-/// spreads over dozens of storage buffers and several bind groups: one dispatch per group,
-/// the first one clearing the image.
+/// Chunks the size of the Cornell box's fullest tile spread its 15 tiles over more
+/// storage buffers than one bind group binds: one dispatch per group, each over its own
+/// tiles.
 #[test]
 fn many_chunks_and_bind_groups_agree() {
     let Some(adapter) = gpu_or_skip("many_chunks_and_bind_groups_agree") else {
         return;
     };
-    let (name, stack) = assets_stacks(Precision::F16).swap_remove(0);
+    let (name, stack) = asset_tiled_sized("cornell", 72, 40, Precision::F16);
+    let largest = stack.tiles.iter().map(|t| t.values.bytes()).max().unwrap() as u64;
     let options = GpuOptions {
-        max_chunk_bytes: Some(6 * 1024),
+        max_chunk_bytes: Some(largest.div_ceil(4) * 4),
         timestamps: false,
     };
     let mut gpu = GpuRelighter::new(stack.clone(), &adapter, options).unwrap();
     let (_, chunks) = gpu.layer_bytes_and_chunks();
     assert!(
-        chunks > 2 * relume_gpu::layout::CHUNKS_PER_GROUP,
+        chunks > relume_gpu::layout::CHUNKS_PER_GROUP,
         "{name}: only {chunks} chunks, the test needs several bind groups"
     );
     compare(&name, &stack, &mut gpu, 4);
@@ -94,7 +101,7 @@ fn incremental_edits_across_the_full_resum() {
     let Some(adapter) = gpu_or_skip("incremental_edits_across_the_full_resum") else {
         return;
     };
-    let (name, stack) = assets_stacks(Precision::F16).swap_remove(1);
+    let (name, stack) = asset_tiled("ring", Precision::F16);
     let mut gpu = GpuRelighter::new(stack.clone(), &adapter, GpuOptions::default()).unwrap();
     compare(&name, &stack, &mut gpu, FULL_RESUM_EVERY + 3);
     assert!(gpu.last_stats().incremental);
@@ -103,10 +110,10 @@ fn incremental_edits_across_the_full_resum() {
 /// The extremes suite's stacks (core/engine/tests/extremes.rs) on the assets Cornell box:
 /// lights 10⁶ times brighter and dimmer (per-layer f16 scales at both ends), the scene at
 /// 10⁻³ and 10⁴ scale, a [1, 10 000] exponent range with a tolerance basis (9 bases), and
-/// per-light groups. GPU and CPU agree within 1e-3, full and incremental.
+/// per-light groups. GPU and CPU agree within 1e-6, full and incremental.
 #[test]
 fn extremes_stacks_agree_full_and_incremental() {
-    use relume_engine::bake::{bake, progress::Progress, BakeSettings, LightGrouping};
+    use relume_engine::bake::{bake_tiled, progress::Progress, BakeSettings, LightGrouping};
     use relume_engine::brdf::{BasisConfig, BasisCount};
     use relume_engine::scene::{file::load_scene, Light, Resolution};
     let Some(adapter) = gpu_or_skip("extremes_stacks_agree_full_and_incremental") else {
@@ -185,8 +192,8 @@ fn extremes_stacks_agree_full_and_incremental() {
         },
     ));
     for (name, scene, settings) in cases {
-        let (stack, _) =
-            bake(&scene, &settings, &Progress::new()).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let (stack, _) = bake_tiled(&scene, &settings, &Progress::new())
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
         let stack = Arc::new(stack);
         let mut gpu = GpuRelighter::new(stack.clone(), &adapter, GpuOptions::default()).unwrap();
         let worst = compare(&name, &stack, &mut gpu, 4);

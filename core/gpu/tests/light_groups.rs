@@ -35,7 +35,7 @@ fn gpu_light_group_gains_match_the_cpu() {
         ..Default::default()
     };
     let (stack, _) = bake(&scene, &settings, &Progress::new()).unwrap();
-    let (_, coefs) = common::default_coefs(&stack);
+    let (_, coefs) = common::default_coefs(&stack.header);
     let gains = [Rgb::new(0.5, 1.0, 2.0), Rgb::splat(3.0)];
     let stack = Arc::new(stack);
     let mut cpu = CpuRelighter::new(stack.clone()).unwrap();
@@ -45,5 +45,8 @@ fn gpu_light_group_gains_match_the_cpu() {
     gpu.relight(&coefs).unwrap();
     let got = gpu.set_light_group_gains(&gains).unwrap().to_vec();
     let d = compare_rgb(&got, &expect, 4).unwrap().rel_l2;
-    assert!(d < 1e-3, "GPU vs CPU with light group gains: {d}");
+    assert!(
+        d < common::TOLERANCE,
+        "GPU vs CPU with light group gains: {d}"
+    );
 }

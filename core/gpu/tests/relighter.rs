@@ -19,7 +19,7 @@ fn cornell() -> Arc<TransferStack> {
 #[test]
 fn cpu_preference_is_the_engine_relight() {
     let stack = cornell();
-    let (_, coefs) = default_coefs(&stack);
+    let (_, coefs) = default_coefs(&stack.header);
     let mut r = Relighter::new(stack.clone(), DevicePreference::Cpu).unwrap();
     assert_eq!(r.device(), DeviceKind::Cpu);
     assert!(
@@ -69,7 +69,7 @@ fn forced_gpu_matches_then_falls_back_to_the_cpu_on_request() {
         return;
     }
     let stack = cornell();
-    let (bases, coefs) = default_coefs(&stack);
+    let (bases, coefs) = default_coefs(&stack.header);
     let mut r = Relighter::new(stack.clone(), DevicePreference::Gpu).unwrap();
     assert_eq!(r.device(), DeviceKind::Gpu);
     assert!(
@@ -109,7 +109,7 @@ fn bad_edits_are_refused_alike_on_gpu_and_cpu() {
         return;
     }
     let stack = cornell();
-    let (_, coefs) = default_coefs(&stack);
+    let (_, coefs) = default_coefs(&stack.header);
     let mut gpu = Relighter::new(stack.clone(), DevicePreference::Gpu).unwrap();
     let mut cpu = Relighter::new(stack, DevicePreference::Cpu).unwrap();
     let message = |r: Result<&[f32], GpuError>| match r {
@@ -192,7 +192,7 @@ fn child_with_every_adapter_hidden() {
     assert!(matches!(forced, GpuError::NoAdapter(_)), "{forced}");
     eprintln!("auto: {}\ngpu: {forced}", auto.reason);
     let stack = cornell();
-    let (_, coefs) = default_coefs(&stack);
+    let (_, coefs) = default_coefs(&stack.header);
     let mut r = Relighter::new(stack.clone(), DevicePreference::Auto).unwrap();
     assert_eq!(r.device(), DeviceKind::Cpu);
     let mut cpu = CpuRelighter::new(stack.clone()).unwrap();
