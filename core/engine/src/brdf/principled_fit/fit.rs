@@ -361,6 +361,11 @@ pub fn fit_row(roughness: f64, ns_max: f64) -> FittedRow {
             [at0, [at0[0] + dkd as f32, at0[1] + dks as f32]]
         })
         .collect();
+    // Rounding noise of exactly representable targets (e.g. no specular at F0 = 0) is
+    // flushed to zero, so that a moot exponent stays moot.
+    let flush = |p: [f32; 2]| p.map(|v| if v.abs() < 1e-7 { 0.0 } else { v });
+    let metal: Vec<[f32; 2]> = metal.into_iter().map(flush).collect();
+    let dielectric: Vec<[[f32; 2]; 2]> = dielectric.into_iter().map(|d| d.map(flush)).collect();
     let row = Row {
         ns: ns as f32,
         metal: std::array::from_fn(|k| metal[k]),
