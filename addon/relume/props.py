@@ -50,7 +50,7 @@ class RelumeMaterialSettings(bpy.types.PropertyGroup):
     use_roughness_range: BoolProperty(
         name="Roughness Range", default=False, update=_stale_check_on_change,
         description="Set the roughness range this material's basis is baked for. Off: the "
-                    "Principled range down to roughness 0.1 (ns up to ≈ 20 000). A narrower "
+                    "Principled range down to roughness 0.1. A narrower "
                     "range needs fewer basis BRDFs (smaller stack, faster relight); a roughness "
                     "outside the baked range is relit at the range's edge and flagged in the panel")
     roughness_min: FloatProperty(name="Min", min=0.0, max=1.0, default=0.1,

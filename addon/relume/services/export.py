@@ -12,7 +12,8 @@ from ..runtime import RUNTIME
 from ..stack_location import stack_location
 
 #: The roughness range an editable material is baked for unless it sets its own: the Principled
-#: slider's range down to 0.1 (ns ≈ 20 000; below, lobes narrower than 0.4° need ns > 10⁴·…).
+#: slider's range down to 0.1 (the mapping's exponent there is a few times 10⁴; the panel
+#: shows the cost before a bake).
 DEFAULT_ROUGHNESS_RANGE = (0.1, 1.0)
 
 

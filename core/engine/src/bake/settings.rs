@@ -2,7 +2,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::brdf::principled::roughness_to_ns;
+use crate::brdf::principled_fit::fitted_ns;
 use crate::brdf::BasisConfig;
 pub use crate::options::{Denoise, IndirectSampling, LightGrouping, Precision};
 use crate::scene::Resolution;
@@ -70,11 +70,13 @@ pub struct BakeSettings {
 pub const DEFAULT_ROUGHNESS_RANGE: [f32; 2] = [0.1, 1.0];
 
 /// [`DEFAULT_ROUGHNESS_RANGE`] as the Blinn–Phong exponent range `[ns_min, ns_max]` of the
-/// core's mapping (roughness 1 → [`crate::brdf::principled::NS_MIN`], 0.1 → ns ≈ 20 000).
+/// core's mapping ([`crate::brdf::principled_to_blinn_phong`], whose exponent depends on
+/// roughness alone), so the add-on, which asks the mapping for its ranges, and the CLI bake
+/// the same bases.
 pub fn default_ns_range() -> [f32; 2] {
     [
-        roughness_to_ns(DEFAULT_ROUGHNESS_RANGE[1]),
-        roughness_to_ns(DEFAULT_ROUGHNESS_RANGE[0]),
+        fitted_ns(DEFAULT_ROUGHNESS_RANGE[1]),
+        fitted_ns(DEFAULT_ROUGHNESS_RANGE[0]),
     ]
 }
 

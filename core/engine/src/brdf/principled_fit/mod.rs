@@ -81,11 +81,7 @@ pub fn fitted_blinn_phong(p: &Principled) -> BlinnPhong {
     let m = or_default(p.metallic, 0.0).clamp(0.0, 1.0);
     let f0 = dielectric_f0(p.ior, p.specular_ior_level);
     let (i, t) = locate(&ROUGHNESS, r);
-    let ns = if r < ROUGHNESS[0] {
-        rows[0].ns * (roughness_to_ns(r) / roughness_to_ns(ROUGHNESS[0]))
-    } else {
-        (rows[i].ns.ln() * (1.0 - t) + rows[i + 1].ns.ln() * t).exp()
-    };
+    let ns = fitted_ns(r);
     let mut kd = [0.0f32; 3];
     let mut ks = [0.0f32; 3];
     for c in 0..3 {
@@ -110,6 +106,46 @@ pub fn fitted_blinn_phong(p: &Principled) -> BlinnPhong {
         ks,
         ns: ns.clamp(NS_MIN, NS_MAX),
     }
+}
+
+/// The fitted exponent at Principled `roughness` (it depends on roughness alone): linear in
+/// `ln ns` between rows, below the first row the analytic mapping's growth. Decreasing in
+/// roughness; NaN reads as Blender's default 0.5.
+pub fn fitted_ns(roughness: f32) -> f32 {
+    let rows = rows();
+    let r = or_default(roughness, 0.5).clamp(0.0, 1.0);
+    let (i, t) = locate(&ROUGHNESS, r);
+    let ns = if r < ROUGHNESS[0] {
+        rows[0].ns * (roughness_to_ns(r) / roughness_to_ns(ROUGHNESS[0]))
+    } else {
+        (rows[i].ns.ln() * (1.0 - t) + rows[i + 1].ns.ln() * t).exp()
+    };
+    ns.clamp(NS_MIN, NS_MAX)
+}
+
+/// The Principled roughness whose fitted exponent ([`fitted_ns`]) is `ns`: the inverse the
+/// range warnings and the estimate print, found by bisection on the decreasing curve;
+/// exponents beyond the curve's ends give roughness 0 or 1.
+pub fn roughness_for_fitted_ns(ns: f32) -> f32 {
+    if ns.is_nan() {
+        return 0.5;
+    }
+    let (mut lo, mut hi) = (0.0f32, 1.0f32);
+    if ns >= fitted_ns(lo) {
+        return lo;
+    }
+    if ns <= fitted_ns(hi) {
+        return hi;
+    }
+    for _ in 0..40 {
+        let mid = 0.5 * (lo + hi);
+        if fitted_ns(mid) > ns {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
 }
 
 /// Maps Principled inputs to Blinn–Phong: the Blinn–Phong fitted to Cycles' Principled BSDF
