@@ -60,6 +60,41 @@ pub struct BakeSettings {
     /// ([`crate::bake::estimate`]) exceeds it is refused before tracing.
     #[serde(default)]
     pub memory_budget: Option<u64>,
+    /// How the bounce layers are stored: per pixel, or where it stays within its tolerance
+    /// as lattice entries ([`crate::stack::tiled::lattice`]). Off by default (the presets
+    /// turn it on): an approximation, measured by the bake ([`super::report::BakeReport`]'s
+    /// `compression_error`).
+    #[serde(default)]
+    pub compression: BounceCompression,
+}
+
+/// Lattice compression of the bounce layers (paths of two or more vertices, none of them
+/// subsurface): per tile and layer, the bake fits bilinear hats every `step` pixels on each
+/// segment of the tile and keeps the fit where its error `‖L − L̃‖` over the tile is at
+/// most `tolerance × max(‖L‖, ‖I‖ / √k)` — `L` the layer, `I` the tile's image at the
+/// bake-time materials, `k` the tile's bounce entries — and where it stores fewer values
+/// than the pixels. The bound is relative to the layer itself, so it holds under any edit
+/// of the materials, except for layers too faint to matter at the bake-time image's scale.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BounceCompression {
+    /// Pixels between lattice nodes (1 to 16); 0 stores every layer per pixel.
+    pub step: u32,
+    /// Relative L2 error a tile's layer may take (see the type's doc).
+    pub tolerance: f32,
+}
+
+impl BounceCompression {
+    /// Every layer per pixel.
+    pub const OFF: BounceCompression = BounceCompression {
+        step: 0,
+        tolerance: 0.0,
+    };
+}
+
+impl Default for BounceCompression {
+    fn default() -> Self {
+        BounceCompression::OFF
+    }
 }
 
 fn default_subsurface_samples() -> u32 {
@@ -89,6 +124,7 @@ impl Default for BakeSettings {
             subsurface_theta: default_subsurface_theta(),
             denoise: Denoise::OFF,
             memory_budget: None,
+            compression: BounceCompression::OFF,
         }
     }
 }
@@ -163,6 +199,23 @@ impl BakeSettings {
             if n > MAX_DENOISE_ITERATIONS {
                 return bad(what, format!("{n} asked; at most {MAX_DENOISE_ITERATIONS}"));
             }
+        }
+        let c = self.compression;
+        if c.step > crate::stack::tiled::lattice::MAX_LATTICE_STEP {
+            return bad(
+                "compression step",
+                format!(
+                    "{} pixels asked; at most {}",
+                    c.step,
+                    crate::stack::tiled::lattice::MAX_LATTICE_STEP
+                ),
+            );
+        }
+        if !(c.tolerance.is_finite() && (0.0..1.0).contains(&c.tolerance)) {
+            return bad(
+                "compression tolerance",
+                format!("must be in [0, 1), got {}", c.tolerance),
+            );
         }
         if self.memory_budget == Some(0) {
             return bad("memory budget", "must be > 0 bytes".into());
