@@ -542,3 +542,141 @@ fn the_streaming_and_dense_paths_compress_alike() {
     assert!(a.tiles.iter().any(|t| t.lattice.is_some()));
     assert_eq!(a, b);
 }
+
+/// Measurement for docs/scale.md, not a check: bakes the scene at
+/// `RELUME_MEASURE_SCENE` (default: the assets' Cornell box) at `RELUME_MEASURE_RES`
+/// (`WxH`) with the preset `RELUME_MEASURE_PRESET` (default preview; its eye samples
+/// overridden by `RELUME_MEASURE_SPP` if set) and one bounce, once uncompressed and once per
+/// (`RELUME_MEASURE_STEPS` × `RELUME_MEASURE_TOLS`), and prints per setting the stored
+/// bytes, the reported and relit errors (bake-time materials and random edits) and the
+/// full relight's time. Run in release on a quiet machine:
+/// `cargo test --release -p relume-engine --test lattice_stack -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn measure_compression() {
+    let env = |k: &str, d: &str| std::env::var(k).unwrap_or_else(|_| d.to_string());
+    let scene_path = env(
+        "RELUME_MEASURE_SCENE",
+        concat!(env!("CARGO_MANIFEST_DIR"), "/../../assets/cornell.scene.json"),
+    );
+    let mut scene = load_scene(Path::new(&scene_path)).unwrap();
+    let res = env("RELUME_MEASURE_RES", "256x256");
+    let (w, h) = res.split_once('x').unwrap();
+    scene.resolution = Resolution {
+        width: w.parse().unwrap(),
+        height: h.parse().unwrap(),
+    };
+    let settings = |compression: BounceCompression| {
+        let mut s = BakeSettings {
+            seed: 3,
+            bounces: 1,
+            ..BakeSettings::default()
+        };
+        Preset::parse(&env("RELUME_MEASURE_PRESET", "preview"))
+            .unwrap()
+            .apply(&mut s);
+        if let Ok(spp) = std::env::var("RELUME_MEASURE_SPP") {
+            s.spp = spp.parse().unwrap();
+        }
+        s.resolution = Some(scene.resolution);
+        s.compression = compression;
+        s
+    };
+    let time_full = |stack: &TiledStack, coefs: &[Vec<Rgb>]| -> f64 {
+        let weights = tiled_sum::layer_weights(stack, coefs, &[Rgb::ONE; 64][..]).unwrap();
+        let mut out = vec![0.0; stack.header.width as usize * stack.header.height as usize * 4];
+        (0..7)
+            .map(|_| {
+                let t = std::time::Instant::now();
+                tiled_sum::full(stack, &weights, &mut out).unwrap();
+                t.elapsed().as_secs_f64() * 1e3
+            })
+            .fold(f64::INFINITY, f64::min)
+    };
+    let started = std::time::Instant::now();
+    let (plain, plain_report) =
+        bake_tiled(&scene, &settings(BounceCompression::OFF), &Progress::new()).unwrap();
+    let plain_seconds = started.elapsed().as_secs_f64();
+    let bake_coefs = common::bake_material_coefs(&plain.header, &scene);
+    let mut rng = Rng::new(77);
+    let edits: Vec<Vec<Vec<Rgb>>> = (0..8)
+        .map(|_| {
+            bake_coefs
+                .iter()
+                .map(|r| {
+                    r.iter()
+                        .map(|c| {
+                            *c * Rgb::new(
+                                rng.range(0.0, 2.0),
+                                rng.range(0.0, 2.0),
+                                rng.range(0.0, 2.0),
+                            )
+                        })
+                        .collect()
+                })
+                .collect()
+        })
+        .collect();
+    let mut plain_relighter = CpuRelighter::from_tiled(Arc::new(plain.clone())).unwrap();
+    let plain_images: Vec<Vec<f32>> = std::iter::once(&bake_coefs)
+        .chain(&edits)
+        .map(|c| plain_relighter.relight(c).unwrap().to_vec())
+        .collect();
+    println!(
+        "{{\"res\":\"{res}\",\"step\":0,\"stored_mb\":{:.1},\"memory_mb\":{:.1},\"bake_s\":{plain_seconds:.1},\"relight_full_min_ms\":{:.2},\"layers\":{},\"entries\":{}}}",
+        plain.sample_bytes() as f64 / 1e6,
+        plain.memory_bytes() as f64 / 1e6,
+        time_full(&plain, &bake_coefs),
+        plain.layers.len(),
+        plain.entry_count(),
+    );
+    drop(plain_relighter);
+    let _ = plain_report;
+    let by_len = |stack: &TiledStack| {
+        let bytes = stack.layer_bytes();
+        let mut out = [0usize; 3];
+        for (l, b) in stack.layers.iter().zip(bytes) {
+            out[l.key.path.len().min(2)] += b;
+        }
+        out.map(|b| (b as f64 / 1e6 * 10.0).round() / 10.0)
+    };
+    println!("{{\"plain_mb_by_path_len\":{:?}}}", by_len(&plain));
+    for step in env("RELUME_MEASURE_STEPS", "4").split(',') {
+        for tol in env("RELUME_MEASURE_TOLS", "0.02").split(',') {
+            let compression = BounceCompression {
+                step: step.parse().unwrap(),
+                tolerance: tol.parse().unwrap(),
+            };
+            let started = std::time::Instant::now();
+            let (stack, report) =
+                bake_tiled(&scene, &settings(compression), &Progress::new()).unwrap();
+            let seconds = started.elapsed().as_secs_f64();
+            let lattice_entries = stack
+                .tiles
+                .iter()
+                .flat_map(|t| &t.entries)
+                .filter(|e| e.segments != 0)
+                .count();
+            let mut relighter = CpuRelighter::from_tiled(Arc::new(stack.clone())).unwrap();
+            let errors: Vec<f64> = std::iter::once(&bake_coefs)
+                .chain(&edits)
+                .zip(&plain_images)
+                .map(|(c, reference)| rel_l2(relighter.relight(c).unwrap(), reference))
+                .collect();
+            let edit_errors = &errors[1..];
+            println!("{{\"mb_by_path_len\":{:?}}}", by_len(&stack));
+            println!(
+                "{{\"res\":\"{res}\",\"step\":{step},\"tolerance\":{tol},\"stored_mb\":{:.1},\"memory_mb\":{:.1},\"saved_mb\":{:.1},\"bake_s\":{seconds:.1},\"relight_full_min_ms\":{:.2},\"lattice_entries\":{lattice_entries},\"entries\":{},\"reported_error\":{:.5},\"relit_error_bake_materials\":{:.5},\"relit_error_edits_max\":{:.5},\"relit_error_edits_mean\":{:.5}}}",
+                stack.sample_bytes() as f64 / 1e6,
+                stack.memory_bytes() as f64 / 1e6,
+                report.compression_saved_bytes as f64 / 1e6,
+                time_full(&stack, &bake_coefs),
+                stack.entry_count(),
+                report.compression_error,
+                errors[0],
+                edit_errors.iter().cloned().fold(0.0, f64::max),
+                edit_errors.iter().sum::<f64>() / edit_errors.len() as f64,
+            );
+        }
+    }
+}

@@ -68,7 +68,7 @@ pub(crate) fn assemble(
         .iter()
         .map(|(i, l)| (*i as u32, l.channels as u8, &l.data[..]))
         .collect();
-    let plan = LatticePlan::new(ctx, settings.compression);
+    let plan = LatticePlan::new(ctx, settings.compression, &weights);
     finalise_dense(
         &builder,
         &layers,

@@ -64,11 +64,23 @@ pub(crate) struct LatticePlan {
     step: u32,
     tolerance: f64,
     eligible: Vec<bool>,
+    /// Least weight magnitude an entry's error is weighed with: [`WEIGHT_FLOOR`] × the
+    /// largest bake-time weight of any layer.
+    weight_floor: f64,
 }
 
+/// Share of the largest layer weight below which a layer's bake-time weight is not
+/// trusted to stay small under edits (see [`compress_tile`]).
+const WEIGHT_FLOOR: f64 = 0.1;
+
 impl LatticePlan {
-    /// The plan of `compression` for `ctx`'s layers; `None` when it is off.
-    pub(crate) fn new(ctx: &BakeContext, compression: BounceCompression) -> Option<LatticePlan> {
+    /// The plan of `compression` for `ctx`'s layers, whose bake-time `weights` these are;
+    /// `None` when it is off.
+    pub(crate) fn new(
+        ctx: &BakeContext,
+        compression: BounceCompression,
+        weights: &[Rgb],
+    ) -> Option<LatticePlan> {
         if compression.step == 0 {
             return None;
         }
@@ -82,10 +94,15 @@ impl LatticePlan {
                         .any(|v| matches!(v, PathVertex::Subsurface { .. }))
             })
             .collect();
+        let largest = weights
+            .iter()
+            .map(|w| w.abs().max_element() as f64)
+            .fold(0.0, f64::max);
         Some(LatticePlan {
             step: compression.step,
             tolerance: compression.tolerance as f64,
             eligible,
+            weight_floor: WEIGHT_FLOOR * largest,
         })
     }
 }
@@ -232,8 +249,16 @@ struct KeptFit {
     reconstructed: Vec<f32>,
 }
 
-/// The tile's lattice and the plan's layers that fit it within the tolerance; `None` when
-/// none does (or the tile needs more segments than a lattice has).
+/// The tile's lattice and the plan's layers it keeps as lattice entries; `None` when it
+/// keeps none (or the tile needs more segments than a lattice has).
+///
+/// Which: each candidate is fitted, and its error weighs `‖w̄ ⊙ (L − L̃)‖` over the tile,
+/// `w̄` its bake-time weight per channel in magnitude, raised to at least the plan's weight
+/// floor (so a layer the bake-time materials happen to leave dark still counts when an edit
+/// lights it). The smallest errors are kept while their squares add up to at most
+/// `(tolerance · ‖tile image‖)²`: layers' fitting errors are mostly independent noise, so
+/// the image's error at the bake-time materials stays near `tolerance`; the bake measures
+/// what it actually is.
 fn compress_tile(
     plan: &LatticePlan,
     rect: TileRect,
@@ -246,14 +271,13 @@ fn compress_tile(
         .filter(|&k| plan.eligible[kept[k].layer as usize])
         .filter(|&k| weights.get(kept[k].layer as usize).is_some())
         .collect();
-    if candidates.is_empty() {
+    if candidates.is_empty() || image_sumsq <= 0.0 {
         return None;
     }
     let map = segment_map(surfaces)?;
     let lattice = TileLattice::new(plan.step, rect.width, rect.height, map).ok()?;
     let fitter = LatticeFitter::new(&lattice);
-    let floor = image_sumsq.sqrt() / (candidates.len() as f64).sqrt();
-    let mut fits = Vec::new();
+    let mut fitted: Vec<(f64, KeptFit)> = Vec::new();
     for k in candidates {
         let input = &kept[k];
         let Some(fit) = fitter.fit(&input.data, input.channels) else {
@@ -262,20 +286,42 @@ fn compress_tile(
         if fit.coefficients.len() >= input.data.len() {
             continue;
         }
-        let (mut err, mut norm) = (0.0f64, 0.0f64);
-        for (a, b) in input.data.iter().zip(&fit.reconstructed) {
-            err += (*a as f64 - *b as f64).powi(2);
-            norm += (*a as f64).powi(2);
+        let w = weights[input.layer as usize].to_array();
+        let w = w.map(|v| (v.abs() as f64).max(plan.weight_floor));
+        let c = input.channels as usize;
+        let mut err = 0.0f64;
+        for (a, b) in input
+            .data
+            .chunks_exact(c)
+            .zip(fit.reconstructed.chunks_exact(c))
+        {
+            for (ch, wc) in w.iter().enumerate() {
+                let d = a[ch.min(c - 1)] as f64 - b[ch.min(c - 1)] as f64;
+                err += (wc * d).powi(2);
+            }
         }
-        if err.sqrt() <= plan.tolerance * norm.sqrt().max(floor) {
-            fits.push(KeptFit {
+        fitted.push((
+            err,
+            KeptFit {
                 input: k,
                 mask: fit.mask,
                 coefficients: fit.coefficients,
                 reconstructed: fit.reconstructed,
-            });
-        }
+            },
+        ));
     }
+    fitted.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.input.cmp(&b.1.input)));
+    let budget = plan.tolerance * plan.tolerance * image_sumsq;
+    let mut spent = 0.0;
+    let mut fits: Vec<KeptFit> = Vec::new();
+    for (err, fit) in fitted {
+        if spent + err > budget {
+            break;
+        }
+        spent += err;
+        fits.push(fit);
+    }
+    fits.sort_by_key(|f| f.input);
     (!fits.is_empty()).then_some((lattice, fits))
 }
 

@@ -69,17 +69,18 @@ pub struct BakeSettings {
 }
 
 /// Lattice compression of the bounce layers (paths of two or more vertices, none of them
-/// subsurface): per tile and layer, the bake fits bilinear hats every `step` pixels on each
-/// segment of the tile and keeps the fit where its error `‖L − L̃‖` over the tile is at
-/// most `tolerance × max(‖L‖, ‖I‖ / √k)` — `L` the layer, `I` the tile's image at the
-/// bake-time materials, `k` the tile's bounce entries — and where it stores fewer values
-/// than the pixels. The bound is relative to the layer itself, so it holds under any edit
-/// of the materials, except for layers too faint to matter at the bake-time image's scale.
+/// subsurface): per tile, the bake fits bilinear hats every `step` pixels on each segment
+/// of the tile to each bounce layer, and keeps the fits with the smallest errors (weighed
+/// by the layers' bake-time weights, with a floor) while their squared errors add up to at
+/// most `(tolerance × ‖the tile's bake-time image‖)²` — so the image's relative error at the
+/// bake-time materials stays near `tolerance` (measured and reported), and edits that
+/// reweigh the layers move it by about as much as they reweigh them.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct BounceCompression {
     /// Pixels between lattice nodes (1 to 16); 0 stores every layer per pixel.
     pub step: u32,
-    /// Relative L2 error a tile's layer may take (see the type's doc).
+    /// Relative L2 error of each tile's image the compression may spend (see the type's
+    /// doc).
     pub tolerance: f32,
 }
 

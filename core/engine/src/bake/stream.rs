@@ -157,7 +157,7 @@ pub(crate) fn bake_streaming(
         .map(|i| super::layout::layer_key(ctx, i).path.len())
         .collect();
     let brdf = BasisBrdf { ctx };
-    let plan = LatticePlan::new(ctx, settings.compression);
+    let plan = LatticePlan::new(ctx, settings.compression, &weights);
     let mut rows: Vec<Option<Vec<TracedTile>>> = (0..ty).map(|_| None).collect();
     let (mut traced, mut next, mut freed) = (0usize, 0usize, 0usize);
     let mut held_rows = 0usize;
