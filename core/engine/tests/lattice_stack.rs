@@ -468,8 +468,16 @@ fn rel_l2(a: &[f32], b: &[f32]) -> f64 {
 #[test]
 fn a_compressed_bake_relights_within_its_budget_of_the_uncompressed_one() {
     let scene = cornell(48);
-    let on = preview(48, Preset::Preview.values().compression);
-    assert!(on.compression.step > 0);
+    // The budget is 0.5 % relative L2 under edits: spend a little less at the
+    // bake-time materials, where the tolerance is what each tile may spend.
+    let budget = 0.005;
+    let on = preview(
+        48,
+        BounceCompression {
+            step: Preset::Preview.values().compression.step,
+            tolerance: 0.004,
+        },
+    );
     let (compressed, report) = bake_tiled(&scene, &on, &Progress::new()).unwrap();
     let (plain, plain_report) = bake_tiled(
         &scene,
@@ -489,7 +497,11 @@ fn a_compressed_bake_relights_within_its_budget_of_the_uncompressed_one() {
         compressed.sample_bytes() + report.compression_saved_bytes,
         plain.sample_bytes()
     );
-    assert!(report.compression_error > 0.0 && report.compression_error < 0.005);
+    assert!(
+        report.compression_error > 0.0 && report.compression_error <= 0.004,
+        "reported {}",
+        report.compression_error
+    );
     // The layers and the per-pixel layers are the same: compression is the only change.
     assert_eq!(compressed.layers.len(), plain.layers.len());
     let bake_coefs = common::bake_material_coefs(&plain.header, &scene);
@@ -521,7 +533,7 @@ fn a_compressed_bake_relights_within_its_budget_of_the_uncompressed_one() {
             })
             .collect();
         let error = rel_l2(a.relight(&edited).unwrap(), b.relight(&edited).unwrap());
-        assert!(error < 0.005, "relit error under an edit: {error}");
+        assert!(error < budget, "relit error under an edit: {error}");
     }
 }
 
@@ -557,7 +569,10 @@ fn measure_compression() {
     let env = |k: &str, d: &str| std::env::var(k).unwrap_or_else(|_| d.to_string());
     let scene_path = env(
         "RELUME_MEASURE_SCENE",
-        concat!(env!("CARGO_MANIFEST_DIR"), "/../../assets/cornell.scene.json"),
+        concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../assets/cornell.scene.json"
+        ),
     );
     let mut scene = load_scene(Path::new(&scene_path)).unwrap();
     let res = env("RELUME_MEASURE_RES", "256x256");

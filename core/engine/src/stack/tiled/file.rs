@@ -148,8 +148,15 @@ fn encode(path: &Path, stack: &TiledStack, progress: &Progress) -> Result<u64> {
     } else {
         VERSION_WITHOUT_LATTICE
     };
+    // The file's header says the layout it is written in; a header claiming another
+    // version (only the unchecked writer gets one) is written as it is, for the reader's
+    // tests.
     let h = &StackHeader {
-        format_version: version,
+        format_version: if stack.header.format_version == STACK_FORMAT_VERSION_TILED {
+            version
+        } else {
+            stack.header.format_version
+        },
         ..stack.header.clone()
     };
     let header_json = serde_json::to_string(h)

@@ -323,17 +323,31 @@ impl TileLattice {
     /// interleaved RGB `out`: each pixel its segment's hats. Nodes a segment does not store
     /// hold 0 in `acc` (nothing adds to them) and weigh 0 at its pixels.
     pub fn expand(&self, acc: &[f32], out: &mut [f32]) {
-        let nodes = self.node_count();
+        let (nx, ny) = self.nodes();
+        let nodes = (nx * ny) as usize;
+        let mut along_x = [[(0u32, 0.0f32); 2]; MAX_LATTICE_STEP as usize];
+        for (x, h) in along_x.iter_mut().enumerate().take(self.width as usize) {
+            *h = axis_hats(x as u32, self.step, nx);
+        }
         for y in 0..self.height {
+            let [(y0, wy0), (y1, wy1)] = axis_hats(y, self.step, ny);
+            let rows = [(y0 * nx, wy0), (y1 * nx, wy1)];
             for x in 0..self.width {
                 let p = (y * self.width + x) as usize;
-                let base = self.segments[p] as usize * nodes * 3;
-                let px = &mut out[p * 3..p * 3 + 3];
-                for (node, w) in self.hats(x, y) {
-                    let a = &acc[base + node * 3..][..3];
-                    for ch in 0..3 {
-                        px[ch] += w * a[ch];
+                let base = self.segments[p] as usize * nodes;
+                let mut sum = [0.0f32; 3];
+                for &(row, wy) in &rows {
+                    for &(col, wx) in &along_x[x as usize] {
+                        let w = wx * wy;
+                        let a = &acc[(base + (row + col) as usize) * 3..][..3];
+                        for ch in 0..3 {
+                            sum[ch] += w * a[ch];
+                        }
                     }
+                }
+                let px = &mut out[p * 3..p * 3 + 3];
+                for ch in 0..3 {
+                    px[ch] += sum[ch];
                 }
             }
         }
