@@ -132,6 +132,14 @@ fn the_fit_reproduces_a_bilinear_field_where_weak_nodes_have_neighbours_in_line(
 }
 
 #[test]
+fn a_lattice_covers_the_stacks_tiles() {
+    assert_eq!(
+        relume_engine::stack::tiled::lattice::MAX_TILE_SIDE,
+        relume_engine::stack::tiled::STACK_TILE
+    );
+}
+
+#[test]
 fn a_full_tile_segment_is_fitted_exactly() {
     let lattice = TileLattice::new(4, 16, 16, vec![0; 256]).unwrap();
     let data: Vec<f32> = (0..256u32)

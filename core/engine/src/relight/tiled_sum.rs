@@ -16,6 +16,7 @@
 //! the relight of the same entries expanded to pixels ([`TiledStack::to_dense`]) to
 //! rounding.
 
+use half::slice::HalfFloatSliceExt;
 use rayon::prelude::*;
 
 use super::kernels::Kernels;
@@ -169,6 +170,8 @@ struct Accumulators {
     rgb: [f32; 3 * TILE_PIXELS],
     /// Per segment, per lattice node, RGB: the tile's lattice entries summed.
     nodes: Vec<f32>,
+    /// Scratch: an f16 lattice entry's coefficients as f32.
+    coefficients: Vec<f32>,
 }
 
 /// Runs `select(tile, add)` for every tile, where `add(entry, weight)` adds
@@ -189,6 +192,7 @@ where
             b: [0.0; TILE_PIXELS],
             rgb: [0.0; 3 * TILE_PIXELS],
             nodes: Vec::new(),
+            coefficients: Vec::new(),
         });
         for tx in 0..tiles_x {
             let index = ty * tiles_x + tx;
@@ -221,13 +225,15 @@ where
                         .expect("validated: a lattice entry's tile has a lattice");
                     let nodes = &mut acc.nodes;
                     match &tile.values {
-                        TileValues::F16(v) => lattice.accumulate(
-                            nodes,
-                            e.segments,
-                            e.channels,
-                            |i| v[start + i].to_f32(),
-                            w,
-                        ),
+                        TileValues::F16(v) => {
+                            // Converted in one slice call (SIMD where the CPU has it), not
+                            // one coefficient at a time.
+                            let count = tile.value_count(&e, n);
+                            acc.coefficients.resize(count, 0.0);
+                            v[start..start + count].convert_to_f32_slice(&mut acc.coefficients);
+                            let c = &acc.coefficients;
+                            lattice.accumulate(nodes, e.segments, e.channels, |i| c[i], w)
+                        }
                         TileValues::F32(v) => {
                             lattice.accumulate(nodes, e.segments, e.channels, |i| v[start + i], w)
                         }

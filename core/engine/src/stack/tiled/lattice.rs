@@ -30,8 +30,12 @@
 /// Most segments in one tile (an entry's covered segments are a 32-bit mask).
 pub const MAX_SEGMENTS: usize = 32;
 
+/// Longest tile side a lattice covers: the stack's tile edge (`STACK_TILE`, equal by a
+/// test; not imported, so the tile types may import this module).
+pub const MAX_TILE_SIDE: u32 = 16;
+
 /// Widest lattice step in pixels: one cell spanning a whole tile.
-pub const MAX_LATTICE_STEP: u32 = super::STACK_TILE;
+pub const MAX_LATTICE_STEP: u32 = MAX_TILE_SIDE;
 
 /// Smallest cosine between the normals of two pixels of one region that still share a
 /// segment (to its first pixel): about 37°, so a crease between two walls splits a segment
@@ -115,7 +119,7 @@ impl TileLattice {
                 "lattice step {step}; a step is 1 to {MAX_LATTICE_STEP} pixels"
             ));
         }
-        let tile = super::STACK_TILE;
+        let tile = MAX_TILE_SIDE;
         if !(1..=tile).contains(&width) || !(1..=tile).contains(&height) {
             return Err(format!("a lattice over {width}×{height} pixels"));
         }
