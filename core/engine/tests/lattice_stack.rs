@@ -85,8 +85,8 @@ fn worst_fit_error(w: u32, h: u32, step: u32, rng: &mut Rng, bilinear_term: f32)
     for y in 0..h {
         for x in 0..w {
             let s = map[(y * w + x) as usize] as usize;
-            for c in 0..3 {
-                data.push(1.0 + bilinear(fields[s][c], x, y));
+            for field in &fields[s] {
+                data.push(1.0 + bilinear(*field, x, y));
             }
         }
     }
