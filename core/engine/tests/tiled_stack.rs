@@ -549,11 +549,12 @@ fn other_versions_and_foreign_files_are_refused() {
         Err(RelumeError::StackForeign { .. })
     ));
     let mut tiled = TiledStack::from_dense(&synthetic(20, 18, Precision::F16, 16)).unwrap();
-    tiled.header.format_version = 3;
-    // The writer refuses it; the unchecked writer stores version 2 in the attribute but 3
-    // in the header JSON, which the reader names.
-    assert!(write_tiled(&dir.path().join("v3.exr"), &tiled).is_err());
-    let p = dir.path().join("v3.exr");
+    tiled.header.format_version = STACK_FORMAT_VERSION_TILED + 1;
+    // The writer refuses it; the unchecked writer stores the layout's version (2: no
+    // lattice entries) in the attribute but the header's in its JSON, which the reader
+    // names.
+    assert!(write_tiled(&dir.path().join("v4.exr"), &tiled).is_err());
+    let p = dir.path().join("v4.exr");
     write_tiled_unchecked(&p, &tiled).unwrap();
     assert!(matches!(
         read_tiled(&p),

@@ -10,7 +10,8 @@ use super::context::{basis_config_for, BakeContext};
 use super::denoise::EyeFeatures;
 use super::drop::RawLayer;
 use super::finalise::{
-    builder_for, finalise_dense, finish_stack, layer_weights, Finished, LayerFacts, StackTally,
+    builder_for, finalise_dense, finish_stack, layer_weights, Finished, LatticePlan, LayerFacts,
+    StackTally,
 };
 use super::layout::layer_key;
 use super::report::BakeReport;
@@ -67,8 +68,17 @@ pub(crate) fn assemble(
         .iter()
         .map(|(i, l)| (*i as u32, l.channels as u8, &l.data[..]))
         .collect();
+    let plan = LatticePlan::new(ctx, settings.compression, &weights);
     finalise_dense(
-        &builder, &layers, res.width, res.height, &weights, &mut tally, pool, progress,
+        &builder,
+        &layers,
+        res.width,
+        res.height,
+        &weights,
+        &mut tally,
+        plan.as_ref().map(|p| (p, eye_features)),
+        pool,
+        progress,
     )?;
     drop(layers);
     drop(reached);
@@ -281,6 +291,8 @@ pub(crate) fn layer_report(
         tile_entries: stack.entry_count(),
         stored_bytes: stack.sample_bytes(),
         dense_bytes: finished.dense_bytes,
+        compression_error: finished.compression_error,
+        compression_saved_bytes: finished.compression_saved_bytes,
         peak_accounted_bytes: 0,
         layers: finished.drop,
         estimate: None,

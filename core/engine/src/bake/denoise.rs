@@ -291,6 +291,16 @@ pub fn footprint_radius(iterations: u32) -> usize {
     2 * ((1usize << iterations) - 1)
 }
 
+impl EyeFeatures {
+    /// Pixel `(x, y)`'s region and unit normal where the filter uses them (`None`: mixed,
+    /// textured, the world): what the stack's lattice entries are segmented by
+    /// ([`crate::stack::tiled::lattice::segment_map`]).
+    pub(crate) fn surface(&self, x: usize, y: usize) -> Option<(u32, [f32; 3])> {
+        let p = y * self.width + x;
+        self.region[p].map(|r| (r, self.normal[p].to_array()))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

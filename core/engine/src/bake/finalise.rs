@@ -9,14 +9,25 @@
 //! make the same stack, bit for bit: a tile's entries, the order its statistics are added
 //! in (layer id within a tile, raster order across tiles) and the dropping do not depend
 //! on the path.
+//!
+//! Where the settings ask for it ([`BounceCompression`]), a tile's bounce layers become
+//! lattice entries ([`crate::stack::tiled::lattice`]) here, segmented by the tile's eye
+//! features, each kept only within its tolerance. That is an approximation: its error at
+//! the bake-time materials is measured over the whole image (`compression_error`). The
+//! statistics above — the drop decisions' norms and the bake-time image — are taken from
+//! the uncompressed values, so dropping does not depend on the compression.
 
 use crate::bake::context::BakeContext;
+use crate::bake::denoise::EyeFeatures;
 use crate::bake::drop::{self, DropReport, LayerNorm};
+use crate::bake::settings::BounceCompression;
 use crate::layer_key::LayerKey;
+use crate::layer_key::PathVertex;
 use crate::scene::Scene;
+use crate::stack::tiled::lattice::{segment_map, LatticeFitter, PixelSurface};
 use crate::stack::tiled::{
-    StackTile, TileLayer, TileRadiance, TileRect, TileValues, TiledLayerInfo, TiledStack,
-    TiledStackBuilder,
+    StackTile, TileCoefficients, TileLattice, TileLayer, TileRadiance, TileRect, TileValues,
+    TiledLayerInfo, TiledStack, TiledStackBuilder,
 };
 use crate::{Result, Rgb};
 
@@ -38,6 +49,78 @@ pub(crate) struct TileTally {
     image: Option<Vec<f64>>,
     /// Values handed to the builder.
     values: usize,
+    /// Σ over the tile's pixels and channels of (bake-time image − its compressed form)².
+    error_sumsq: f64,
+    /// Per-pixel values the tile's lattice entries stand in for, and the coefficients they
+    /// hold instead.
+    lattice_replaced: usize,
+    lattice_values: usize,
+}
+
+/// What a bake compresses as lattice entries: the settings' step and tolerance and, per
+/// layer id, whether the layer may be compressed (two or more vertices, none subsurface:
+/// the bounce layers; the world, direct and subsurface layers stay per pixel).
+pub(crate) struct LatticePlan {
+    step: u32,
+    tolerance: f64,
+    eligible: Vec<bool>,
+    /// Least weight magnitude an entry's error is weighed with: [`WEIGHT_FLOOR`] × the
+    /// largest bake-time weight of any layer.
+    weight_floor: f64,
+}
+
+/// Share of the largest layer weight below which a layer's bake-time weight is not
+/// trusted to stay small under edits (see [`compress_tile`]).
+const WEIGHT_FLOOR: f64 = 0.1;
+
+impl LatticePlan {
+    /// The plan of `compression` for `ctx`'s layers, whose bake-time `weights` these are;
+    /// `None` when it is off.
+    pub(crate) fn new(
+        ctx: &BakeContext,
+        compression: BounceCompression,
+        weights: &[Rgb],
+    ) -> Option<LatticePlan> {
+        if compression.step == 0 {
+            return None;
+        }
+        let eligible = (0..ctx.layer_count())
+            .map(|i| {
+                let key = super::layout::layer_key(ctx, i);
+                key.path.len() >= 2
+                    && !key
+                        .path
+                        .iter()
+                        .any(|v| matches!(v, PathVertex::Subsurface { .. }))
+            })
+            .collect();
+        let largest = weights
+            .iter()
+            .map(|w| w.abs().max_element() as f64)
+            .fold(0.0, f64::max);
+        Some(LatticePlan {
+            step: compression.step,
+            tolerance: compression.tolerance as f64,
+            eligible,
+            weight_floor: WEIGHT_FLOOR * largest,
+        })
+    }
+}
+
+/// The surfaces of `rect`'s pixels from `features` whose pixel (0, 0) is the frame's
+/// `origin` (a window's features, or the whole frame's with origin (0, 0)).
+pub(crate) fn tile_surfaces(
+    features: &EyeFeatures,
+    origin: (u32, u32),
+    rect: TileRect,
+) -> Vec<PixelSurface> {
+    let mut out = Vec::with_capacity(rect.pixels());
+    for y in rect.y0..rect.y0 + rect.height {
+        for x in rect.x0..rect.x0 + rect.width {
+            out.push(features.surface((x - origin.0) as usize, (y - origin.1) as usize));
+        }
+    }
+    out
 }
 
 /// Stores tile `tile` (covering `rect`) of `inputs` into `builder`: an all-zero layer is
@@ -45,6 +128,9 @@ pub(crate) struct TileTally {
 /// (one channel), and the builder quantises each entry with its own scale. `weights` are
 /// the layers' weights at the bake-time materials (by layer id); `keep_image` keeps the
 /// tile's bake-time image in the tally (a progressive bake's error estimate needs it).
+/// With a `lattice` plan and the tile's pixel `surfaces`, the plan's layers are stored as
+/// lattice entries where that stays within its tolerance (see the module doc).
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn finalise_tile(
     builder: &TiledStackBuilder,
     tile: usize,
@@ -52,6 +138,8 @@ pub(crate) fn finalise_tile(
     mut inputs: Vec<TileInput>,
     weights: &[Rgb],
     keep_image: bool,
+    lattice: Option<&LatticePlan>,
+    surfaces: &[PixelSurface],
 ) -> Result<TileTally> {
     inputs.sort_by_key(|i| i.layer);
     let mut image = vec![0.0f64; rect.pixels() * 3];
@@ -87,21 +175,154 @@ pub(crate) fn finalise_tile(
         entries.push((input.layer, input.channels == 1, sumsq));
         kept.push(input);
     }
+    let image_sumsq: f64 = image.iter().map(|v| v * v).sum();
+    let compressed = match lattice {
+        Some(plan) if surfaces.len() == rect.pixels() => {
+            compress_tile(plan, rect, surfaces, &kept, image_sumsq, weights)
+        }
+        _ => None,
+    };
+    let (lattice, fits) = match compressed {
+        Some((lattice, fits)) => (Some(lattice), fits),
+        None => (None, Vec::new()),
+    };
     let radiance: Vec<TileRadiance> = kept
         .iter()
-        .map(|i| TileRadiance {
+        .enumerate()
+        .filter(|(k, _)| !fits.iter().any(|f| f.input == *k))
+        .map(|(_, i)| TileRadiance {
             layer: i.layer,
             channels: i.channels,
             radiance: &i.data,
         })
         .collect();
-    builder.insert(tile, &radiance)?;
+    let coefficients: Vec<TileCoefficients> = fits
+        .iter()
+        .map(|f| TileCoefficients {
+            layer: kept[f.input].layer,
+            channels: kept[f.input].channels,
+            segments: f.mask,
+            coefficients: &f.coefficients,
+        })
+        .collect();
+    builder.insert_with_lattice(tile, &radiance, lattice, &coefficients)?;
+    let lattice_replaced: usize = fits.iter().map(|f| kept[f.input].data.len()).sum();
+    let lattice_values: usize = fits.iter().map(|f| f.coefficients.len()).sum();
+    let mut error = vec![
+        0.0f64;
+        if fits.is_empty() {
+            0
+        } else {
+            rect.pixels() * 3
+        }
+    ];
+    for f in &fits {
+        let input = &kept[f.input];
+        let w = weights[input.layer as usize];
+        let w = [w.x as f64, w.y as f64, w.z as f64];
+        let c = input.channels as usize;
+        for (p, px) in error.chunks_exact_mut(3).enumerate() {
+            for (ch, e) in px.iter_mut().enumerate() {
+                let i = p * c + ch.min(c - 1);
+                *e += w[ch] * (input.data[i] as f64 - f.reconstructed[i] as f64);
+            }
+        }
+    }
     Ok(TileTally {
         entries,
-        image_sumsq: image.iter().map(|v| v * v).sum(),
+        image_sumsq,
         image: keep_image.then_some(image),
-        values: kept.iter().map(|i| i.data.len()).sum(),
+        values: kept.iter().map(|i| i.data.len()).sum::<usize>() + lattice_values
+            - lattice_replaced,
+        error_sumsq: error.iter().map(|v| v * v).sum(),
+        lattice_replaced,
+        lattice_values,
     })
+}
+
+/// A layer of the tile kept as a lattice entry.
+struct KeptFit {
+    /// Position in the tile's inputs.
+    input: usize,
+    mask: u32,
+    coefficients: Vec<f32>,
+    reconstructed: Vec<f32>,
+}
+
+/// The tile's lattice and the plan's layers it keeps as lattice entries; `None` when it
+/// keeps none (or the tile needs more segments than a lattice has).
+///
+/// Which: each candidate is fitted, and its error weighs `‖w̄ ⊙ (L − L̃)‖` over the tile,
+/// `w̄` its bake-time weight per channel in magnitude, raised to at least the plan's weight
+/// floor (so a layer the bake-time materials happen to leave dark still counts when an edit
+/// lights it). The smallest errors are kept while their squares add up to at most
+/// `(tolerance · ‖tile image‖)²`: layers' fitting errors are mostly independent noise, so
+/// the image's error at the bake-time materials stays near `tolerance`; the bake measures
+/// what it actually is.
+fn compress_tile(
+    plan: &LatticePlan,
+    rect: TileRect,
+    surfaces: &[PixelSurface],
+    kept: &[TileInput],
+    image_sumsq: f64,
+    weights: &[Rgb],
+) -> Option<(TileLattice, Vec<KeptFit>)> {
+    let candidates: Vec<usize> = (0..kept.len())
+        .filter(|&k| plan.eligible[kept[k].layer as usize])
+        .filter(|&k| weights.get(kept[k].layer as usize).is_some())
+        .collect();
+    if candidates.is_empty() || image_sumsq <= 0.0 {
+        return None;
+    }
+    let map = segment_map(surfaces)?;
+    let lattice = TileLattice::new(plan.step, rect.width, rect.height, map).ok()?;
+    let fitter = LatticeFitter::new(&lattice);
+    let mut fitted: Vec<(f64, KeptFit)> = Vec::new();
+    for k in candidates {
+        let input = &kept[k];
+        let Some(fit) = fitter.fit(&input.data, input.channels) else {
+            continue;
+        };
+        if fit.coefficients.len() >= input.data.len() {
+            continue;
+        }
+        let w = weights[input.layer as usize].to_array();
+        let w = w.map(|v| (v.abs() as f64).max(plan.weight_floor));
+        let c = input.channels as usize;
+        let mut err = 0.0f64;
+        for (a, b) in input
+            .data
+            .chunks_exact(c)
+            .zip(fit.reconstructed.chunks_exact(c))
+        {
+            for (ch, wc) in w.iter().enumerate() {
+                let d = a[ch.min(c - 1)] as f64 - b[ch.min(c - 1)] as f64;
+                err += (wc * d).powi(2);
+            }
+        }
+        fitted.push((
+            err,
+            KeptFit {
+                input: k,
+                mask: fit.mask,
+                coefficients: fit.coefficients,
+                reconstructed: fit.reconstructed,
+            },
+        ));
+    }
+    fitted.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.input.cmp(&b.1.input)));
+    let budget = plan.tolerance * plan.tolerance * image_sumsq;
+    let mut spent = 0.0;
+    let mut fits: Vec<KeptFit> = Vec::new();
+    for (err, fit) in fitted {
+        if spent + err > budget {
+            break;
+        }
+        spent += err;
+        fits.push(fit);
+    }
+    fits.sort_by_key(|f| f.input);
+    (!fits.is_empty()).then_some((lattice, fits))
 }
 
 /// The statistics of the tiles finalised so far, added in raster order.
@@ -116,6 +337,9 @@ pub(crate) struct StackTally {
     width: usize,
     values: usize,
     value_bytes: usize,
+    error_sumsq: f64,
+    lattice_replaced: usize,
+    lattice_values: usize,
 }
 
 impl StackTally {
@@ -136,6 +360,9 @@ impl StackTally {
             image_sumsq: 0.0,
             image: keep_image.then(|| vec![0.0; pixels * 3]),
             width,
+            error_sumsq: 0.0,
+            lattice_replaced: 0,
+            lattice_values: 0,
         }
     }
 
@@ -152,6 +379,9 @@ impl StackTally {
         }
         self.image_sumsq += tally.image_sumsq;
         self.values += tally.values;
+        self.error_sumsq += tally.error_sumsq;
+        self.lattice_replaced += tally.lattice_replaced;
+        self.lattice_values += tally.lattice_values;
         if let (Some(all), Some(tile)) = (&mut self.image, tally.image) {
             for ty in 0..rect.height as usize {
                 let row = (rect.y0 as usize + ty) * self.width + rect.x0 as usize;
@@ -189,6 +419,12 @@ pub(crate) struct Finished {
     pub dense_bytes: usize,
     /// The bake-time image, when the tally kept it.
     pub image: Option<Vec<f64>>,
+    /// ‖bake-time image − its compressed form‖ / ‖bake-time image‖ over the whole frame,
+    /// before layers are dropped (0 without lattice entries).
+    pub compression_error: f64,
+    /// Bytes the lattice entries saved against storing the same entries per pixel, before
+    /// layers are dropped.
+    pub compression_saved_bytes: usize,
 }
 
 /// Per layer id what the whole bake saw: whether any sample reached it, and whether its
@@ -212,6 +448,13 @@ pub(crate) fn finish_stack(
     budget: f64,
 ) -> Result<Finished> {
     let stack = builder.finish()?;
+    let compression_error = if tally.image_sumsq > 0.0 {
+        (tally.error_sumsq / tally.image_sumsq).sqrt()
+    } else {
+        0.0
+    };
+    let compression_saved_bytes =
+        tally.lattice_replaced.saturating_sub(tally.lattice_values) * tally.value_bytes;
     let count = stack.layers.len();
     let keys: Vec<LayerKey> = stack.layers.iter().map(|l| l.key.clone()).collect();
     let reached: Vec<usize> = (0..count).filter(|&i| facts.reached[i]).collect();
@@ -285,6 +528,8 @@ pub(crate) fn finish_stack(
         empty: unreached.len(),
         dense_bytes,
         image: tally.image,
+        compression_error,
+        compression_saved_bytes,
     })
 }
 
@@ -347,6 +592,7 @@ fn keep_layers(stack: TiledStack, keep: &[bool], coloured: &[bool]) -> TiledStac
                 return StackTile {
                     entries,
                     values: tile.values,
+                    lattice: tile.lattice,
                 };
             }
             let mut values = TileValues::empty(tile.values.precision());
@@ -355,7 +601,7 @@ fn keep_layers(stack: TiledStack, keep: &[bool], coloured: &[bool]) -> TiledStac
                 if !keep[e.layer as usize] {
                     continue;
                 }
-                let range = e.offset as usize..e.offset as usize + pixels * e.channels as usize;
+                let range = e.offset as usize..e.offset as usize + tile.value_count(e, pixels);
                 let offset = values.len() as u32;
                 match (&mut values, &tile.values) {
                     (TileValues::F16(out), TileValues::F16(src)) => {
@@ -372,7 +618,14 @@ fn keep_layers(stack: TiledStack, keep: &[bool], coloured: &[bool]) -> TiledStac
                     ..*e
                 });
             }
-            StackTile { entries, values }
+            let lattice = tile
+                .lattice
+                .filter(|_| entries.iter().any(|e: &TileLayer| e.segments != 0));
+            StackTile {
+                entries,
+                values,
+                lattice,
+            }
         })
         .collect();
     TiledStack {
@@ -384,6 +637,7 @@ fn keep_layers(stack: TiledStack, keep: &[bool], coloured: &[bool]) -> TiledStac
 
 /// Bakes' dense path: the full-frame f32 `layers` (id, channels, data) cut into tiles
 /// and finalised in raster order ([`finalise_tile`]).
+/// With a `lattice` plan, `features` (the whole frame's) segment each tile.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn finalise_dense(
     builder: &TiledStackBuilder,
@@ -392,6 +646,7 @@ pub(crate) fn finalise_dense(
     height: u32,
     weights: &[Rgb],
     tally: &mut StackTally,
+    lattice: Option<(&LatticePlan, &EyeFeatures)>,
     pool: &rayon::ThreadPool,
     progress: &crate::progress::Progress,
 ) -> Result<()> {
@@ -413,7 +668,19 @@ pub(crate) fn finalise_dense(
                         data: tile_values(data, channels as usize, rect, width as usize),
                     })
                     .collect();
-                finalise_tile(builder, t, rect, inputs, weights, keep_image)
+                let surfaces = lattice
+                    .map(|(_, f)| tile_surfaces(f, (0, 0), rect))
+                    .unwrap_or_default();
+                finalise_tile(
+                    builder,
+                    t,
+                    rect,
+                    inputs,
+                    weights,
+                    keep_image,
+                    lattice.map(|(p, _)| p),
+                    &surfaces,
+                )
             })
             .collect()
     });

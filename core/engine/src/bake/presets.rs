@@ -13,8 +13,12 @@
 
 use serde::Serialize;
 
-use super::settings::{BakeSettings, Denoise, IndirectSampling};
+use super::settings::{BakeSettings, BounceCompression, Denoise, IndirectSampling};
 use crate::brdf::BasisCount;
+
+/// Per-entry tolerance of the presets' bounce-layer compression
+/// ([`BounceCompression::tolerance`]); chosen by measurement (docs/scale.md).
+const COMPRESSION_TOLERANCE: f32 = 0.02;
 
 /// A named quality preset.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -45,6 +49,9 @@ pub struct PresetValues {
     /// measures what each bounce adds and bakes as many as that needs, up to the caller's
     /// `bounces` ([`crate::bake::bounces`]).
     pub bounce_budget: f32,
+    /// Lattice compression of the bounce layers: an approximation whose error the bake
+    /// measures and reports.
+    pub compression: BounceCompression,
 }
 
 impl Preset {
@@ -91,6 +98,10 @@ impl Preset {
                     bounce_iterations: 2,
                 },
                 bounce_budget: 0.03,
+                compression: BounceCompression {
+                    step: 8,
+                    tolerance: COMPRESSION_TOLERANCE,
+                },
             },
             Preset::Preview => PresetValues {
                 spp: 16,
@@ -104,6 +115,10 @@ impl Preset {
                     bounce_iterations: 3,
                 },
                 bounce_budget: 0.01,
+                compression: BounceCompression {
+                    step: 4,
+                    tolerance: COMPRESSION_TOLERANCE,
+                },
             },
             Preset::Final => PresetValues {
                 spp: 128,
@@ -117,6 +132,10 @@ impl Preset {
                     bounce_iterations: 2,
                 },
                 bounce_budget: 0.005,
+                compression: BounceCompression {
+                    step: 4,
+                    tolerance: COMPRESSION_TOLERANCE,
+                },
             },
         }
     }
@@ -132,6 +151,7 @@ impl Preset {
         settings.basis.count = BasisCount::Tolerance(v.basis_tolerance);
         settings.denoise = v.denoise;
         settings.bounce_budget = v.bounce_budget;
+        settings.compression = v.compression;
         v.resolution_scale
     }
 }

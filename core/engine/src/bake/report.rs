@@ -41,6 +41,13 @@ pub struct BakeReport {
     pub stored_bytes: usize,
     /// Bytes the kept layers would hold as full frames (the dense layout).
     pub dense_bytes: usize,
+    /// Relative L2 error of the image at the bake-time materials that storing bounce
+    /// layers as lattice entries costs (‖Σ w (L − L̃)‖ / ‖Σ w L‖ over the frame, measured
+    /// before negligible layers are dropped); 0 when the settings' compression is off.
+    pub compression_error: f64,
+    /// Bytes of values the lattice entries saved against per-pixel entries (before
+    /// dropping).
+    pub compression_saved_bytes: usize,
     /// The largest number of bytes the bake's own accounting held at once in its layer
     /// buffers: the streaming bake's stack so far plus its band in flight; 0 for the dense
     /// path (progressive passes, a merge), whose layers are full frames.

@@ -61,6 +61,42 @@ pub struct BakeSettings {
     /// ([`crate::bake::estimate`]) exceeds it is refused before tracing.
     #[serde(default)]
     pub memory_budget: Option<u64>,
+    /// How the bounce layers are stored: per pixel, or where it stays within its tolerance
+    /// as lattice entries ([`crate::stack::tiled::lattice`]). Off by default (the presets
+    /// turn it on): an approximation, measured by the bake ([`super::report::BakeReport`]'s
+    /// `compression_error`).
+    #[serde(default)]
+    pub compression: BounceCompression,
+}
+
+/// Lattice compression of the bounce layers (paths of two or more vertices, none of them
+/// subsurface): per tile, the bake fits bilinear hats every `step` pixels on each segment
+/// of the tile to each bounce layer, and keeps the fits with the smallest errors (weighed
+/// by the layers' bake-time weights, with a floor) while their squared errors add up to at
+/// most `(tolerance × ‖the tile's bake-time image‖)²` — so the image's relative error at the
+/// bake-time materials stays near `tolerance` (measured and reported), and edits that
+/// reweigh the layers move it by about as much as they reweigh them.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BounceCompression {
+    /// Pixels between lattice nodes (1 to 16); 0 stores every layer per pixel.
+    pub step: u32,
+    /// Relative L2 error of each tile's image the compression may spend (see the type's
+    /// doc).
+    pub tolerance: f32,
+}
+
+impl BounceCompression {
+    /// Every layer per pixel.
+    pub const OFF: BounceCompression = BounceCompression {
+        step: 0,
+        tolerance: 0.0,
+    };
+}
+
+impl Default for BounceCompression {
+    fn default() -> Self {
+        BounceCompression::OFF
+    }
 }
 
 /// The Principled roughness range an editable region is baked for when neither the region
@@ -114,6 +150,7 @@ impl Default for BakeSettings {
             subsurface_theta: default_subsurface_theta(),
             denoise: Denoise::OFF,
             memory_budget: None,
+            compression: BounceCompression::OFF,
         }
     }
 }
@@ -188,6 +225,23 @@ impl BakeSettings {
             if n > MAX_DENOISE_ITERATIONS {
                 return bad(what, format!("{n} asked; at most {MAX_DENOISE_ITERATIONS}"));
             }
+        }
+        let c = self.compression;
+        if c.step > crate::stack::tiled::lattice::MAX_LATTICE_STEP {
+            return bad(
+                "compression step",
+                format!(
+                    "{} pixels asked; at most {}",
+                    c.step,
+                    crate::stack::tiled::lattice::MAX_LATTICE_STEP
+                ),
+            );
+        }
+        if !(c.tolerance.is_finite() && (0.0..1.0).contains(&c.tolerance)) {
+            return bad(
+                "compression tolerance",
+                format!("must be in [0, 1), got {}", c.tolerance),
+            );
         }
         if self.memory_budget == Some(0) {
             return bad("memory budget", "must be > 0 bytes".into());

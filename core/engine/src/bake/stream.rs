@@ -21,8 +21,8 @@ use super::context::BakeContext;
 use super::denoise::{EyeFeatures, FEATURE_STRIDE};
 use super::drop::RawLayer;
 use super::finalise::{
-    builder_for, finalise_tile, finish_stack, layer_weights, Finished, LayerFacts, StackTally,
-    TileInput, TileTally,
+    builder_for, finalise_tile, finish_stack, layer_weights, tile_surfaces, Finished, LatticePlan,
+    LayerFacts, StackTally, TileInput, TileTally,
 };
 use super::settings::BakeSettings;
 use super::tiles::{self, Tile, TILE};
@@ -157,6 +157,7 @@ pub(crate) fn bake_streaming(
         .map(|i| super::layout::layer_key(ctx, i).path.len())
         .collect();
     let brdf = BasisBrdf { ctx };
+    let plan = LatticePlan::new(ctx, settings.compression, &weights);
     let mut rows: Vec<Option<Vec<TracedTile>>> = (0..ty).map(|_| None).collect();
     let (mut traced, mut next, mut freed) = (0usize, 0usize, 0usize);
     let mut held_rows = 0usize;
@@ -216,6 +217,7 @@ pub(crate) fn bake_streaming(
             height,
             path_len: &path_len,
             finishing: traced == ty,
+            lattice: plan.as_ref(),
         };
         let (tallies, transient) = window.finalise(&builder, &weights, pool, progress)?;
         if apron > 0 {
@@ -266,6 +268,8 @@ struct Window<'a> {
     /// Every row is traced: what is left is the bake's finish, reported as
     /// [`Stage::Finishing`] rather than row by row.
     finishing: bool,
+    /// The bounce layers' lattice compression, when the settings ask for it.
+    lattice: Option<&'a LatticePlan>,
 }
 
 impl Window<'_> {
@@ -443,10 +447,32 @@ impl Window<'_> {
                 .map(|(t, inputs)| {
                     progress.check()?;
                     let index = (t.rect.y0 / TILE) as usize * tx + (t.rect.x0 / TILE) as usize;
-                    Ok((
+                    // The tile's own features: per pixel the same as the whole frame's.
+                    let surfaces = match self.lattice {
+                        Some(_) => tile_surfaces(
+                            &EyeFeatures::from_window_sums(
+                                self.ctx,
+                                &t.features,
+                                self.settings.spp,
+                                (t.rect.x0 as usize, t.rect.y0 as usize),
+                                (t.rect.width as usize, t.rect.height as usize),
+                            ),
+                            (t.rect.x0, t.rect.y0),
+                            t.rect,
+                        ),
+                        None => Vec::new(),
+                    };
+                    let tally = finalise_tile(
+                        builder,
+                        index,
                         t.rect,
-                        finalise_tile(builder, index, t.rect, inputs, weights, false)?,
-                    ))
+                        inputs,
+                        weights,
+                        false,
+                        self.lattice,
+                        &surfaces,
+                    )?;
+                    Ok((t.rect, tally))
                 })
                 .collect()
         });

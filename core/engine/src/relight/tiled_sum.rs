@@ -8,7 +8,15 @@
 //! ([`Kernels`]: f16 converted in registers or in small chunks, fused multiply-adds), and
 //! the two are added into the image at the end — per pixel the same order of additions as
 //! the dense sum, so both agree to rounding.
+//!
+//! Lattice entries ([`crate::stack::tiled::lattice`]) are summed in the lattice: each adds
+//! weight × its coefficients into per-segment node accumulators (cost ∝ its coefficients,
+//! not the tile's pixels), and the tile's nodes are expanded to pixels once, into the RGB
+//! accumulators, before they are added to the image. The lattice is linear, so this equals
+//! the relight of the same entries expanded to pixels ([`TiledStack::to_dense`]) to
+//! rounding.
 
+use half::slice::HalfFloatSliceExt;
 use rayon::prelude::*;
 
 use super::kernels::Kernels;
@@ -160,6 +168,10 @@ struct Accumulators {
     g: [f32; TILE_PIXELS],
     b: [f32; TILE_PIXELS],
     rgb: [f32; 3 * TILE_PIXELS],
+    /// Per segment, per lattice node, RGB: the tile's lattice entries summed.
+    nodes: Vec<f32>,
+    /// Scratch: an f16 lattice entry's coefficients as f32.
+    coefficients: Vec<f32>,
 }
 
 /// Runs `select(tile, add)` for every tile, where `add(entry, weight)` adds
@@ -179,6 +191,8 @@ where
             g: [0.0; TILE_PIXELS],
             b: [0.0; TILE_PIXELS],
             rgb: [0.0; 3 * TILE_PIXELS],
+            nodes: Vec::new(),
+            coefficients: Vec::new(),
         });
         for tx in 0..tiles_x {
             let index = ty * tiles_x + tx;
@@ -190,13 +204,41 @@ where
             acc.g[..n].fill(0.0);
             acc.b[..n].fill(0.0);
             acc.rgb[..3 * n].fill(0.0);
+            let node_floats = tile
+                .lattice
+                .as_ref()
+                .map_or(0, |l| l.segment_count() * l.node_count() * 3);
+            acc.nodes.clear();
+            acc.nodes.resize(node_floats, 0.0);
             let mut added = false;
+            let mut lattice_added = false;
             select(tile, &mut |k, w| {
                 added = true;
                 let e = tile.entries[k];
                 let w = (w * e.scale).to_array();
                 let start = e.offset as usize;
-                if e.channels == 1 {
+                if e.segments != 0 {
+                    lattice_added = true;
+                    let lattice = tile
+                        .lattice
+                        .as_ref()
+                        .expect("validated: a lattice entry's tile has a lattice");
+                    let nodes = &mut acc.nodes;
+                    match &tile.values {
+                        TileValues::F16(v) => {
+                            // Converted in one slice call (SIMD where the CPU has it), not
+                            // one coefficient at a time.
+                            let count = tile.value_count(&e, n);
+                            acc.coefficients.resize(count, 0.0);
+                            v[start..start + count].convert_to_f32_slice(&mut acc.coefficients);
+                            let c = &acc.coefficients;
+                            lattice.accumulate(nodes, e.segments, e.channels, |i| c[i], w)
+                        }
+                        TileValues::F32(v) => {
+                            lattice.accumulate(nodes, e.segments, e.channels, |i| v[start + i], w)
+                        }
+                    }
+                } else if e.channels == 1 {
                     let (r, g, b) = (&mut acc.r[..n], &mut acc.g[..n], &mut acc.b[..n]);
                     match &tile.values {
                         TileValues::F16(v) => {
@@ -220,6 +262,11 @@ where
             });
             if !reset && !added {
                 continue;
+            }
+            if lattice_added {
+                if let Some(lattice) = &tile.lattice {
+                    lattice.expand(&acc.nodes, &mut acc.rgb[..3 * n]);
+                }
             }
             let tw = rect.width as usize;
             for dy in 0..rect.height as usize {

@@ -7,6 +7,7 @@ use std::sync::Mutex;
 use half::f16;
 use rayon::prelude::*;
 
+use super::lattice::TileLattice;
 use super::layout::{
     tile_rect, tiles_along, StackTile, TileLayer, TileRect, TileValues, TiledLayerInfo, TiledStack,
     STACK_FORMAT_VERSION_TILED,
@@ -93,10 +94,15 @@ fn dense_tile(dense: &TransferStack, rect: TileRect) -> StackTile {
                 channels,
                 scale: layer.scale,
                 offset,
+                segments: 0,
             });
         }
     }
-    StackTile { entries, values }
+    StackTile {
+        entries,
+        values,
+        lattice: None,
+    }
 }
 
 impl TiledStack {
@@ -175,8 +181,9 @@ impl TiledStack {
     /// The dense stack (header with the dense format version, layers in id order): exactly
     /// the stack [`from_dense`](Self::from_dense) was given. An entry whose scale differs
     /// from its layer's (a [`TiledStackBuilder`] stack) is re-quantised to the layer's
-    /// scale. This expands every layer to a full frame: for tests and callers of the dense
-    /// layout only.
+    /// scale, and a lattice entry is evaluated at every pixel and quantised likewise (the
+    /// reference a relight of the lattice is tested against). This expands every layer to
+    /// a full frame: for tests and callers of the dense layout only.
     pub fn to_dense(&self) -> Result<TransferStack> {
         let h = &self.header;
         let pixels = h.width as usize * h.height as usize;
@@ -194,13 +201,28 @@ impl TiledStack {
                 },
             });
         }
+        let mut expanded = Vec::new();
         for (t, tile) in self.tiles.iter().enumerate() {
             let rect = self.tile_rect(t);
             for e in &tile.entries {
                 let layer: &mut Layer = &mut layers[e.layer as usize];
+                let (lc, ec) = (layer.channels as usize, e.channels as usize);
+                if e.segments != 0 {
+                    expand_lattice_entry(tile, e, rect, &mut expanded)?;
+                    let ratio = e.scale / layer.scale;
+                    for (i, p) in rect_pixels(rect, h.width).enumerate() {
+                        for c in 0..lc {
+                            let v = expanded[i * ec + c.min(ec - 1)] * ratio;
+                            match &mut layer.samples {
+                                LayerSamples::F16(d) => d[p * lc + c] = f16::from_f32(v),
+                                LayerSamples::F32(d) => d[p * lc + c] = v,
+                            }
+                        }
+                    }
+                    continue;
+                }
                 let same_scale = e.scale.to_bits() == layer.scale.to_bits();
                 let ratio = e.scale / layer.scale;
-                let (lc, ec) = (layer.channels as usize, e.channels as usize);
                 for (i, p) in rect_pixels(rect, h.width).enumerate() {
                     for c in 0..lc {
                         let src = e.offset as usize + i * ec + c.min(ec - 1);
@@ -248,6 +270,27 @@ pub struct TileRadiance<'a> {
     pub radiance: &'a [f32],
 }
 
+/// One layer's lattice coefficients over one tile ([`super::lattice`]), as a bake hands
+/// them to [`TiledStackBuilder::insert_with_lattice`].
+#[derive(Clone, Copy, Debug)]
+pub struct TileCoefficients<'a> {
+    /// Layer id (position in the builder's layer list).
+    pub layer: u32,
+    /// 1 (grey) or 3 (RGB interleaved).
+    pub channels: u8,
+    /// The segments covered (bit `s`: segment `s`); not 0.
+    pub segments: u32,
+    /// Per covered segment in id order, per node it stores, `channels` values (unscaled
+    /// radiance coefficients).
+    pub coefficients: &'a [f32],
+}
+
+/// Where a layer's values for one tile come from.
+enum Source<'a> {
+    Pixels(&'a [f32]),
+    Lattice(&'a TileCoefficients<'a>),
+}
+
 /// Collects a [`TiledStack`] tile by tile from threads finishing tiles in any order.
 /// Each tile is quantised on insertion, so only finished tiles in their stored form and
 /// the tiles in flight are in memory.
@@ -291,6 +334,24 @@ impl TiledStackBuilder {
     /// given twice, channels other than 1 or the layer's, a radiance length other than
     /// pixels × channels, a non-finite radiance.
     pub fn insert(&self, tile: usize, layers: &[TileRadiance]) -> Result<()> {
+        self.insert_with_lattice(tile, layers, None, &[])
+    }
+
+    /// [`insert`](Self::insert) with lattice entries besides the per-pixel ones: `fitted`
+    /// are coefficients over `lattice` (the tile's segment map), quantised like per-pixel
+    /// values (f16: the largest coefficient maps to 2¹⁴). A layer is given in `layers` or
+    /// in `fitted`, not both. The tile keeps `lattice` only when a lattice entry is stored.
+    ///
+    /// Errors: those of [`insert`](Self::insert), and for `fitted` a missing lattice or
+    /// one of another size than the tile, a mask naming a segment the lattice lacks, a
+    /// coefficient count other than the mask's nodes × channels.
+    pub fn insert_with_lattice(
+        &self,
+        tile: usize,
+        layers: &[TileRadiance],
+        lattice: Option<TileLattice>,
+        fitted: &[TileCoefficients],
+    ) -> Result<()> {
         let slot = self
             .tiles
             .get(tile)
@@ -300,63 +361,104 @@ impl TiledStackBuilder {
                 len: self.tiles.len(),
             })?;
         let rect = tile_rect(self.header.width, self.header.height, tile);
-        let mut order: Vec<&TileRadiance> = layers.iter().collect();
-        order.sort_by_key(|r| r.layer);
-        let mut entries = Vec::with_capacity(order.len());
-        let mut values = TileValues::empty(self.header.precision);
-        let mut previous = None;
-        for r in order {
-            let what = || format!("layer {} of tile {tile}", r.layer);
-            let Some((_, layer_channels)) = self.layers.get(r.layer as usize) else {
-                return Err(RelumeError::IndexOutOfRange {
-                    what: what(),
-                    index: r.layer as u64,
-                    len: self.layers.len(),
-                });
-            };
-            if previous == Some(r.layer) {
-                return Err(RelumeError::invalid(what(), "given twice"));
-            }
-            previous = Some(r.layer);
-            if r.channels != 1 && r.channels != *layer_channels {
+        if let Some(l) = &lattice {
+            if l.size() != (rect.width, rect.height) {
                 return Err(RelumeError::invalid(
-                    what(),
-                    format!("{} channels for a layer of {layer_channels}", r.channels),
-                ));
-            }
-            let c = r.channels as usize;
-            if r.radiance.len() != rect.pixels() * c {
-                return Err(RelumeError::invalid(
-                    what(),
+                    format!("lattice of tile {tile}"),
                     format!(
-                        "{} values; {} pixels × {c} channels expected",
-                        r.radiance.len(),
-                        rect.pixels()
+                        "covers {:?} pixels; the tile is {}×{}",
+                        l.size(),
+                        rect.width,
+                        rect.height
                     ),
                 ));
             }
-            if r.radiance.iter().any(|v| !v.is_finite()) {
+        }
+        let mut order: Vec<(u32, u8, Source)> = layers
+            .iter()
+            .map(|r| (r.layer, r.channels, Source::Pixels(r.radiance)))
+            .chain(
+                fitted
+                    .iter()
+                    .map(|f| (f.layer, f.channels, Source::Lattice(f))),
+            )
+            .collect();
+        order.sort_by_key(|(layer, _, _)| *layer);
+        let mut entries = Vec::with_capacity(order.len());
+        let mut values = TileValues::empty(self.header.precision);
+        let mut previous = None;
+        for (layer, given_channels, source) in order {
+            let what = || format!("layer {layer} of tile {tile}");
+            let Some((_, layer_channels)) = self.layers.get(layer as usize) else {
+                return Err(RelumeError::IndexOutOfRange {
+                    what: what(),
+                    index: layer as u64,
+                    len: self.layers.len(),
+                });
+            };
+            if previous == Some(layer) {
+                return Err(RelumeError::invalid(what(), "given twice"));
+            }
+            previous = Some(layer);
+            if given_channels != 1 && given_channels != *layer_channels {
+                return Err(RelumeError::invalid(
+                    what(),
+                    format!("{given_channels} channels for a layer of {layer_channels}"),
+                ));
+            }
+            let c = given_channels as usize;
+            let (data, segments) = match source {
+                Source::Pixels(radiance) => {
+                    if radiance.len() != rect.pixels() * c {
+                        return Err(RelumeError::invalid(
+                            what(),
+                            format!(
+                                "{} values; {} pixels × {c} channels expected",
+                                radiance.len(),
+                                rect.pixels()
+                            ),
+                        ));
+                    }
+                    (radiance, 0)
+                }
+                Source::Lattice(f) => {
+                    let expected = lattice
+                        .as_ref()
+                        .and_then(|l| l.coefficient_count(f.segments, f.channels));
+                    if expected != Some(f.coefficients.len()) {
+                        return Err(RelumeError::invalid(
+                            what(),
+                            format!(
+                                "{} lattice coefficients over segments {:#x}; the tile's lattice needs {expected:?}",
+                                f.coefficients.len(),
+                                f.segments
+                            ),
+                        ));
+                    }
+                    (f.coefficients, f.segments)
+                }
+            };
+            if data.iter().any(|v| !v.is_finite()) {
                 return Err(RelumeError::NonFinite {
                     what: format!("radiance of {}", what()),
                 });
             }
-            if r.radiance.iter().all(|&v| v == 0.0) {
+            if data.iter().all(|&v| v == 0.0) {
                 continue;
             }
-            let grey = c == 3
-                && r.radiance
-                    .chunks_exact(3)
-                    .all(|p| p[0] == p[1] && p[1] == p[2]);
+            let grey = segments == 0
+                && c == 3
+                && data.chunks_exact(3).all(|p| p[0] == p[1] && p[1] == p[2]);
             let channels = if grey { 1 } else { c };
             let offset = values.len() as u32;
-            let kept = r.radiance.chunks_exact(c).flat_map(|p| &p[..channels]);
+            let kept = data.chunks_exact(c).flat_map(|p| &p[..channels]);
             let scale = match &mut values {
                 TileValues::F32(out) => {
                     out.extend(kept);
                     1.0
                 }
                 TileValues::F16(out) => {
-                    let max_abs = r.radiance.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+                    let max_abs = data.iter().fold(0.0f32, |m, v| m.max(v.abs()));
                     let scale = max_abs / 16384.0;
                     let inv = 1.0 / scale;
                     out.extend(kept.map(|v| f16::from_f32(v * inv)));
@@ -369,12 +471,14 @@ impl TiledStackBuilder {
                 continue;
             }
             entries.push(TileLayer {
-                layer: r.layer,
+                layer,
                 channels: channels as u8,
                 scale,
                 offset,
+                segments,
             });
         }
+        let lattice = lattice.filter(|_| entries.iter().any(|e| e.segments != 0));
         let mut slot = slot.lock().unwrap_or_else(|p| p.into_inner());
         if slot.is_some() {
             return Err(RelumeError::invalid(
@@ -382,7 +486,11 @@ impl TiledStackBuilder {
                 "inserted twice",
             ));
         }
-        *slot = Some(StackTile { entries, values });
+        *slot = Some(StackTile {
+            entries,
+            values,
+            lattice,
+        });
         Ok(())
     }
 
@@ -426,6 +534,34 @@ impl TiledStackBuilder {
         validate(Path::new(""), &stack)?;
         Ok(stack)
     }
+}
+
+/// A lattice entry's values (before its scale) at every pixel of its tile, into `out`.
+fn expand_lattice_entry(
+    tile: &StackTile,
+    e: &TileLayer,
+    rect: TileRect,
+    out: &mut Vec<f32>,
+) -> Result<()> {
+    let bad = || {
+        format_err(
+            Path::new(""),
+            format!("a lattice entry of layer {} does not fit its tile", e.layer),
+        )
+    };
+    let lattice = tile.lattice.as_ref().ok_or_else(bad)?;
+    let count = lattice
+        .coefficient_count(e.segments, e.channels)
+        .ok_or_else(bad)?;
+    if e.offset as usize + count > tile.values.len() || lattice.size() != (rect.width, rect.height)
+    {
+        return Err(bad());
+    }
+    out.clear();
+    out.resize(rect.pixels() * e.channels as usize, 0.0);
+    let start = e.offset as usize;
+    lattice.reconstruct(e.segments, e.channels, |i| tile.values.get(start + i), out);
+    Ok(())
 }
 
 fn truncate_values(mut values: TileValues, len: usize) -> TileValues {

@@ -13,6 +13,17 @@
 //! - part `values`: the values of all tiles back to back, in rows of up to [`ROW_WIDTH`],
 //!   channel `value`, f16 or f32 per the stack's precision.
 //!
+//! Version 3 (a stack with lattice entries, [`super::lattice`]; a stack without any is still
+//! written as version 2, which older readers read) adds:
+//! - to part `tiles`, channel `lattice` (u32): the tile's lattice step in pixels, 0 when
+//!   the tile has no segment map;
+//! - to part `entries`, channel `segments` (u32): the entry's segment mask, 0 for a
+//!   per-pixel entry (a lattice entry's values are its coefficients);
+//! - a fourth part `segments`: the segment maps of the tiles with a lattice, back to back
+//!   in raster order, one pixel per tile pixel (row-major inside the tile), channel
+//!   `segment` (u32), in rows of up to [`ROW_WIDTH`]. The nodes each segment stores follow
+//!   from its map and are not written.
+//!
 //! Reading validates before trusting: the part and channel layout, every claimed size
 //! against the file's length and the memory budget before decoding, the entry count and
 //! value count the tables imply against the parts, then everything [`validate`] checks.
@@ -26,6 +37,7 @@ use std::path::Path;
 use exr::prelude::{self as x, ReadChannels as _, ReadLayers as _, WritableImage as _};
 use serde::{Deserialize, Serialize};
 
+use super::lattice::TileLattice;
 use super::layout::{
     StackTile, TileLayer, TileValues, TiledLayerInfo, TiledStack, STACK_FORMAT_VERSION_TILED,
 };
@@ -47,10 +59,17 @@ pub const ROW_WIDTH: usize = 4096;
 const PART_TILES: &str = "tiles";
 const PART_ENTRIES: &str = "entries";
 const PART_VALUES: &str = "values";
+const PART_SEGMENTS: &str = "segments";
 const CHANNEL_COUNT: &str = "entries";
-/// The entry channels, sorted by name as EXR stores them.
+const CHANNEL_STEP: &str = "lattice";
+/// The entry channels, sorted by name as EXR stores them (version 2; version 3 adds
+/// [`CHANNEL_MASK`], which sorts last).
 const ENTRY_CHANNELS: [&str; 4] = ["channels", "layer", "offset", "scale"];
+const CHANNEL_MASK: &str = "segments";
 const CHANNEL_VALUE: &str = "value";
+const CHANNEL_SEGMENT: &str = "segment";
+/// The version of the layout without lattice entries.
+const VERSION_WITHOUT_LATTICE: u32 = 2;
 
 /// One entry of the layers attribute.
 #[derive(Serialize, Deserialize)]
@@ -123,7 +142,23 @@ pub fn write_tiled_unchecked(path: &Path, stack: &TiledStack) -> Result<u64> {
 }
 
 fn encode(path: &Path, stack: &TiledStack, progress: &Progress) -> Result<u64> {
-    let h = &stack.header;
+    let with_lattice = stack.tiles.iter().any(|t| t.lattice.is_some());
+    let version = if with_lattice {
+        STACK_FORMAT_VERSION_TILED
+    } else {
+        VERSION_WITHOUT_LATTICE
+    };
+    // The file's header says the layout it is written in; a header claiming another
+    // version (only the unchecked writer gets one) is written as it is, for the reader's
+    // tests.
+    let h = &StackHeader {
+        format_version: if stack.header.format_version == STACK_FORMAT_VERSION_TILED {
+            version
+        } else {
+            stack.header.format_version
+        },
+        ..stack.header.clone()
+    };
     let header_json = serde_json::to_string(h)
         .map_err(|e| format_err(path, format!("header does not serialise: {e}")))?;
     if serde_json::from_str::<StackHeader>(&header_json)
@@ -156,7 +191,13 @@ fn encode(path: &Path, stack: &TiledStack, progress: &Progress) -> Result<u64> {
     // A validated stack has exactly this many tiles; the unchecked writer must not hand
     // the encoder a part of another size.
     counts.resize(stack.tile_count(), 0);
-    let mut table: [Vec<u32>; 4] = Default::default();
+    let mut steps: Vec<u32> = stack
+        .tiles
+        .iter()
+        .map(|t| t.lattice.as_ref().map_or(0, |l| l.step()))
+        .collect();
+    steps.resize(stack.tile_count(), 0);
+    let mut table: [Vec<u32>; 5] = Default::default();
     for column in &mut table {
         column.reserve_exact(entry_size.0 * entry_size.1);
     }
@@ -166,12 +207,23 @@ fn encode(path: &Path, stack: &TiledStack, progress: &Progress) -> Result<u64> {
         .take(stack.tile_count())
         .flat_map(|t| &t.entries)
     {
-        let [channels, layer, offset, scale] = &mut table;
+        let [channels, layer, offset, scale, segments] = &mut table;
         channels.push(e.channels as u32);
         layer.push(e.layer);
         offset.push(e.offset);
         scale.push(e.scale.to_bits());
+        segments.push(e.segments);
     }
+    let maps: Vec<u32> = stack
+        .tiles
+        .iter()
+        .take(stack.tile_count())
+        .filter_map(|t| t.lattice.as_ref())
+        .flat_map(|l| l.segments().iter().map(|&s| s as u32))
+        .collect();
+    let map_size = rows_for(maps.len());
+    let mut maps = maps;
+    maps.resize(map_size.0 * map_size.1, 0);
     for column in &mut table {
         column.resize(entry_size.0 * entry_size.1, 0);
     }
@@ -204,29 +256,30 @@ fn encode(path: &Path, stack: &TiledStack, progress: &Progress) -> Result<u64> {
     other.insert(x::Text::from(ATTR_HEADER), text(&header_json));
     other.insert(
         x::Text::from(ATTR_FORMAT_VERSION),
-        x::AttributeValue::I32(STACK_FORMAT_VERSION_TILED as i32),
+        x::AttributeValue::I32(version as i32),
     );
     other.insert(x::Text::from(ATTR_SCENE_HASH), text(&h.scene_hash));
     other.insert(x::Text::from(ATTR_LAYERS), text(&layers_json));
 
-    let [channels, layer, offset, scale] = table;
-    let parts = vec![
+    let [channels, layer, offset, scale, segments] = table;
+    let mut tile_channels = vec![channel(CHANNEL_COUNT, x::FlatSamples::U32(counts))];
+    let mut entry_channels: Vec<_> = [channels, layer, offset, scale]
+        .into_iter()
+        .zip(ENTRY_CHANNELS)
+        .map(|(v, name)| channel(name, x::FlatSamples::U32(v)))
+        .collect();
+    if with_lattice {
+        tile_channels.push(channel(CHANNEL_STEP, x::FlatSamples::U32(steps)));
+        entry_channels.push(channel(CHANNEL_MASK, x::FlatSamples::U32(segments)));
+    }
+    let mut parts = vec![
         part(
             PART_TILES,
             (stack.tiles_x() as usize, stack.tiles_y() as usize),
             other,
-            vec![channel(CHANNEL_COUNT, x::FlatSamples::U32(counts))],
+            tile_channels,
         ),
-        part(
-            PART_ENTRIES,
-            entry_size,
-            Default::default(),
-            [channels, layer, offset, scale]
-                .into_iter()
-                .zip(ENTRY_CHANNELS)
-                .map(|(v, name)| channel(name, x::FlatSamples::U32(v)))
-                .collect(),
-        ),
+        part(PART_ENTRIES, entry_size, Default::default(), entry_channels),
         part(
             PART_VALUES,
             value_size,
@@ -234,6 +287,14 @@ fn encode(path: &Path, stack: &TiledStack, progress: &Progress) -> Result<u64> {
             vec![channel(CHANNEL_VALUE, values)],
         ),
     ];
+    if with_lattice {
+        parts.push(part(
+            PART_SEGMENTS,
+            map_size,
+            Default::default(),
+            vec![channel(CHANNEL_SEGMENT, x::FlatSamples::U32(maps))],
+        ));
+    }
     let image = x::Image::from_layers(
         x::ImageAttributes::with_size((h.width as usize, h.height as usize)),
         parts,
@@ -298,7 +359,8 @@ fn part_name(h: &exr::meta::header::Header) -> String {
         .unwrap_or_default()
 }
 
-/// Reads a stack file as a [`TiledStack`]: a version-2 file as it is stored; a version-1
+/// Reads a stack file as a [`TiledStack`]: a version-3 or version-2 file as it is stored
+/// (the stack's header then says [`STACK_FORMAT_VERSION_TILED`]); a version-1
 /// (dense) file through the dense reader ([`read_stack`]) and [`TiledStack::from_dense`] —
 /// that path holds the whole dense stack in memory once. Another version gives
 /// [`RelumeError::StackVersion`] (a rebake).
@@ -336,20 +398,21 @@ pub fn read_tiled(path: &Path) -> Result<TiledStack> {
         drop(reader);
         return TiledStack::from_dense(&read_stack(path)?).map_err(|e| with_path(e, path));
     }
-    if version != STACK_FORMAT_VERSION_TILED as i32 {
+    if version != STACK_FORMAT_VERSION_TILED as i32 && version != VERSION_WITHOUT_LATTICE as i32 {
         return Err(RelumeError::StackVersion {
             path: path.to_path_buf(),
             found: version.max(0) as u32,
             supported: STACK_FORMAT_VERSION_TILED,
         });
     }
-    let header: StackHeader = serde_json::from_str(&header_json).map_err(|e| {
+    let version = version as u32;
+    let mut header: StackHeader = serde_json::from_str(&header_json).map_err(|e| {
         format_err(
             path,
             format!("attribute {ATTR_HEADER} is not a stack header: {e}"),
         )
     })?;
-    if header.format_version != STACK_FORMAT_VERSION_TILED {
+    if header.format_version != version {
         return Err(format_err(
             path,
             format!(
@@ -394,7 +457,8 @@ pub fn read_tiled(path: &Path) -> Result<TiledStack> {
     }
 
     check_claims_against_file(path, &meta, &reader)?;
-    check_layout(path, &header, &meta)?;
+    check_layout(path, &header, &meta, version)?;
+    header.format_version = STACK_FORMAT_VERSION_TILED;
 
     reader
         .seek(SeekFrom::Start(0))
@@ -414,9 +478,18 @@ pub fn read_tiled(path: &Path) -> Result<TiledStack> {
     else {
         return Err(format_err(path, "the file lost a part while decoding"));
     };
-    let counts = u32_channels(path, tiles_part)?.pop().unwrap_or_default();
-    let table = u32_channels(path, entries_part)?;
-    let [channels, layer, offset, scale] = <[Vec<u32>; 4]>::try_from(table)
+    let maps = match parts.next() {
+        Some(p) => u32_channels(path, p)?.pop().unwrap_or_default(),
+        None => Vec::new(),
+    };
+    let mut tile_columns = u32_channels(path, tiles_part)?.into_iter();
+    let counts = tile_columns.next().unwrap_or_default();
+    let steps = tile_columns.next().unwrap_or_else(|| vec![0; counts.len()]);
+    let mut table = u32_channels(path, entries_part)?;
+    if table.len() == ENTRY_CHANNELS.len() {
+        table.push(vec![0; table.first().map_or(0, Vec::len)]);
+    }
+    let [channels, layer, offset, scale, segments] = <[Vec<u32>; 5]>::try_from(table)
         .map_err(|_| format_err(path, "the entries part lost a channel"))?;
     let values = values_part
         .channel_data
@@ -430,9 +503,10 @@ pub fn read_tiled(path: &Path) -> Result<TiledStack> {
         path,
         header,
         layers,
-        &counts,
-        [&channels, &layer, &offset, &scale],
+        [&counts, &steps],
+        [&channels, &layer, &offset, &scale, &segments],
         values,
+        &maps,
     )?;
     validate(path, &stack)?;
     Ok(stack)
@@ -461,13 +535,18 @@ fn u32_channels(
 }
 
 /// The parts, their names, sizes and channels, before any pixel is decoded.
-fn check_layout(path: &Path, header: &StackHeader, meta: &x::MetaData) -> Result<()> {
+fn check_layout(path: &Path, header: &StackHeader, meta: &x::MetaData, version: u32) -> Result<()> {
+    let with_lattice = version != VERSION_WITHOUT_LATTICE;
     let names: Vec<String> = meta.headers.iter().map(part_name).collect();
-    if names != [PART_TILES, PART_ENTRIES, PART_VALUES] {
+    let mut want_names = vec![PART_TILES, PART_ENTRIES, PART_VALUES];
+    if with_lattice {
+        want_names.push(PART_SEGMENTS);
+    }
+    if names != want_names {
         return Err(format_err(
             path,
             format!(
-                "parts {names:?}; a tiled stack has {PART_TILES}, {PART_ENTRIES}, {PART_VALUES}"
+                "parts {names:?}; a tiled stack of format version {version} has {want_names:?}"
             ),
         ));
     }
@@ -487,14 +566,28 @@ fn check_layout(path: &Path, header: &StackHeader, meta: &x::MetaData) -> Result
         Precision::F16 => x::SampleType::F16,
         Precision::F32 => x::SampleType::F32,
     };
-    let expected = [
-        vec![(CHANNEL_COUNT.to_string(), x::SampleType::U32)],
-        ENTRY_CHANNELS
+    let u32s = |names: &[&str]| -> Vec<(String, x::SampleType)> {
+        names
             .iter()
             .map(|n| (n.to_string(), x::SampleType::U32))
-            .collect(),
-        vec![(CHANNEL_VALUE.to_string(), value_type)],
-    ];
+            .collect()
+    };
+    let expected = if with_lattice {
+        let mut entry = ENTRY_CHANNELS.to_vec();
+        entry.push(CHANNEL_MASK);
+        vec![
+            u32s(&[CHANNEL_COUNT, CHANNEL_STEP]),
+            u32s(&entry),
+            vec![(CHANNEL_VALUE.to_string(), value_type)],
+            u32s(&[CHANNEL_SEGMENT]),
+        ]
+    } else {
+        vec![
+            u32s(&[CHANNEL_COUNT]),
+            u32s(&ENTRY_CHANNELS),
+            vec![(CHANNEL_VALUE.to_string(), value_type)],
+        ]
+    };
     for ((h, name), want) in meta.headers.iter().zip(&names).zip(&expected) {
         if channels(h) != *want {
             return Err(format_err(
@@ -595,9 +688,10 @@ fn assemble(
     path: &Path,
     header: StackHeader,
     layers: Vec<TiledLayerInfo>,
-    counts: &[u32],
-    [channels, layer, offset, scale]: [&[u32]; 4],
+    [counts, steps]: [&[u32]; 2],
+    [channels, layer, offset, scale, segments]: [&[u32]; 5],
     values: x::FlatSamples,
+    maps: &[u32],
 ) -> Result<TiledStack> {
     let entry_total: u64 = counts.iter().map(|&c| c as u64).sum();
     let table_len = channels.len() as u64;
@@ -614,8 +708,34 @@ fn assemble(
         crate::memory::try_with_capacity(counts.len(), "the stack's tiles")?;
     let mut next_entry = 0usize;
     let mut next_value = 0u64;
+    let mut next_map = 0usize;
     for (t, &count) in counts.iter().enumerate() {
-        let pixels = super::layout::tile_rect(header.width, header.height, t).pixels() as u64;
+        let rect = super::layout::tile_rect(header.width, header.height, t);
+        let pixels = rect.pixels() as u64;
+        let lattice = match steps.get(t).copied().unwrap_or(0) {
+            0 => None,
+            step => {
+                let Some(ids) = maps.get(next_map..next_map + pixels as usize) else {
+                    return Err(format_err(
+                        path,
+                        format!(
+                            "tile {t}: its segment map needs ids up to {} but part {PART_SEGMENTS} holds {}",
+                            next_map + pixels as usize,
+                            maps.len()
+                        ),
+                    ));
+                };
+                next_map += pixels as usize;
+                let ids = ids
+                    .iter()
+                    .map(|&id| u8::try_from(id))
+                    .collect::<std::result::Result<Vec<u8>, _>>()
+                    .map_err(|_| format_err(path, format!("tile {t}: a segment id beyond 255")))?;
+                let lattice = TileLattice::new(step, rect.width, rect.height, ids)
+                    .map_err(|m| format_err(path, format!("tile {t}: {m}")))?;
+                Some(lattice)
+            }
+        };
         let mut entries = Vec::with_capacity(count as usize);
         let mut tile_values = 0u64;
         for k in next_entry..next_entry + count as usize {
@@ -626,12 +746,28 @@ fn assemble(
                     format!("tile {t}: an entry has {c} channels; 1 (grey) or 3 (RGB)"),
                 ));
             }
-            tile_values += pixels * c as u64;
+            let mask = segments[k];
+            tile_values += if mask == 0 {
+                pixels * c as u64
+            } else {
+                lattice
+                    .as_ref()
+                    .and_then(|l| l.coefficient_count(mask, c as u8))
+                    .ok_or_else(|| {
+                        format_err(
+                            path,
+                            format!(
+                                "tile {t}: an entry covers segments {mask:#x}, which the tile's segment map lacks"
+                            ),
+                        )
+                    })? as u64
+            };
             entries.push(TileLayer {
                 layer: layer[k],
                 channels: c as u8,
                 scale: f32::from_bits(scale[k]),
                 offset: offset[k],
+                segments: mask,
             });
         }
         next_entry += count as usize;
@@ -657,7 +793,17 @@ fn assemble(
         tiles.push(StackTile {
             entries,
             values: tile_values,
+            lattice,
         });
+    }
+    if maps.len() - next_map.min(maps.len()) >= ROW_WIDTH {
+        return Err(format_err(
+            path,
+            format!(
+                "the tiles' segment maps need {next_map} ids but part {PART_SEGMENTS} holds {}",
+                maps.len()
+            ),
+        ));
     }
     if value_len - next_value >= ROW_WIDTH as u64 {
         return Err(format_err(

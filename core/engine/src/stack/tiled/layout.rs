@@ -1,6 +1,7 @@
 //! The tiled stack's types: the stack, its tiles, their entries and values, and the tile
 //! geometry they share with the bake.
 
+use super::lattice::TileLattice;
 use crate::layer_key::LayerKey;
 use crate::stack::{Precision, StackHeader};
 
@@ -10,7 +11,11 @@ pub const STACK_TILE: u32 = 16;
 
 /// Stack file format version of the tiled layout (the dense one is
 /// [`crate::stack::STACK_FORMAT_VERSION`]); a [`TiledStack`]'s header carries this version.
-pub const STACK_FORMAT_VERSION_TILED: u32 = 2;
+///
+/// Version 3 added lattice entries ([`super::lattice`]): a tile's segment map and, per
+/// entry, the segments it covers. The writer still writes a stack without lattice entries
+/// in the version-2 layout, and the reader reads both.
+pub const STACK_FORMAT_VERSION_TILED: u32 = 3;
 
 /// A whole transfer stack, tile by tile.
 #[derive(Clone, Debug, PartialEq)]
@@ -42,6 +47,24 @@ pub struct StackTile {
     /// Sorted by layer id, no id twice; their values lie back to back in `values`.
     pub entries: Vec<TileLayer>,
     pub values: TileValues,
+    /// The tile's segment map and lattice, which its lattice entries share; `None` when
+    /// the tile has none.
+    pub lattice: Option<TileLattice>,
+}
+
+impl StackTile {
+    /// Values entry `e` holds in a tile of `pixels` pixels: per pixel its channels, or for
+    /// a lattice entry its coefficients (0 when its mask does not fit the tile's lattice —
+    /// [`super::validate::validate`] refuses such a stack).
+    pub fn value_count(&self, e: &TileLayer, pixels: usize) -> usize {
+        if e.segments == 0 {
+            return pixels * e.channels as usize;
+        }
+        self.lattice
+            .as_ref()
+            .and_then(|l| l.coefficient_count(e.segments, e.channels))
+            .unwrap_or(0)
+    }
 }
 
 /// One layer in one tile.
@@ -54,8 +77,13 @@ pub struct TileLayer {
     /// Stored value × scale = radiance.
     pub scale: f32,
     /// Index of the entry's first value in the tile's values: the tile's pixels row-major,
-    /// channels interleaved.
+    /// channels interleaved — or, for a lattice entry, its coefficients.
     pub offset: u32,
+    /// 0: a per-pixel entry. Otherwise a lattice entry ([`super::lattice`]): the mask of
+    /// the tile's segments it covers (bit `s`: segment `s`); its values are, per covered
+    /// segment in id order, per node the segment stores, its channels. Pixels of segments
+    /// it does not cover are 0.
+    pub segments: u32,
 }
 
 /// Values of one tile, in the stack's precision.
@@ -170,9 +198,16 @@ impl TiledStack {
     /// counts as the stack.
     pub fn memory_bytes(&self) -> usize {
         use std::mem::size_of;
+        let lattices: usize = self
+            .tiles
+            .iter()
+            .filter_map(|t| t.lattice.as_ref())
+            .map(TileLattice::memory_bytes)
+            .sum();
         let tiles = self.tiles.len() * size_of::<StackTile>()
             + self.entry_count() * size_of::<TileLayer>()
-            + self.sample_bytes();
+            + self.sample_bytes()
+            + lattices;
         let layers: usize = self
             .layers
             .iter()
@@ -218,29 +253,53 @@ impl TiledStack {
             let pixels = self.tile_rect(i).pixels();
             for e in &tile.entries {
                 if let Some(b) = bytes.get_mut(e.layer as usize) {
-                    *b += pixels * e.channels as usize * value_bytes;
+                    *b += tile.value_count(e, pixels) * value_bytes;
                 }
             }
         }
         bytes
     }
     /// Radiance of entry `entry` of tile `tile` at `pixel` (row-major inside the tile) and
-    /// `channel` (0..3; a grey entry gives the same value for every channel).
+    /// `channel` (0..3; a grey entry gives the same value for every channel). A lattice
+    /// entry is evaluated at the pixel (its segment's ≤ 4 hats).
     ///
     /// # Panics
-    /// If an index is out of range.
+    /// If an index is out of range, or a lattice entry's tile has no lattice (a stack
+    /// [`super::validate::validate`] refuses).
     pub fn value(&self, tile: usize, entry: usize, pixel: usize, channel: usize) -> f32 {
         let t = &self.tiles[tile];
         let e = t.entries[entry];
         assert!(channel < 3, "channel {channel} of an RGB value");
         let c = if e.channels == 1 { 0 } else { channel };
-        assert!(
-            pixel < self.tile_rect(tile).pixels(),
-            "pixel {pixel} outside tile {tile}"
-        );
-        t.values
-            .get(e.offset as usize + pixel * e.channels as usize + c)
-            * e.scale
+        let rect = self.tile_rect(tile);
+        assert!(pixel < rect.pixels(), "pixel {pixel} outside tile {tile}");
+        if e.segments == 0 {
+            return t
+                .values
+                .get(e.offset as usize + pixel * e.channels as usize + c)
+                * e.scale;
+        }
+        let lattice = t
+            .lattice
+            .as_ref()
+            .expect("a lattice entry's tile has a lattice");
+        let s = lattice.segments()[pixel] as usize;
+        let Some(start) = lattice.segment_starts(e.segments, e.channels)[s] else {
+            return 0.0;
+        };
+        let nodes = lattice.segment_nodes(s);
+        let (x, y) = (pixel as u32 % rect.width, pixel as u32 / rect.width);
+        let mut v = 0.0;
+        for (node, w) in lattice.hats(x, y) {
+            if w == 0.0 {
+                continue;
+            }
+            let i = nodes.nodes.binary_search(&(node as u16)).unwrap_or(0);
+            v += w * t
+                .values
+                .get(e.offset as usize + start + i * e.channels as usize + c);
+        }
+        v * e.scale
     }
 }
 

@@ -14,12 +14,16 @@
 //! - [`build`]: from and to the dense stack, and [`TiledStackBuilder`] for a bake that
 //!   hands in f32 radiance tile by tile.
 //! - [`validate`]: the structural checks shared by the writer and the reader.
+//! - [`lattice`]: lattice entries — a layer over a tile as hat coefficients per segment of
+//!   the tile, for the smooth bounce layers.
 //! - [`file`]: stack file format version [`STACK_FORMAT_VERSION_TILED`] (still OpenEXR).
 
 pub mod build;
 pub mod file;
+pub mod lattice;
 pub mod layout;
 pub mod validate;
 
-pub use build::{TileRadiance, TiledStackBuilder};
+pub use build::{TileCoefficients, TileRadiance, TiledStackBuilder};
+pub use lattice::TileLattice;
 pub use layout::*;

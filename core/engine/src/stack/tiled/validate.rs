@@ -17,9 +17,11 @@ pub(crate) fn format_err(path: &Path, message: impl Into<String>) -> RelumeError
 /// Checks everything the relight and the file rely on; `path` only names the file in
 /// errors (empty for a stack in memory). In order: format version, size, unique layer
 /// names with 1 or 3 channels and a finite scale > 0, the tile count the size needs, and
-/// per tile: values in the header's precision, entries with layer ids in range and strictly
-/// increasing, 1 or 3 channels, a finite scale > 0, offsets packed back to back from 0 and
-/// covering the values exactly, every value finite.
+/// per tile: values in the header's precision, a lattice (when there is one) of the tile's
+/// size, entries with layer ids in range and strictly increasing, 1 or 3 channels, a finite
+/// scale > 0, a lattice entry's segments within the tile's lattice, offsets packed back to
+/// back from 0 and covering the values exactly, every value finite. (A lattice's own map —
+/// ids, step — was checked when it was made: [`super::lattice::TileLattice::new`].)
 pub fn validate(path: &Path, stack: &TiledStack) -> Result<()> {
     let h = &stack.header;
     if h.format_version != STACK_FORMAT_VERSION_TILED {
@@ -91,6 +93,19 @@ pub fn validate(path: &Path, stack: &TiledStack) -> Result<()> {
                 ),
             ));
         }
+        if let Some(l) = &tile.lattice {
+            if l.size() != (rect.width, rect.height) {
+                return Err(format_err(
+                    path,
+                    format!(
+                        "tile {t} has a lattice over {:?} pixels; the tile is {}×{}",
+                        l.size(),
+                        rect.width,
+                        rect.height
+                    ),
+                ));
+            }
+        }
         let mut next_offset = 0u64;
         let mut previous: Option<u32> = None;
         for (k, e) in tile.entries.iter().enumerate() {
@@ -140,7 +155,26 @@ pub fn validate(path: &Path, stack: &TiledStack) -> Result<()> {
                     ),
                 ));
             }
-            next_offset += rect.pixels() as u64 * e.channels as u64;
+            if e.segments != 0 {
+                let Some(lattice) = &tile.lattice else {
+                    return Err(format_err(
+                        path,
+                        format!("{}: a lattice entry in a tile without a segment map", at()),
+                    ));
+                };
+                if lattice.coefficient_count(e.segments, e.channels).is_none() {
+                    return Err(format_err(
+                        path,
+                        format!(
+                            "{}: covers segments {:#x}; the tile has {}",
+                            at(),
+                            e.segments,
+                            lattice.segment_count()
+                        ),
+                    ));
+                }
+            }
+            next_offset += tile.value_count(e, rect.pixels()) as u64;
             if next_offset > u32::MAX as u64 {
                 return Err(format_err(
                     path,
