@@ -16,6 +16,8 @@
 //! (the texture is inside the layers; blurring it would blur the texture) and pixels that see
 //! the world are passed through unfiltered and feed no neighbour.
 
+use std::ops::Range;
+
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -156,14 +158,18 @@ impl EyeFeatures {
 
     /// Normalised weights of the 5×5 taps of À-trous step `step` (pixels between taps) for
     /// every pixel; all zero for a pixel that is passed through.
-    fn weights(&self, step: usize) -> Vec<[f32; 25]> {
+    /// Only the pixel rows `rows` are computed; the others' weights are zero.
+    fn weights(&self, step: usize, rows: Range<usize>) -> Vec<[f32; 25]> {
         const H: [f32; 5] = [1.0 / 16.0, 0.25, 0.375, 0.25, 1.0 / 16.0];
-        (0..self.width * self.height)
-            .into_par_iter()
-            .map(|p| {
+        let mut all = vec![[0.0f32; 25]; self.width * self.height];
+        all[rows.start * self.width..rows.end * self.width]
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(i, out)| {
+                let p = rows.start * self.width + i;
                 let mut w = [0.0f32; 25];
                 let Some(r) = self.region[p] else {
-                    return w;
+                    return;
                 };
                 let (x, y) = ((p % self.width) as isize, (p / self.width) as isize);
                 let (np, xp, fp) = (self.normal[p], self.position[p], self.footprint[p]);
@@ -198,9 +204,9 @@ impl EyeFeatures {
                 if sum > 0.0 {
                     w.iter_mut().for_each(|v| *v /= sum);
                 }
-                w
-            })
-            .collect()
+                *out = w;
+            });
+        all
     }
 
     /// Filters `layers` in place with `iterations` À-trous steps (steps 1, 2, 4, …: a
@@ -231,8 +237,20 @@ impl EyeFeatures {
     /// The weights of every step of an `iterations`-step filter, computed once and shared
     /// by all the layers filtered with it ([`Self::filter_one`]).
     pub fn weights_for(&self, iterations: u32) -> FilterWeights {
+        self.weights_for_rows(iterations, 0..self.height)
+    }
+
+    /// [`Self::weights_for`] for a sparse filter ([`Self::filter_sparse`]) whose wanted rows
+    /// are `rows`: each step's weights only on the rows that step computes
+    /// ([`step_rows`]), zero (never read) elsewhere.
+    pub fn weights_for_rows(&self, iterations: u32, rows: Range<usize>) -> FilterWeights {
         FilterWeights {
-            steps: (0..iterations).map(|k| self.weights(1usize << k)).collect(),
+            steps: (0..iterations)
+                .map(|k| {
+                    let at = step_rows(&rows, k, iterations, self.height);
+                    self.weights(1usize << k, at)
+                })
+                .collect(),
         }
     }
 
@@ -278,6 +296,175 @@ impl EyeFeatures {
             }
             layer.data = out;
         }
+    }
+}
+
+impl EyeFeatures {
+    /// [`Self::filter_one`] of a 3-channel layer that is zero outside the tiles
+    /// `region.reach` marks, computing only what the rows `region.rows` need: at step k the
+    /// pixels of the reached tiles on [`step_rows`] (the wanted rows widened by the taps of
+    /// the steps after k). The layer comes in `scratch.input()` (zero outside its tiles) and
+    /// its filtered rows are in `scratch.output()` afterwards.
+    ///
+    /// Why the wanted rows come out bit for bit as [`Self::filter_one`] gives them: each
+    /// computed pixel runs the same taps in the same order on the same weights and the same
+    /// values. A pixel it reads that lies outside the reached tiles is zero in both (the
+    /// filter is linear with weights from the features only: a pixel farther than the
+    /// footprint from every non-zero one stays zero), and a pixel it reads inside them was
+    /// computed at the step before, since the rows of step k − 1 cover step k's taps.
+    /// Skipping a tap on a zero value changes no sum: adding +0 leaves any sum but −0 as it
+    /// was, and a sum starting at +0 never becomes −0.
+    pub fn filter_sparse(
+        &self,
+        weights: &FilterWeights,
+        scratch: &mut SparseScratch,
+        region: &SparseTiles,
+    ) {
+        const C: usize = 3;
+        let iterations = weights.steps.len() as u32;
+        scratch.result_in_b = false;
+        let tiles: Vec<(usize, usize)> = region
+            .reach
+            .iter()
+            .enumerate()
+            .filter(|(_, r)| **r)
+            .map(|(i, _)| (i % region.tiles_x, i / region.tiles_x))
+            .collect();
+        for (k, w) in weights.steps.iter().enumerate() {
+            let step = 1usize << k;
+            let rows = step_rows(&region.rows, k as u32, iterations, self.height);
+            let read = rows.start.saturating_sub(2 * step)..(rows.end + 2 * step).min(self.height);
+            let (src, out) = if scratch.result_in_b {
+                (&scratch.b, &mut scratch.a)
+            } else {
+                (&scratch.a, &mut scratch.b)
+            };
+            // Regions the layer is non-zero on among the pixels this step reads (weights
+            // never cross regions, so the others' pixels keep their value).
+            let mut live = vec![false; self.region_count];
+            for_each_pixel(&tiles, region.tile, self.width, &read, |p| {
+                if let Some(r) = self.region[p] {
+                    if !live[r as usize] && src[p * C..p * C + C].iter().any(|v| *v != 0.0) {
+                        live[r as usize] = true;
+                    }
+                }
+            });
+            for_each_pixel(&tiles, region.tile, self.width, &rows, |p| {
+                let wp = &w[p];
+                if wp[12] == 0.0 || !self.region[p].is_some_and(|r| live[r as usize]) {
+                    out[p * C..p * C + C].copy_from_slice(&src[p * C..p * C + C]);
+                    return;
+                }
+                let (x, y) = ((p % self.width) as isize, (p / self.width) as isize);
+                let mut acc = [0.0f32; C];
+                for (t, &wt) in wp.iter().enumerate() {
+                    if wt == 0.0 {
+                        continue;
+                    }
+                    let qx = x + (t as isize % 5 - 2) * step as isize;
+                    let qy = y + (t as isize / 5 - 2) * step as isize;
+                    let q = qy as usize * self.width + qx as usize;
+                    for (a, v) in acc.iter_mut().zip(&src[q * C..q * C + C]) {
+                        *a += wt * v;
+                    }
+                }
+                out[p * C..p * C + C].copy_from_slice(&acc);
+            });
+            scratch.result_in_b = !scratch.result_in_b;
+        }
+    }
+}
+
+/// Calls `f` with every pixel index of the `tiles` (column, row; `tile` pixels square,
+/// cut by the frame's width) on the pixel rows `rows`.
+fn for_each_pixel(
+    tiles: &[(usize, usize)],
+    tile: usize,
+    width: usize,
+    rows: &Range<usize>,
+    mut f: impl FnMut(usize),
+) {
+    for &(tx, ty) in tiles {
+        let y0 = (ty * tile).max(rows.start);
+        let y1 = ((ty + 1) * tile).min(rows.end);
+        let x1 = ((tx + 1) * tile).min(width);
+        for y in y0..y1 {
+            for x in tx * tile..x1 {
+                f(y * width + x);
+            }
+        }
+    }
+}
+
+/// The pixel rows step `k` of an `iterations`-step sparse filter computes so that the
+/// rows `wanted` come out exact: `wanted` widened on each side by the tap reach of the
+/// later steps (2·step each), within the `height` rows there are.
+pub fn step_rows(wanted: &Range<usize>, k: u32, iterations: u32, height: usize) -> Range<usize> {
+    let later: usize = (k + 1..iterations).map(|j| 2 * (1usize << j)).sum();
+    wanted.start.saturating_sub(later)..(wanted.end + later).min(height)
+}
+
+/// Where one layer may be non-zero on a window once filtered, and which rows are wanted
+/// ([`EyeFeatures::filter_sparse`]).
+pub struct SparseTiles<'a> {
+    /// Per tile of the window, row-major: whether the layer may be non-zero there.
+    pub reach: &'a [bool],
+    pub tiles_x: usize,
+    /// Tile side in pixels (the last column and row cut by the window's edges).
+    pub tile: usize,
+    /// The window's pixel rows whose filtered values are wanted.
+    pub rows: Range<usize>,
+}
+
+/// Two 3-channel window-sized buffers that [`EyeFeatures::filter_sparse`] steps between,
+/// reused from layer to layer: a layer only writes the tiles it reaches, and
+/// [`Self::clear`] zeroes those again, so a reused buffer costs what the layer covers,
+/// not the window.
+pub struct SparseScratch {
+    a: Vec<f32>,
+    b: Vec<f32>,
+    result_in_b: bool,
+}
+
+impl SparseScratch {
+    /// Zeroed buffers for a window of `pixels` pixels.
+    pub fn new(pixels: usize) -> crate::Result<SparseScratch> {
+        Ok(SparseScratch {
+            a: crate::memory::try_zeroed(pixels * 3, "a denoiser window's layer")?,
+            b: crate::memory::try_zeroed(pixels * 3, "a denoiser window's layer")?,
+            result_in_b: false,
+        })
+    }
+
+    /// Where the layer to filter is put (zero outside the tiles it reaches).
+    pub fn input(&mut self) -> &mut [f32] {
+        &mut self.a
+    }
+
+    /// The filtered layer after [`EyeFeatures::filter_sparse`] (the input if it had no step).
+    pub fn output(&self) -> &[f32] {
+        if self.result_in_b {
+            &self.b
+        } else {
+            &self.a
+        }
+    }
+
+    /// Zeroes the `tiles` of both buffers (the tiles a layer reached) for the next layer.
+    pub fn clear(&mut self, region: &SparseTiles, width: usize, height: usize) {
+        let tiles: Vec<(usize, usize)> = region
+            .reach
+            .iter()
+            .enumerate()
+            .filter(|(_, r)| **r)
+            .map(|(i, _)| (i % region.tiles_x, i / region.tiles_x))
+            .collect();
+        for buf in [&mut self.a, &mut self.b] {
+            for_each_pixel(&tiles, region.tile, width, &(0..height), |p| {
+                buf[p * 3..p * 3 + 3].fill(0.0);
+            });
+        }
+        self.result_in_b = false;
     }
 }
 
@@ -386,6 +573,65 @@ mod tests {
         for p in 0..w * h {
             if p != 0 && p != w + 1 {
                 assert!((l.data[p] - 1.0).abs() < 1e-5, "pixel {p}: {}", l.data[p]);
+            }
+        }
+    }
+
+    /// A layer non-zero on a few 8-px tiles of a 40×30 window, filtered sparsely for some
+    /// wanted rows, equals the whole-window filter on those rows bit for bit.
+    #[test]
+    fn the_sparse_filter_gives_the_whole_filter_on_the_wanted_rows() {
+        let (w, h, tile) = (40, 30, 8);
+        let f = two_walls(w, h);
+        let (tx, ty) = (w.div_ceil(tile), h.div_ceil(tile));
+        let present = [(0, 1), (2, 2), (4, 0), (3, 3)];
+        let mut data = vec![0.0f32; w * h * 3];
+        for &(cx, cy) in &present {
+            for y in cy * tile..((cy + 1) * tile).min(h) {
+                for x in cx * tile..((cx + 1) * tile).min(w) {
+                    for c in 0..3 {
+                        data[(y * w + x) * 3 + c] = noise((y * w + x) * 3 + c) + c as f32;
+                    }
+                }
+            }
+        }
+        for iterations in 1..=3u32 {
+            let grow = footprint_radius(iterations).div_ceil(tile);
+            let mut reach = vec![false; tx * ty];
+            for &(cx, cy) in &present {
+                for y in cy.saturating_sub(grow)..(cy + grow + 1).min(ty) {
+                    for x in cx.saturating_sub(grow)..(cx + grow + 1).min(tx) {
+                        reach[y * tx + x] = true;
+                    }
+                }
+            }
+            let mut whole = layer(data.clone(), 3);
+            let all = f.weights_for(iterations);
+            f.filter_one(&all, &mut whole);
+            let mut scratch = SparseScratch::new(w * h).unwrap();
+            for wanted in [6..14, 0..30, 22..30] {
+                let region = SparseTiles {
+                    reach: &reach,
+                    tiles_x: tx,
+                    tile,
+                    rows: wanted.clone(),
+                };
+                scratch.input().copy_from_slice(&data);
+                f.filter_sparse(
+                    &f.weights_for_rows(iterations, wanted.clone()),
+                    &mut scratch,
+                    &region,
+                );
+                let got = &scratch.output()[wanted.start * w * 3..wanted.end * w * 3];
+                let want = &whole.data[wanted.start * w * 3..wanted.end * w * 3];
+                assert!(want.iter().any(|v| *v != 0.0));
+                for (i, (a, b)) in got.iter().zip(want).enumerate() {
+                    assert_eq!(a.to_bits(), b.to_bits(), "{iterations} steps, rows {wanted:?}, value {i}");
+                }
+                // Clearing leaves the scratch zero for the next layer.
+                scratch.clear(&region, w, h);
+                assert!(scratch.input().iter().all(|v| *v == 0.0));
+                assert!(scratch.output().iter().all(|v| *v == 0.0));
             }
         }
     }
