@@ -323,17 +323,14 @@ impl EyeFeatures {
         const C: usize = 3;
         let iterations = weights.steps.len() as u32;
         scratch.result_in_b = false;
-        let tiles: Vec<(usize, usize)> = region
-            .reach
-            .iter()
-            .enumerate()
-            .filter(|(_, r)| **r)
-            .map(|(i, _)| (i % region.tiles_x, i / region.tiles_x))
-            .collect();
         for (k, w) in weights.steps.iter().enumerate() {
             let step = 1usize << k;
             let rows = step_rows(&region.rows, k as u32, iterations, self.height);
             let read = rows.start.saturating_sub(2 * step)..(rows.end + 2 * step).min(self.height);
+            // Where the layer can be non-zero after this step: within the reach of the
+            // steps so far (2·step each) of the tiles it is present on.
+            let rects =
+                region.reached_rects(footprint_radius(k as u32 + 1), self.width, self.height);
             let (src, out) = if scratch.result_in_b {
                 (&scratch.b, &mut scratch.a)
             } else {
@@ -342,31 +339,34 @@ impl EyeFeatures {
             // Regions the layer is non-zero on among the pixels this step reads (weights
             // never cross regions, so the others' pixels keep their value).
             let mut live = vec![false; self.region_count];
-            for_each_pixel(&tiles, region.tile, self.width, &read, |p| {
+            for_each_pixel(&rects, self.width, &read, |p| {
                 if let Some(r) = self.region[p] {
                     if !live[r as usize] && src[p * C..p * C + C].iter().any(|v| *v != 0.0) {
                         live[r as usize] = true;
                     }
                 }
             });
-            for_each_pixel(&tiles, region.tile, self.width, &rows, |p| {
+            // The taps' offsets in the buffer, in the order the weights list them.
+            let offsets: [isize; 25] = std::array::from_fn(|t| {
+                ((t as isize / 5 - 2) * self.width as isize + (t as isize % 5 - 2)) * step as isize
+            });
+            for_each_pixel(&rects, self.width, &rows, |p| {
                 let wp = &w[p];
                 if wp[12] == 0.0 || !self.region[p].is_some_and(|r| live[r as usize]) {
                     out[p * C..p * C + C].copy_from_slice(&src[p * C..p * C + C]);
                     return;
                 }
-                let (x, y) = ((p % self.width) as isize, (p / self.width) as isize);
                 let mut acc = [0.0f32; C];
-                for (t, &wt) in wp.iter().enumerate() {
+                for (&wt, &offset) in wp.iter().zip(&offsets) {
                     if wt == 0.0 {
                         continue;
                     }
-                    let qx = x + (t as isize % 5 - 2) * step as isize;
-                    let qy = y + (t as isize / 5 - 2) * step as isize;
-                    let q = qy as usize * self.width + qx as usize;
-                    for (a, v) in acc.iter_mut().zip(&src[q * C..q * C + C]) {
-                        *a += wt * v;
-                    }
+                    // A tap with a weight lies inside the window.
+                    let q = (p as isize + offset) as usize * C;
+                    let v = &src[q..q + C];
+                    acc[0] += wt * v[0];
+                    acc[1] += wt * v[1];
+                    acc[2] += wt * v[2];
                 }
                 out[p * C..p * C + C].copy_from_slice(&acc);
             });
@@ -375,21 +375,25 @@ impl EyeFeatures {
     }
 }
 
-/// Calls `f` with every pixel index of the `tiles` (column, row; `tile` pixels square,
-/// cut by the frame's width) on the pixel rows `rows`.
+/// A rectangle of pixels: columns `x0..x1`, rows `y0..y1`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PixelRect {
+    x0: usize,
+    x1: usize,
+    y0: usize,
+    y1: usize,
+}
+
+/// Calls `f` with every pixel index of the `rects` on the pixel rows `rows`.
 fn for_each_pixel(
-    tiles: &[(usize, usize)],
-    tile: usize,
+    rects: &[PixelRect],
     width: usize,
     rows: &Range<usize>,
     mut f: impl FnMut(usize),
 ) {
-    for &(tx, ty) in tiles {
-        let y0 = (ty * tile).max(rows.start);
-        let y1 = ((ty + 1) * tile).min(rows.end);
-        let x1 = ((tx + 1) * tile).min(width);
-        for y in y0..y1 {
-            for x in tx * tile..x1 {
+    for r in rects {
+        for y in r.y0.max(rows.start)..r.y1.min(rows.end) {
+            for x in r.x0..r.x1 {
                 f(y * width + x);
             }
         }
@@ -407,13 +411,66 @@ pub fn step_rows(wanted: &Range<usize>, k: u32, iterations: u32, height: usize) 
 /// Where one layer may be non-zero on a window once filtered, and which rows are wanted
 /// ([`EyeFeatures::filter_sparse`]).
 pub struct SparseTiles<'a> {
-    /// Per tile of the window, row-major: whether the layer may be non-zero there.
+    /// Per tile of the window, row-major: whether the layer is non-zero there (it is zero
+    /// on every other tile).
+    pub present: &'a [bool],
+    /// Per tile of the window, row-major: whether the layer may be non-zero there once
+    /// filtered (the present tiles and those within the filter's footprint of them).
     pub reach: &'a [bool],
     pub tiles_x: usize,
     /// Tile side in pixels (the last column and row cut by the window's edges).
     pub tile: usize,
     /// The window's pixel rows whose filtered values are wanted.
     pub rows: Range<usize>,
+}
+
+impl SparseTiles<'_> {
+    /// Per reached tile, the pixels within `radius` of a present tile (the bounding box of
+    /// that part of the tile): a superset of where the layer can be non-zero once filtered
+    /// with a footprint of `radius`, growing with it.
+    fn reached_rects(&self, radius: usize, width: usize, height: usize) -> Vec<PixelRect> {
+        let t = self.tile;
+        let tiles_y = self.reach.len() / self.tiles_x.max(1);
+        let grow = radius.div_ceil(t);
+        let mut rects = Vec::new();
+        for (i, _) in self.reach.iter().enumerate().filter(|(_, r)| **r) {
+            let (cx, cy) = (i % self.tiles_x, i / self.tiles_x);
+            let tile = PixelRect {
+                x0: cx * t,
+                x1: ((cx + 1) * t).min(width),
+                y0: cy * t,
+                y1: ((cy + 1) * t).min(height),
+            };
+            let mut bbox: Option<PixelRect> = None;
+            for py in cy.saturating_sub(grow)..(cy + grow + 1).min(tiles_y) {
+                for px in cx.saturating_sub(grow)..(cx + grow + 1).min(self.tiles_x) {
+                    if !self.present[py * self.tiles_x + px] {
+                        continue;
+                    }
+                    let near = PixelRect {
+                        x0: (px * t).saturating_sub(radius).max(tile.x0),
+                        x1: ((px + 1) * t + radius).min(tile.x1),
+                        y0: (py * t).saturating_sub(radius).max(tile.y0),
+                        y1: ((py + 1) * t + radius).min(tile.y1),
+                    };
+                    if near.x0 >= near.x1 || near.y0 >= near.y1 {
+                        continue;
+                    }
+                    bbox = Some(match bbox {
+                        None => near,
+                        Some(b) => PixelRect {
+                            x0: b.x0.min(near.x0),
+                            x1: b.x1.max(near.x1),
+                            y0: b.y0.min(near.y0),
+                            y1: b.y1.max(near.y1),
+                        },
+                    });
+                }
+            }
+            rects.extend(bbox);
+        }
+        rects
+    }
 }
 
 /// Two 3-channel window-sized buffers that [`EyeFeatures::filter_sparse`] steps between,
@@ -452,17 +509,28 @@ impl SparseScratch {
 
     /// Zeroes the `tiles` of both buffers (the tiles a layer reached) for the next layer.
     pub fn clear(&mut self, region: &SparseTiles, width: usize, height: usize) {
-        let tiles: Vec<(usize, usize)> = region
+        let t = region.tile;
+        let tiles: Vec<PixelRect> = region
             .reach
             .iter()
             .enumerate()
             .filter(|(_, r)| **r)
-            .map(|(i, _)| (i % region.tiles_x, i / region.tiles_x))
+            .map(|(i, _)| {
+                let (cx, cy) = (i % region.tiles_x, i / region.tiles_x);
+                PixelRect {
+                    x0: cx * t,
+                    x1: ((cx + 1) * t).min(width),
+                    y0: cy * t,
+                    y1: ((cy + 1) * t).min(height),
+                }
+            })
             .collect();
         for buf in [&mut self.a, &mut self.b] {
-            for_each_pixel(&tiles, region.tile, width, &(0..height), |p| {
-                buf[p * 3..p * 3 + 3].fill(0.0);
-            });
+            for r in &tiles {
+                for y in r.y0..r.y1 {
+                    buf[(y * width + r.x0) * 3..(y * width + r.x1) * 3].fill(0.0);
+                }
+            }
         }
         self.result_in_b = false;
     }
@@ -598,6 +666,10 @@ mod tests {
         for iterations in 1..=3u32 {
             let grow = footprint_radius(iterations).div_ceil(tile);
             let mut reach = vec![false; tx * ty];
+            let mut present_mask = vec![false; tx * ty];
+            for &(cx, cy) in &present {
+                present_mask[cy * tx + cx] = true;
+            }
             for &(cx, cy) in &present {
                 for y in cy.saturating_sub(grow)..(cy + grow + 1).min(ty) {
                     for x in cx.saturating_sub(grow)..(cx + grow + 1).min(tx) {
@@ -611,6 +683,7 @@ mod tests {
             let mut scratch = SparseScratch::new(w * h).unwrap();
             for wanted in [6..14, 0..30, 22..30] {
                 let region = SparseTiles {
+                    present: &present_mask,
                     reach: &reach,
                     tiles_x: tx,
                     tile,
@@ -626,7 +699,11 @@ mod tests {
                 let want = &whole.data[wanted.start * w * 3..wanted.end * w * 3];
                 assert!(want.iter().any(|v| *v != 0.0));
                 for (i, (a, b)) in got.iter().zip(want).enumerate() {
-                    assert_eq!(a.to_bits(), b.to_bits(), "{iterations} steps, rows {wanted:?}, value {i}");
+                    assert_eq!(
+                        a.to_bits(),
+                        b.to_bits(),
+                        "{iterations} steps, rows {wanted:?}, value {i}"
+                    );
                 }
                 // Clearing leaves the scratch zero for the next layer.
                 scratch.clear(&region, w, h);

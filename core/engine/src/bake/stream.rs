@@ -18,9 +18,7 @@ use std::time::Instant;
 use super::assemble::stack_header;
 use super::band::apron_rows;
 use super::context::BakeContext;
-use super::denoise::{
-    footprint_radius, EyeFeatures, SparseScratch, SparseTiles, FEATURE_STRIDE,
-};
+use super::denoise::{footprint_radius, EyeFeatures, SparseScratch, SparseTiles, FEATURE_STRIDE};
 use super::finalise::{
     builder_for, finalise_tile, finish_stack, layer_weights, Finished, LayerFacts, StackTally,
     TileInput, TileTally,
@@ -360,9 +358,8 @@ impl Window<'_> {
         let filter_start = Instant::now();
         let (features, direct, bounce) = if filtered {
             let f = pool.install(|| self.features());
-            let weights = |iterations| {
-                pool.install(|| f.weights_for_rows(iterations, wanted.clone()))
-            };
+            let weights =
+                |iterations| pool.install(|| f.weights_for_rows(iterations, wanted.clone()));
             let d = weights(self.settings.denoise.direct_iterations);
             let b = weights(self.settings.denoise.bounce_iterations);
             (Some(f), Some(d), Some(b))
@@ -407,7 +404,9 @@ impl Window<'_> {
                         let grow = footprint_radius(iterations).div_ceil(TILE as usize);
                         let rows = self.hi + 1 - self.lo;
                         let mut reach = vec![false; window_tiles];
+                        let mut on = vec![false; window_tiles];
                         for &(at, _) in tiles.iter() {
+                            on[at] = true;
                             let (cx, cy) = (at % tx, at / tx);
                             for y in cy.saturating_sub(grow)..(cy + grow + 1).min(rows) {
                                 for x in cx.saturating_sub(grow)..(cx + grow + 1).min(tx) {
@@ -432,14 +431,14 @@ impl Window<'_> {
                         for &(at, data) in tiles.iter() {
                             let rect = tile_in_window(at, tx, self.width, h);
                             for py in 0..rect.height as usize {
-                                let dst = ((rect.y0 as usize + py) * self.width
-                                    + rect.x0 as usize)
-                                    * 3;
+                                let dst =
+                                    ((rect.y0 as usize + py) * self.width + rect.x0 as usize) * 3;
                                 let n = rect.width as usize * 3;
                                 input[dst..dst + n].copy_from_slice(&data[py * n..(py + 1) * n]);
                             }
                         }
                         let region = SparseTiles {
+                            present: &on,
                             reach: &reach,
                             tiles_x: tx,
                             tile: TILE as usize,

@@ -1,7 +1,9 @@
 //! The tiled stack as one OpenEXR file: stack format version
 //! [`STACK_FORMAT_VERSION_TILED`].
 //!
-//! Layout (three parts, scanlines, ZIP, written atomically like the dense file):
+//! Layout (three parts, scanlines, ZIP16 by default — [`StackCompression`] —, written
+//! atomically like the dense file; each chunk is made from the stack when the compressor,
+//! which works on several chunks at once, asks for it, so writing holds the stack once):
 //! - part `tiles`: one pixel per stack tile (`tiles_x × tiles_y`), channel `entries` (u32):
 //!   how many layers the tile holds — a map of the stack's sparsity that any EXR viewer
 //!   shows. It carries the Relume attributes, named as in the dense file
@@ -131,16 +133,13 @@ fn part_header(
         })
         .collect();
     list.sort_by(|a, b| a.name.cmp(&b.name));
-    let mut header = exr::meta::header::Header::new(
-        x::Text::from(name),
-        size,
-        list.into_iter().collect(),
-    )
-    .with_encoding(
-        compression.exr(),
-        exr::meta::BlockDescription::ScanLines,
-        x::LineOrder::Increasing,
-    );
+    let mut header =
+        exr::meta::header::Header::new(x::Text::from(name), size, list.into_iter().collect())
+            .with_encoding(
+                compression.exr(),
+                exr::meta::BlockDescription::ScanLines,
+                x::LineOrder::Increasing,
+            );
     header.own_attributes = x::LayerAttributes {
         layer_name: Some(x::Text::from(name)),
         software_name: Some(x::Text::from_slice_unchecked(
@@ -190,7 +189,10 @@ impl<'a> ValueSequence<'a> {
             while self.starts[tile + 1] <= at {
                 tile += 1;
             }
-            let (lo, hi) = (at - self.starts[tile], end.min(self.starts[tile + 1]) - self.starts[tile]);
+            let (lo, hi) = (
+                at - self.starts[tile],
+                end.min(self.starts[tile + 1]) - self.starts[tile],
+            );
             match (&self.tiles[tile].values, precision) {
                 (TileValues::F16(v), Precision::F16) => {
                     out.extend(v[lo..hi].iter().flat_map(|h| h.to_bits().to_ne_bytes()))
@@ -378,7 +380,12 @@ fn encode(
                 lines,
                 &mut out,
             ),
-            _ => values.append(y * value_size.0, lines * value_size.0, h.precision, &mut out),
+            _ => values.append(
+                y * value_size.0,
+                lines * value_size.0,
+                h.precision,
+                &mut out,
+            ),
         }
         out
     };
