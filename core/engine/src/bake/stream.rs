@@ -99,11 +99,17 @@ fn trace_sparse(
     let inv_spp = 1.0 / spp as f32;
     let mut layers = Vec::new();
     let mut coloured = Vec::new();
-    for layer in 0..layer_count {
-        let texel = |p: usize| &buf[p * record + layer * 3..p * record + layer * 3 + 3];
-        if (0..tp).all(|p| texel(p) == [0.0; 3]) {
-            continue;
+    // Which layers are non-zero somewhere in the tile, in one pass over the records in
+    // memory order (a layer's texels lie a whole record apart).
+    let mut non_zero = vec![false; layer_count];
+    for p in 0..tp {
+        let texels = &buf[p * record..p * record + layer_count * 3];
+        for (seen, texel) in non_zero.iter_mut().zip(texels.chunks_exact(3)) {
+            *seen |= texel.iter().any(|v| *v != 0.0);
         }
+    }
+    for layer in (0..layer_count).filter(|l| non_zero[*l]) {
+        let texel = |p: usize| &buf[p * record + layer * 3..p * record + layer * 3 + 3];
         let mut data = crate::memory::try_with_capacity(tp * 3, "a tile's layer averages")?;
         for p in 0..tp {
             data.extend(texel(p).iter().map(|v| v * inv_spp));
