@@ -10,7 +10,9 @@
 //! ([`super::band`]; `apron · 16` ≥ that radius), whose cut edges are treated like the image's: the row's output is then exactly what the
 //! whole-frame filter gives (errors from a cut edge travel at most the radius inwards), so
 //! this bake makes the same stack, bit for bit, as the dense path that filters full frames
-//! (a progressive bake's, a farm merge's).
+//! (a progressive bake's, a farm merge's). Each layer is filtered only on the tiles it is
+//! present on plus the footprint, and only on the rows the finalised tiles need, so the
+//! filter's work follows the tile entries rather than layers × window.
 
 use rayon::prelude::*;
 use std::time::Instant;
@@ -206,8 +208,9 @@ pub(crate) fn bake_streaming(
             peak = peak.max(tally.stored_bytes() + held_rows);
             continue;
         }
-        // Every row whose window is traced is finalised on one window: the filter runs over
-        // the apron rows once per band, not once per row.
+        // Every row whose window is traced is finalised on one window, each layer filtered
+        // only where it can be non-zero and on the rows these need
+        // ([`EyeFeatures::filter_sparse`]).
         let last = if traced == ty {
             ty - 1
         } else {
