@@ -2,7 +2,9 @@
 cell (the eight-material Cornell scene of scripts/make_cornell8.py, the draft preset's
 samples at the cell's full resolution, one bounce), then `relume bench relight` on the stack
 it made. Prints one JSON object per cell: the forecast, peak memory (RSS growth over the
-bake) and its ratio to the stored stack, bake time, tile entries, stack bytes (stored, as the
+bake) and its ratio to the stored stack and to the forecast, whether it is within issue 14's
+bound (2 × the stack + 500 MB), bake time with its per-layer part (assembly, denoising)
+and the write, the per-layer share of bake + write, tile entries, stack bytes (stored, as the
 dense layout would hold them, and on disk), full relight time, its ratio to
 the machine's memory-bandwidth bound — or, for a cell over the memory budget, the refusal
 and the forecast that caused it (no bake then). Run it on a quiet machine.
@@ -24,12 +26,13 @@ DRAFT_SAMPLES = ["--spp", "4", "--light-samples", "2", "--indirect-samples", "2"
                  "--tolerance", "0.05", "--denoise-bounce", "2", "--bounces", "1"]
 
 
-def cell(relume: str, tmp: pathlib.Path, res: str, k: int) -> dict:
+def cell(relume: str, tmp: pathlib.Path, res: str, k: int, threads: str = "0") -> dict:
     scene = tmp / f"cornell8-{res}-k{k}.scene.json"
     subprocess.run([sys.executable, str(ROOT / "scripts" / "make_cornell8.py"), "--editable", str(k),
                     "--resolution", res, "--out", str(scene)], check=True, stdout=subprocess.DEVNULL)
     stack = tmp / "grid.exr"
-    out = subprocess.run([relume, "bake", str(scene), "-o", str(stack), "--json", *DRAFT_SAMPLES],
+    out = subprocess.run([relume, "bake", str(scene), "-o", str(stack), "--json", "--threads", threads,
+                          *DRAFT_SAMPLES],
                          capture_output=True, text=True)
     row: dict = {"resolution": res, "editable": k}
     if out.returncode != 0:
@@ -48,7 +51,15 @@ def cell(relume: str, tmp: pathlib.Path, res: str, k: int) -> dict:
         "peak_rss_gib": round((j["peak_rss_bytes"] - j["rss_before_bake_bytes"]) / 2**30, 2),
         "bake_s": round(r["seconds"], 1),
         "assembly_s": round(r["assembly_seconds"], 1),
+        "denoise_s": round(r["denoise_seconds"], 1),
         "write_s": round(j["write_seconds"], 1),
+        # Per-layer work (assembly with the denoiser, and the write) over bake + write.
+        "per_layer_share": round((r["assembly_seconds"] + j["write_seconds"])
+                                 / max(r["seconds"] + j["write_seconds"], 1e-9), 3),
+        "forecast_over_peak": round(r["estimate"]["peak_bytes"]
+                                    / max(j["peak_rss_bytes"] - j["rss_before_bake_bytes"], 1), 2),
+        "peak_within_bound": (j["peak_rss_bytes"] - j["rss_before_bake_bytes"])
+        <= 2 * r.get("stored_bytes", r["sample_bytes"]) + 500e6,
         "tile_entries": r.get("tile_entries"),
         "stack_stored_mb": round(r.get("stored_bytes", r["sample_bytes"]) / 1e6, 1),
         "stack_dense_equivalent_mb": round(r.get("dense_bytes", r["sample_bytes"]) / 1e6, 1),
@@ -75,11 +86,12 @@ def main() -> None:
     ap.add_argument("--relume", default=str(ROOT / "target" / "release" / "relume"))
     ap.add_argument("--resolutions", default="512x512,1024x1024,1920x1080")
     ap.add_argument("--editable", default="1,2,4,8")
+    ap.add_argument("--threads", default="0", help="bake threads (0: all cores)")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         for res in args.resolutions.split(","):
             for k in (int(v) for v in args.editable.split(",")):
-                print(json.dumps(cell(args.relume, pathlib.Path(tmp), res, k)), flush=True)
+                print(json.dumps(cell(args.relume, pathlib.Path(tmp), res, k, args.threads)), flush=True)
 
 
 if __name__ == "__main__":

@@ -117,6 +117,41 @@ fn f32_streaming_is_bit_identical_to_the_dense_path_for_any_band_and_threads() {
     }
 }
 
+/// On a frame several tiles wide a layer covers only some tiles of a window (the sphere's
+/// and the walls' pair layers): the denoiser filters only those tiles and the rows the
+/// finalised ones need, and must still give the dense path's stack bit for bit.
+#[test]
+fn f32_streaming_filters_only_what_the_layers_cover_and_still_matches_the_dense_path() {
+    let scene = common::cornell(112);
+    for bounce in [2, 3] {
+        let s = BakeSettings {
+            resolution: Some(Resolution {
+                width: 112,
+                height: 72,
+            }),
+            spp: 2,
+            ..settings(Precision::F32, bounce)
+        };
+        let reference = dense(&scene, &s);
+        for (band, threads) in [(1, 2), (3, 1)] {
+            let s = BakeSettings {
+                threads,
+                ..s.clone()
+            };
+            let (streamed, report) =
+                bake_tiled_banded(&scene, &s, Some(band), &Progress::new()).unwrap();
+            assert_same_bits(
+                &streamed,
+                &reference,
+                &format!("112×72, bounce iterations {bounce}, band {band}, threads {threads}"),
+            );
+            // Some layer is absent from some tile: the sparse path was taken.
+            assert!(report.tile_entries < streamed.layers.len() * streamed.tile_count());
+            assert!(report.denoise_seconds <= report.assembly_seconds);
+        }
+    }
+}
+
 #[test]
 fn f16_streaming_is_within_quantisation_of_the_f32_layers() {
     let scene = scene();

@@ -5,7 +5,10 @@
 //! A one-pass bake streams ([`super::stream`]): its memory is the tiled stack it builds
 //! (per 16×16 tile only the layers non-zero there) plus the tile rows in flight, so the
 //! forecast needs how many (tile, layer) pairs are non-zero: the probe counts them in the
-//! tiles it visits. A progressive bake (several passes) and a farm partition keep one
+//! tiles it visits, and since a few probe pixels per tile miss layers there, it also
+//! counts per tile the layers its eye regions (and its neighbours') reached anywhere
+//! ([`region_model_pairs`]) and keeps the larger count. Writing holds the stack, the entry
+//! tables and the chunks in flight (the writer makes each chunk from the stack). A progressive bake (several passes) and a farm partition keep one
 //! full-frame f32 RGB accumulator per layer any path reaches (see [`crate::bake`]), so
 //! their memory is ≈ 12 bytes × reached layers × pixels. Which layers are reached depends
 //! on what the camera sees: the layers *possible* (world + slots + slot
@@ -101,6 +104,10 @@ struct ProbeSink<'a> {
     reached: &'a mut [bool],
     rgb: &'a mut [bool],
     layout: super::layout::DenseLayout,
+    /// The eye regions the pixel's samples hit (the last entry: a sample that hit none).
+    eye_regions: &'a mut [bool],
+    /// Whether the current sample hit a region.
+    hit: bool,
 }
 
 impl ProbeSink<'_> {
@@ -124,7 +131,11 @@ impl PathSink for ProbeSink<'_> {
     fn bounce(&mut self, group: usize, eye: u32, bounce: u32, v: Rgb) {
         self.add(self.layout.bounce(group, eye, bounce), v);
     }
-    fn eye_hit(&mut self, _region: u32, _normal: glam::Vec3, _position: glam::Vec3) {}
+    fn eye_hit(&mut self, region: u32, _normal: glam::Vec3, _position: glam::Vec3) {
+        let last = self.eye_regions.len() - 1;
+        self.eye_regions[(region as usize).min(last)] = true;
+        self.hit = true;
+    }
 }
 
 /// What one probe row found: per layer the probe pixels that reached it and whether it
@@ -135,6 +146,10 @@ struct ProbeRow {
     pixels: u64,
     tile_row: u32,
     tiles: std::collections::BTreeMap<u32, Vec<bool>>,
+    /// Per tile it crossed, the eye regions its pixels hit.
+    tile_regions: std::collections::BTreeMap<u32, Vec<bool>>,
+    /// Per eye region, the layers reached by its pixels.
+    region_layers: Vec<Vec<bool>>,
 }
 
 /// The inputs of [`streaming_peak`].
@@ -167,18 +182,86 @@ fn streaming_peak(ctx: &BakeContext, c: &StreamingCosts) -> (u64, u64) {
     let traced = rows_held * tiles_x * per_tile_traced;
     let window_px = res.width as u64 * ((2 * apron + band) * super::tiles::TILE as u64);
     let window = if apron > 0 {
-        // Each worker's layer window, the weights of both filters, the window's features
-        // (and their records while built).
-        c.threads * window_px * 12 + window_px * (2 * 25 * 4 + 64)
+        // Each worker's two scratch windows, the weights of every filter step, the
+        // window's features (and their records while built).
+        let steps = (ctx.settings.denoise.direct_iterations
+            + ctx.settings.denoise.bounce_iterations) as u64;
+        c.threads * window_px * 2 * 12 + window_px * (steps * 25 * 4 + 36 + 36)
     } else {
         0
     };
     // The row being stored: its layers in f32 RGB on their way to the builder.
     let row_out = band * tiles_x * c.entries.div_ceil(c.tiles.max(1)) * tile_px * 12;
     let tracing = stack + traced + c.tile_buffers + window + row_out;
-    let write = stack * 2;
-    (stack, c.geometry + tracing.max(write))
+    // Writing: the stack, the entry tables as the file's columns (four u32 per entry) and
+    // the chunks in flight (the writer makes each from the stack when it is compressed).
+    let write = stack + 16 * c.entries + WRITE_CHUNK_ALLOWANCE * (c.threads + 2);
+    // The bake's workers and the writer's compressor threads (one per core, whatever the
+    // bake's thread count) each hold a stack and allocator state.
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as u64;
+    let thread_overhead = THREAD_ALLOWANCE * (c.threads + cores);
+    (stack, c.geometry + thread_overhead + tracing.max(write))
 }
+
+/// The (tile, layer) pairs of the visited tiles by the region model, and how many of them
+/// carry colour: a tile holds every layer reached from each eye region seen in it or in
+/// the tiles around it. At a few probe pixels per tile (1920×1080: about two) the probe's
+/// own pairs miss the layers and regions its pixels did not land on; a pixel only holds
+/// layers whose eye vertex is its own region, and those are what the probe found for the
+/// region anywhere in the frame. An over-estimate by construction (a layer reached
+/// somewhere on a region need not reach all of it, the neighbouring tiles' regions count
+/// for the tile whose edge they cross, and a layer reached from two regions seen in a
+/// tile counts twice), so the forecast errs towards refusing.
+fn region_model_pairs(
+    tile_regions: &std::collections::BTreeMap<(u32, u32), Vec<bool>>,
+    region_layers: &[Vec<bool>],
+    rgb: &[bool],
+) -> (u64, u64) {
+    let per_region: Vec<(u64, u64)> = region_layers
+        .iter()
+        .map(|set| {
+            set.iter()
+                .zip(rgb)
+                .filter(|(r, _)| **r)
+                .fold((0, 0), |(n, c), (_, rgb)| (n + 1, c + u64::from(*rgb)))
+        })
+        .collect();
+    let (mut pairs, mut pairs_rgb) = (0u64, 0u64);
+    let mut seen = vec![false; region_layers.len()];
+    for &(ty, tx) in tile_regions.keys() {
+        seen.fill(false);
+        for dy in -1i64..=1 {
+            for dx in -1i64..=1 {
+                let (y, x) = (ty as i64 + dy, tx as i64 + dx);
+                if y < 0 || x < 0 {
+                    continue;
+                }
+                if let Some(set) = tile_regions.get(&(y as u32, x as u32)) {
+                    for (a, b) in seen.iter_mut().zip(set) {
+                        *a |= *b;
+                    }
+                }
+            }
+        }
+        for (region, (n, c)) in per_region.iter().enumerate() {
+            if seen[region] {
+                pairs += n;
+                pairs_rgb += c;
+            }
+        }
+    }
+    (pairs, pairs_rgb)
+}
+
+/// Resident bytes allowed per thread for its stack and allocator state: an approximation
+/// (a thread's default stack size), set when the forecast without it fell a few per cent
+/// short of the measured peak of a small bake on many threads (docs/scale.md).
+const THREAD_ALLOWANCE: u64 = 2 << 20;
+
+/// Bytes one chunk in flight takes while written: a 16-line block of the widest part
+/// (4 096 pixels × 4 channels × 4 bytes) uncompressed, in the compressor's working copies
+/// and compressed.
+const WRITE_CHUNK_ALLOWANCE: u64 = 4 * 16 * 4096 * 16;
 
 /// Bytes the scene's geometry and BVH take once prepared (positions, normals, UVs,
 /// triangles and the BVH's nodes): a per-triangle allowance.
@@ -225,6 +308,8 @@ fn estimate_path(
     // Offset by half a stride so the grid samples the frame's inside, not its edge.
     let rows: Vec<u32> = (stride / 2..res.height).step_by(stride as usize).collect();
     let tile = super::tiles::TILE;
+    // Eye regions, and one more for samples that hit none (the world).
+    let regions = ctx.regions.len() + 1;
     let per_row: Vec<ProbeRow> = rows
         .par_iter()
         .map(|&y| {
@@ -232,14 +317,20 @@ fn estimate_path(
             let mut reached = vec![false; layers];
             let mut rgb = vec![false; layers];
             let mut tiles: std::collections::BTreeMap<u32, Vec<bool>> = Default::default();
+            let mut tile_regions: std::collections::BTreeMap<u32, Vec<bool>> = Default::default();
+            let mut region_layers = vec![vec![false; layers]; regions];
+            let mut eye_regions = vec![false; regions];
             let mut tracer = CountingTracer::default();
             let mut n = 0;
             for x in (stride / 2..res.width).step_by(stride as usize) {
                 reached.fill(false);
+                eye_regions.fill(false);
                 let mut sink = ProbeSink {
                     reached: &mut reached,
                     rgb: &mut rgb,
                     layout: super::layout::DenseLayout::of(ctx),
+                    eye_regions: &mut eye_regions,
+                    hit: false,
                 };
                 // Pixels take turns through the first samples of the sequence: a layer that
                 // only some strata of the stratified numbers reach is still seen.
@@ -247,7 +338,11 @@ fn estimate_path(
                 for k in 0..PROBE_SAMPLES {
                     let sample =
                         ((cell * PROBE_SAMPLES as u64 + k as u64) % PROBE_SAMPLE_SPAN) as u32;
+                    sink.hit = false;
                     trace_eye_sample(ctx, &brdf, &mut sink, &mut tracer, x, y, sample);
+                    if !sink.hit {
+                        sink.eye_regions[regions - 1] = true;
+                    }
                 }
                 for (c, r) in counts.iter_mut().zip(&reached) {
                     *c += u32::from(*r);
@@ -255,6 +350,17 @@ fn estimate_path(
                 let in_tile = tiles.entry(x / tile).or_insert_with(|| vec![false; layers]);
                 for (t, r) in in_tile.iter_mut().zip(&reached) {
                     *t |= *r;
+                }
+                let seen = tile_regions
+                    .entry(x / tile)
+                    .or_insert_with(|| vec![false; regions]);
+                for (region, hit) in eye_regions.iter().enumerate() {
+                    if *hit {
+                        seen[region] = true;
+                        for (a, r) in region_layers[region].iter_mut().zip(&reached) {
+                            *a |= *r;
+                        }
+                    }
                 }
                 n += 1;
             }
@@ -264,13 +370,30 @@ fn estimate_path(
                 pixels: n,
                 tile_row: y / tile,
                 tiles,
+                tile_regions,
+                region_layers,
             }
         })
         .collect();
     let mut probe_pixels = 0u64;
     // The (tile, layer) pairs reached in each tile the probe visited.
     let mut tile_sets: std::collections::BTreeMap<(u32, u32), Vec<bool>> = Default::default();
+    let mut tile_regions: std::collections::BTreeMap<(u32, u32), Vec<bool>> = Default::default();
+    let mut region_layers = vec![vec![false; layers]; regions];
     for row in per_row {
+        for (tx, seen) in row.tile_regions {
+            let all = tile_regions
+                .entry((row.tile_row, tx))
+                .or_insert_with(|| vec![false; regions]);
+            for (a, b) in all.iter_mut().zip(seen) {
+                *a |= b;
+            }
+        }
+        for (all, got) in region_layers.iter_mut().zip(row.region_layers) {
+            for (a, b) in all.iter_mut().zip(got) {
+                *a |= b;
+            }
+        }
         probe_pixels += row.pixels;
         for (a, b) in counts.iter_mut().zip(row.counts) {
             *a += b;
@@ -296,6 +419,8 @@ fn estimate_path(
             }
         }
     }
+    let (region_pairs, region_pairs_rgb) = region_model_pairs(&tile_regions, &region_layers, &rgb);
+    let (pairs, pairs_rgb) = (pairs.max(region_pairs), pairs_rgb.max(region_pairs_rgb));
     let all_tiles = super::tiles::tiles(res).len() as u64;
     let visited = tile_sets.len().max(1) as u64;
     let tile_entries = (pairs * all_tiles).div_ceil(visited);
@@ -441,4 +566,42 @@ pub fn prepare_measured(
         _ => None,
     };
     Ok((ctx, report, grown))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Three tiles in a row: region 0 seen in the first two, region 1 in the last two.
+    /// Region 0's pixels reached layers 0 and 1 (1 in colour), region 1's layer 2. Every
+    /// tile then counts both regions (its own and its neighbours'), and the count is at
+    /// least what the probe's own per-tile sets hold.
+    #[test]
+    fn the_region_model_counts_each_seen_region_s_layers_around_every_tile() {
+        let mut tiles = std::collections::BTreeMap::new();
+        tiles.insert((0, 0), vec![true, false]);
+        tiles.insert((0, 1), vec![true, true]);
+        tiles.insert((0, 2), vec![false, true]);
+        let region_layers = vec![vec![true, true, false], vec![false, false, true]];
+        let rgb = [false, true, false];
+        let (pairs, pairs_rgb) = region_model_pairs(&tiles, &region_layers, &rgb);
+        let per_tile = region_layers
+            .iter()
+            .map(|set| set.iter().filter(|r| **r).count() as u64)
+            .sum::<u64>();
+        assert_eq!(pairs, 3 * per_tile);
+        assert_eq!(pairs_rgb, 3);
+        // The probe's own sets: each tile holds only its own regions' layers.
+        let own: u64 = tiles
+            .values()
+            .map(|seen| {
+                seen.iter()
+                    .zip(&region_layers)
+                    .filter(|(s, _)| **s)
+                    .map(|(_, set)| set.iter().filter(|r| **r).count() as u64)
+                    .sum::<u64>()
+            })
+            .sum();
+        assert!(pairs >= own);
+    }
 }

@@ -213,14 +213,13 @@ fn run_passes(
                 )
             })
         });
-        let trace_start = Instant::now();
         let streamed =
             stream::bake_streaming(&ctx, scene, &settings, band, &pool, progress, &rays)?;
         progress.set_stage(Stage::Finishing);
         let (stack, mut report) = assemble::layer_report(
             &ctx,
             streamed.finished,
-            trace_start.elapsed().as_secs_f64(),
+            streamed.assembly_seconds,
             streamed.denoise_seconds,
         );
         report.peak_accounted_bytes = streamed.peak_accounted_bytes;

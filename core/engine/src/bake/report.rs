@@ -14,7 +14,10 @@ pub struct BakeReport {
     pub setup_seconds: f64,
     /// Path tracing and layer assembly.
     pub trace_seconds: f64,
-    /// Part of `trace_seconds` spent turning the accumulated images into layers.
+    /// Part of `trace_seconds` spent on per-layer work: turning the accumulated images into
+    /// layers (the dense path), or filtering, finalising tiles into the stack and finishing
+    /// it (the streaming bake, interleaved with its tracing: the rest of `trace_seconds` is
+    /// tracing).
     pub assembly_seconds: f64,
     /// Part of `assembly_seconds` spent denoising ([`denoise`]; 0 when the settings ask for none).
     pub denoise_seconds: f64,

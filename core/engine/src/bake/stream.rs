@@ -10,7 +10,9 @@
 //! ([`super::band`]; `apron · 16` ≥ that radius), whose cut edges are treated like the image's: the row's output is then exactly what the
 //! whole-frame filter gives (errors from a cut edge travel at most the radius inwards), so
 //! this bake makes the same stack, bit for bit, as the dense path that filters full frames
-//! (a progressive bake's, a farm merge's).
+//! (a progressive bake's, a farm merge's). Each layer is filtered only on the tiles it is
+//! present on plus the footprint, and only on the rows the finalised tiles need, so the
+//! filter's work follows the tile entries rather than layers × window.
 
 use rayon::prelude::*;
 use std::time::Instant;
@@ -18,8 +20,7 @@ use std::time::Instant;
 use super::assemble::stack_header;
 use super::band::apron_rows;
 use super::context::BakeContext;
-use super::denoise::{EyeFeatures, FEATURE_STRIDE};
-use super::drop::RawLayer;
+use super::denoise::{footprint_radius, EyeFeatures, SparseScratch, SparseTiles, FEATURE_STRIDE};
 use super::finalise::{
     builder_for, finalise_tile, finish_stack, layer_weights, tile_surfaces, Finished, LatticePlan,
     LayerFacts, StackTally, TileInput, TileTally,
@@ -28,7 +29,6 @@ use super::settings::BakeSettings;
 use super::tiles::{self, Tile, TILE};
 use super::trace::trace_tile_records;
 use super::vertex_brdf::BasisBrdf;
-use crate::layer_key::LayerKey;
 use crate::progress::{Progress, Stage};
 use crate::scene::Scene;
 use crate::stack::tiled::{tiles_along, TileRect, TiledStackBuilder};
@@ -37,7 +37,11 @@ use crate::{RelumeError, Result};
 /// What the streaming bake made.
 pub(crate) struct Streamed {
     pub finished: Finished,
+    /// Seconds filtering the windows (features, weights, layers).
     pub denoise_seconds: f64,
+    /// Seconds of per-layer work: the filtering, finalising tiles into the stack and
+    /// finishing it.
+    pub assembly_seconds: f64,
     /// The most bytes held at once in stored tiles, traced rows and denoiser windows.
     pub peak_accounted_bytes: usize,
 }
@@ -97,11 +101,17 @@ fn trace_sparse(
     let inv_spp = 1.0 / spp as f32;
     let mut layers = Vec::new();
     let mut coloured = Vec::new();
-    for layer in 0..layer_count {
-        let texel = |p: usize| &buf[p * record + layer * 3..p * record + layer * 3 + 3];
-        if (0..tp).all(|p| texel(p) == [0.0; 3]) {
-            continue;
+    // Which layers are non-zero somewhere in the tile, in one pass over the records in
+    // memory order (a layer's texels lie a whole record apart).
+    let mut non_zero = vec![false; layer_count];
+    for p in 0..tp {
+        let texels = &buf[p * record..p * record + layer_count * 3];
+        for (seen, texel) in non_zero.iter_mut().zip(texels.chunks_exact(3)) {
+            *seen |= texel.iter().any(|v| *v != 0.0);
         }
+    }
+    for layer in (0..layer_count).filter(|l| non_zero[*l]) {
+        let texel = |p: usize| &buf[p * record + layer * 3..p * record + layer * 3 + 3];
         let mut data = crate::memory::try_with_capacity(tp * 3, "a tile's layer averages")?;
         for p in 0..tp {
             data.extend(texel(p).iter().map(|v| v * inv_spp));
@@ -163,6 +173,7 @@ pub(crate) fn bake_streaming(
     let mut held_rows = 0usize;
     let mut peak = 0usize;
     let mut denoise_seconds = 0.0;
+    let mut assembly_seconds = 0.0;
     while next < ty {
         progress.check()?;
         let needed = (next + apron + 1).min(ty);
@@ -198,9 +209,9 @@ pub(crate) fn bake_streaming(
             peak = peak.max(tally.stored_bytes() + held_rows);
             continue;
         }
-        let started = Instant::now();
-        // Every row whose window is traced is finalised on one window: the filter runs over
-        // the apron rows once per band, not once per row.
+        // Every row whose window is traced is finalised on one window, each layer filtered
+        // only where it can be non-zero and on the rows these need
+        // ([`EyeFeatures::filter_sparse`]).
         let last = if traced == ty {
             ty - 1
         } else {
@@ -219,10 +230,14 @@ pub(crate) fn bake_streaming(
             finishing: traced == ty,
             lattice: plan.as_ref(),
         };
-        let (tallies, transient) = window.finalise(&builder, &weights, pool, progress)?;
-        if apron > 0 {
-            denoise_seconds += started.elapsed().as_secs_f64();
-        }
+        let WindowDone {
+            tallies,
+            transient,
+            filter_seconds,
+            finalise_seconds,
+        } = window.finalise(&builder, &weights, pool, progress)?;
+        denoise_seconds += filter_seconds;
+        assembly_seconds += filter_seconds + finalise_seconds;
         for (rect, t) in tallies {
             tally.add(rect, t);
         }
@@ -239,6 +254,7 @@ pub(crate) fn bake_streaming(
     drop(rows);
     progress.check()?;
     progress.set_stage(Stage::Finishing);
+    let finish_start = Instant::now();
     let finished = finish_stack(
         ctx,
         builder,
@@ -247,9 +263,11 @@ pub(crate) fn bake_streaming(
         &weights,
         settings.drop_budget as f64,
     )?;
+    assembly_seconds += finish_start.elapsed().as_secs_f64();
     Ok(Streamed {
         finished,
         denoise_seconds,
+        assembly_seconds,
         peak_accounted_bytes: peak,
     })
 }
@@ -325,25 +343,6 @@ impl Window<'_> {
         EyeFeatures::from_window_sums(self.ctx, &sums, self.settings.spp, (0, y0), (self.width, h))
     }
 
-    /// Layer `layer` over the window as a full-width RGB image (zeros where a tile lacks it).
-    fn layer_image(&self, layer: u32) -> Result<Vec<f32>> {
-        let (y0, h) = self.span();
-        let mut image: Vec<f32> =
-            crate::memory::try_zeroed(self.width * h * 3, "a layer over a denoiser window")?;
-        for r in self.lo..=self.hi {
-            for t in self.row(r) {
-                let Some(data) = t.layer(layer) else { continue };
-                let w = t.rect.width as usize;
-                for py in 0..t.rect.height as usize {
-                    let dst =
-                        ((t.rect.y0 as usize + py - y0) * self.width + t.rect.x0 as usize) * 3;
-                    image[dst..dst + w * 3].copy_from_slice(&data[py * w * 3..(py + 1) * w * 3]);
-                }
-            }
-        }
-        Ok(image)
-    }
-
     /// Filters what the centre row needs and finalises its tiles: their tallies in raster
     /// order, and the bytes the windows held at once.
     fn finalise(
@@ -352,7 +351,7 @@ impl Window<'_> {
         weights: &[crate::Rgb],
         pool: &rayon::ThreadPool,
         progress: &Progress,
-    ) -> Result<(Vec<(TileRect, TileTally)>, usize)> {
+    ) -> Result<WindowDone> {
         self.stage(progress, Stage::Assembly);
         let centre: Vec<&TracedTile> = (self.centre.0..=self.centre.1)
             .flat_map(|r| self.row(r).iter())
@@ -365,64 +364,136 @@ impl Window<'_> {
         ids.sort_unstable();
         ids.dedup();
         let filtered = ids.iter().any(|&l| self.iterations(l) > 0);
+        let (y0, h) = self.span();
+        // The centre's pixel rows within the window: what the sparse filter must get exact.
+        let wanted = self.centre.0 * TILE as usize - y0
+            ..((self.centre.1 + 1) * TILE as usize).min(self.height) - y0;
+        let filter_start = Instant::now();
         let (features, direct, bounce) = if filtered {
             let f = pool.install(|| self.features());
-            let d = pool.install(|| f.weights_for(self.settings.denoise.direct_iterations));
-            let b = pool.install(|| f.weights_for(self.settings.denoise.bounce_iterations));
+            let weights =
+                |iterations| pool.install(|| f.weights_for_rows(iterations, wanted.clone()));
+            let d = weights(self.settings.denoise.direct_iterations);
+            let b = weights(self.settings.denoise.bounce_iterations);
             (Some(f), Some(d), Some(b))
         } else {
             (None, None, None)
         };
-        let (y0, h) = self.span();
         let window_bytes = self.width * h * 3 * 4;
+        // The window's tiles each layer is present on, built once for all layers.
+        let tx = tiles_along(self.width as u32) as usize;
+        let mut present: Vec<Vec<(usize, &[f32])>> = ids.iter().map(|_| Vec::new()).collect();
+        for r in self.lo..=self.hi {
+            for t in self.row(r) {
+                let at = (r - self.lo) * tx + (t.rect.x0 / TILE) as usize;
+                for (l, data) in &t.layers {
+                    if let Ok(i) = ids.binary_search(l) {
+                        present[i].push((at, &data[..]));
+                    }
+                }
+            }
+        }
+        let window_tiles = (self.hi + 1 - self.lo) * tx;
+        let centre_tiles = (self.centre.0 - self.lo) * tx..(self.centre.1 + 1 - self.lo) * tx;
         // Stages interleave row by row: the row's filtering, then its tiles' storing.
         self.stage(progress, Stage::Denoising);
-        // Per layer: its values on each centre tile (None: absent there).
+        // Per layer: its values on each centre tile (None: absent there). Each worker keeps
+        // its scratch window from layer to layer.
         let per_layer: Vec<Result<Vec<Option<Vec<f32>>>>> = pool.install(|| {
             ids.par_iter()
-                .map(|&layer| {
-                    progress.check()?;
-                    let iterations = self.iterations(layer);
-                    let (Some(f), true) = (&features, iterations > 0) else {
-                        return Ok(centre
-                            .iter()
-                            .map(|t| t.layer(layer).map(<[f32]>::to_vec))
-                            .collect());
-                    };
-                    let w = if self.path_len[layer as usize] == 1 {
-                        direct.as_ref()
-                    } else {
-                        bounce.as_ref()
-                    }
-                    .expect("weights built when filtering");
-                    let mut raw = RawLayer {
-                        key: LayerKey::new(vec![]),
-                        channels: 3,
-                        data: self.layer_image(layer)?,
-                    };
-                    f.filter_one(w, &mut raw);
-                    Ok(centre
-                        .iter()
-                        .map(|t| {
-                            let tw = t.rect.width as usize;
-                            let rows = (0..t.rect.height as usize).map(|py| {
-                                let at = ((t.rect.y0 as usize + py - y0) * self.width
-                                    + t.rect.x0 as usize)
-                                    * 3;
-                                &raw.data[at..at + tw * 3]
-                            });
-                            // A tile the filtered layer does not reach stays out.
-                            if rows.clone().all(|r| r.iter().all(|v| *v == 0.0)) {
-                                return None;
+                .zip(present.par_iter())
+                .map_init(
+                    || None,
+                    |scratch: &mut Option<SparseScratch>, (&layer, tiles)| {
+                        progress.check()?;
+                        let iterations = self.iterations(layer);
+                        let (Some(f), true) = (&features, iterations > 0) else {
+                            return Ok(centre
+                                .iter()
+                                .map(|t| t.layer(layer).map(<[f32]>::to_vec))
+                                .collect());
+                        };
+                        // A filtered layer reaches the footprint around its tiles.
+                        let grow = footprint_radius(iterations).div_ceil(TILE as usize);
+                        let rows = self.hi + 1 - self.lo;
+                        let mut reach = vec![false; window_tiles];
+                        let mut on = vec![false; window_tiles];
+                        for &(at, _) in tiles.iter() {
+                            on[at] = true;
+                            let (cx, cy) = (at % tx, at / tx);
+                            for y in cy.saturating_sub(grow)..(cy + grow + 1).min(rows) {
+                                for x in cx.saturating_sub(grow)..(cx + grow + 1).min(tx) {
+                                    reach[y * tx + x] = true;
+                                }
                             }
-                            let mut out = Vec::with_capacity(t.rect.pixels() * 3);
-                            rows.for_each(|r| out.extend_from_slice(r));
-                            Some(out)
-                        })
-                        .collect())
-                })
+                        }
+                        if !reach[centre_tiles.clone()].iter().any(|r| *r) {
+                            return Ok(centre.iter().map(|_| None).collect());
+                        }
+                        let w = if self.path_len[layer as usize] == 1 {
+                            direct.as_ref()
+                        } else {
+                            bounce.as_ref()
+                        }
+                        .expect("weights built when filtering");
+                        if scratch.is_none() {
+                            *scratch = Some(SparseScratch::new(self.width * h)?);
+                        }
+                        let scratch = scratch.as_mut().expect("made above");
+                        let input = scratch.input();
+                        for &(at, data) in tiles.iter() {
+                            let rect = tile_in_window(at, tx, self.width, h);
+                            for py in 0..rect.height as usize {
+                                let dst =
+                                    ((rect.y0 as usize + py) * self.width + rect.x0 as usize) * 3;
+                                let n = rect.width as usize * 3;
+                                input[dst..dst + n].copy_from_slice(&data[py * n..(py + 1) * n]);
+                            }
+                        }
+                        let region = SparseTiles {
+                            present: &on,
+                            reach: &reach,
+                            tiles_x: tx,
+                            tile: TILE as usize,
+                            rows: wanted.clone(),
+                        };
+                        f.filter_sparse(w, scratch, &region);
+                        let filtered = scratch.output();
+                        let out = centre
+                            .iter()
+                            .map(|t| {
+                                let at = (t.rect.y0 as usize / TILE as usize - self.lo) * tx
+                                    + (t.rect.x0 / TILE) as usize;
+                                if !reach[at] {
+                                    return None;
+                                }
+                                let tw = t.rect.width as usize;
+                                let rows = (0..t.rect.height as usize).map(|py| {
+                                    let at = ((t.rect.y0 as usize + py - y0) * self.width
+                                        + t.rect.x0 as usize)
+                                        * 3;
+                                    &filtered[at..at + tw * 3]
+                                });
+                                // A tile the filtered layer does not reach stays out.
+                                if rows.clone().all(|r| r.iter().all(|v| *v == 0.0)) {
+                                    return None;
+                                }
+                                let mut out = Vec::with_capacity(t.rect.pixels() * 3);
+                                rows.for_each(|r| out.extend_from_slice(r));
+                                Some(out)
+                            })
+                            .collect();
+                        scratch.clear(&region, self.width, h);
+                        Ok(out)
+                    },
+                )
                 .collect()
         });
+        let filter_seconds = if filtered {
+            filter_start.elapsed().as_secs_f64()
+        } else {
+            0.0
+        };
         let mut inputs: Vec<Vec<TileInput>> = centre.iter().map(|_| Vec::new()).collect();
         let mut row_values = 0usize;
         for (&layer, per_tile) in ids.iter().zip(per_layer) {
@@ -439,7 +510,7 @@ impl Window<'_> {
         }
         progress.check()?;
         self.stage(progress, Stage::Assembly);
-        let tx = tiles_along(self.width as u32) as usize;
+        let finalise_start = Instant::now();
         let tallies: Vec<Result<(TileRect, TileTally)>> = pool.install(|| {
             centre
                 .par_iter()
@@ -476,16 +547,51 @@ impl Window<'_> {
                 })
                 .collect()
         });
+        let tallies = tallies.into_iter().collect::<Result<Vec<_>>>()?;
         let threads = pool.current_num_threads().max(1);
+        let steps = (self.settings.denoise.direct_iterations
+            + self.settings.denoise.bounce_iterations) as usize;
         // The row's f32 layers on their way to the builder, and while filtering each
-        // worker's window and the filters' weights and features.
+        // worker's two scratch windows, the filters' weights and the features.
         let transient = row_values * 4
             + if filtered {
-                window_bytes * threads.min(ids.len())
-                    + self.width * h * (FEATURE_STRIDE * 4 + 2 * 25 * 4)
+                2 * window_bytes * threads.min(ids.len())
+                    + self.width * h * (FEATURE_STRIDE * 4 + WINDOW_FEATURE_BYTES + steps * 25 * 4)
             } else {
                 0
             };
-        Ok((tallies.into_iter().collect::<Result<Vec<_>>>()?, transient))
+        Ok(WindowDone {
+            tallies,
+            transient,
+            filter_seconds,
+            finalise_seconds: finalise_start.elapsed().as_secs_f64(),
+        })
+    }
+}
+
+/// Bytes per pixel of a window's [`EyeFeatures`] (region, normal, position, footprint).
+const WINDOW_FEATURE_BYTES: usize = 36;
+
+/// What finalising a window's centre rows gave.
+struct WindowDone {
+    /// The centre tiles' tallies in raster order.
+    tallies: Vec<(TileRect, TileTally)>,
+    /// Bytes held at once beyond the traced rows and the stack.
+    transient: usize,
+    /// Seconds filtering (features, weights, layers).
+    filter_seconds: f64,
+    /// Seconds finalising the centre tiles into the stack.
+    finalise_seconds: f64,
+}
+
+/// The window-local rectangle of the window's tile `at` (row-major, `tx` per row) in a
+/// window of `width` × `height` pixels.
+fn tile_in_window(at: usize, tx: usize, width: usize, height: usize) -> TileRect {
+    let (x0, y0) = ((at % tx) * TILE as usize, (at / tx) * TILE as usize);
+    TileRect {
+        x0: x0 as u32,
+        y0: y0 as u32,
+        width: (TILE as usize).min(width - x0) as u32,
+        height: (TILE as usize).min(height - y0) as u32,
     }
 }

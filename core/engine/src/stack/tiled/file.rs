@@ -1,7 +1,9 @@
 //! The tiled stack as one OpenEXR file: stack format version
 //! [`STACK_FORMAT_VERSION_TILED`].
 //!
-//! Layout (three parts, scanlines, ZIP, written atomically like the dense file):
+//! Layout (three parts, scanlines, ZIP16 by default — [`StackCompression`] —, written
+//! atomically like the dense file; each chunk is made from the stack when the compressor,
+//! which works on several chunks at once, asks for it, so writing holds the stack once):
 //! - part `tiles`: one pixel per stack tile (`tiles_x × tiles_y`), channel `entries` (u32):
 //!   how many layers the tile holds — a map of the stack's sparsity that any EXR viewer
 //!   shows. It carries the Relume attributes, named as in the dense file
@@ -34,7 +36,8 @@ use std::fs::File;
 use std::io::{BufReader, Seek, SeekFrom};
 use std::path::Path;
 
-use exr::prelude::{self as x, ReadChannels as _, ReadLayers as _, WritableImage as _};
+use exr::block::writer::ChunksWriter as _;
+use exr::prelude::{self as x, ReadChannels as _, ReadLayers as _};
 use serde::{Deserialize, Serialize};
 
 use super::lattice::TileLattice;
@@ -86,33 +89,147 @@ fn rows_for(n: usize) -> (usize, usize) {
     (width, n.div_ceil(width).max(1))
 }
 
-fn channel(name: &str, samples: x::FlatSamples) -> x::AnyChannel<x::FlatSamples> {
-    x::AnyChannel::new(x::Text::from_slice_unchecked(name.as_bytes()), samples)
+/// How the writer compresses the parts' chunks (all lossless). The bake writes with
+/// [`StackCompression::default`]; the others are kept to measure against it
+/// (`tests/stack_write.rs`, docs/scale.md).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum StackCompression {
+    /// Deflate over blocks of 16 scanlines.
+    #[default]
+    Zip16,
+    /// Deflate per scanline.
+    Zip1,
+    /// Run-length encoding.
+    Rle,
+    /// Wavelet and Huffman coding over blocks of 32 scanlines.
+    Piz,
+    Uncompressed,
 }
 
-fn part(
+impl StackCompression {
+    fn exr(self) -> x::Compression {
+        match self {
+            StackCompression::Zip16 => x::Compression::ZIP16,
+            StackCompression::Zip1 => x::Compression::ZIP1,
+            StackCompression::Rle => x::Compression::RLE,
+            StackCompression::Piz => x::Compression::PIZ,
+            StackCompression::Uncompressed => x::Compression::Uncompressed,
+        }
+    }
+}
+
+/// How a stack file is encoded: its compression, and whether its chunks are compressed on
+/// several threads at once (the file is the same either way).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct WriteOptions {
+    pub compression: StackCompression,
+    pub parallel: bool,
+}
+
+impl Default for WriteOptions {
+    fn default() -> Self {
+        WriteOptions {
+            compression: StackCompression::default(),
+            parallel: true,
+        }
+    }
+}
+
+/// The header of one part: scanlines in increasing order, `channels` sorted by name as EXR
+/// stores them.
+fn part_header(
     name: &str,
     size: (usize, usize),
+    image_size: (usize, usize),
     other: std::collections::HashMap<x::Text, x::AttributeValue>,
-    list: Vec<x::AnyChannel<x::FlatSamples>>,
-) -> x::Layer<x::AnyChannels<x::FlatSamples>> {
-    x::Layer::new(
-        size,
-        x::LayerAttributes {
-            layer_name: Some(x::Text::from(name)),
-            software_name: Some(x::Text::from_slice_unchecked(
-                concat!("Relume ", env!("CARGO_PKG_VERSION")).as_bytes(),
-            )),
-            other,
-            ..Default::default()
-        },
-        x::Encoding {
-            compression: x::Compression::ZIP16,
-            blocks: x::Blocks::ScanLines,
-            line_order: x::LineOrder::Increasing,
-        },
-        x::AnyChannels::sort(list.into_iter().collect()),
-    )
+    channels: &[(&str, x::SampleType)],
+    compression: StackCompression,
+) -> exr::meta::header::Header {
+    let mut list: Vec<x::ChannelDescription> = channels
+        .iter()
+        .map(|(n, t)| {
+            x::ChannelDescription::new(x::Text::from_slice_unchecked(n.as_bytes()), *t, false)
+        })
+        .collect();
+    list.sort_by(|a, b| a.name.cmp(&b.name));
+    let mut header =
+        exr::meta::header::Header::new(x::Text::from(name), size, list.into_iter().collect())
+            .with_encoding(
+                compression.exr(),
+                exr::meta::BlockDescription::ScanLines,
+                x::LineOrder::Increasing,
+            );
+    header.own_attributes = x::LayerAttributes {
+        layer_name: Some(x::Text::from(name)),
+        software_name: Some(x::Text::from_slice_unchecked(
+            concat!("Relume ", env!("CARGO_PKG_VERSION")).as_bytes(),
+        )),
+        other,
+        ..Default::default()
+    };
+    header.shared_attributes = x::ImageAttributes::with_size(image_size);
+    header
+}
+
+/// The stack's values as the `values` part's flat sample sequence (all tiles' values back
+/// to back, then zeros up to the padded part), read in ranges without copying it whole.
+struct ValueSequence<'a> {
+    tiles: &'a [StackTile],
+    /// Index of each tile's first value in the sequence, and the total at the end.
+    starts: Vec<usize>,
+}
+
+impl<'a> ValueSequence<'a> {
+    /// The sequence of the tiles' values stored at `precision` (a tile at the other
+    /// precision, which only the unchecked writer lets through, adds none).
+    fn new(tiles: &'a [StackTile], precision: Precision) -> Self {
+        let mut starts = Vec::with_capacity(tiles.len() + 1);
+        let mut at = 0;
+        starts.push(0);
+        for t in tiles {
+            at += match (&t.values, precision) {
+                (TileValues::F16(v), Precision::F16) => v.len(),
+                (TileValues::F32(v), Precision::F32) => v.len(),
+                _ => 0,
+            };
+            starts.push(at);
+        }
+        ValueSequence { tiles, starts }
+    }
+
+    /// Appends the native-endian bytes of values `from..from + n` (f16 or f32, zero past
+    /// the end) to `out`.
+    fn append(&self, from: usize, n: usize, precision: Precision, out: &mut Vec<u8>) {
+        let total = *self.starts.last().unwrap_or(&0);
+        let mut at = from;
+        let end = from + n;
+        let mut tile = self.starts.partition_point(|s| *s <= at).saturating_sub(1);
+        while at < end.min(total) {
+            while self.starts[tile + 1] <= at {
+                tile += 1;
+            }
+            let (lo, hi) = (
+                at - self.starts[tile],
+                end.min(self.starts[tile + 1]) - self.starts[tile],
+            );
+            match (&self.tiles[tile].values, precision) {
+                (TileValues::F16(v), Precision::F16) => {
+                    out.extend(v[lo..hi].iter().flat_map(|h| h.to_bits().to_ne_bytes()))
+                }
+                (TileValues::F32(v), Precision::F32) => {
+                    out.extend(v[lo..hi].iter().flat_map(|f| f.to_ne_bytes()))
+                }
+                // Not reached: such a tile spans no values.
+                _ => {}
+            }
+            at += hi - lo;
+        }
+        let zero_bytes = match precision {
+            Precision::F16 => 2,
+            Precision::F32 => 4,
+        };
+        out.resize(out.len() + (end - at) * zero_bytes, 0);
+    }
 }
 
 /// Writes `stack` to `path` (see the module doc) atomically — temp file, fsync, rename —
@@ -129,19 +246,35 @@ pub fn write_tiled_cancellable(
     stack: &TiledStack,
     progress: &Progress,
 ) -> Result<u64> {
+    write_tiled_with(path, stack, WriteOptions::default(), progress)
+}
+
+/// [`write_tiled_cancellable`] with the encoding `options` (to measure them against the
+/// default).
+pub fn write_tiled_with(
+    path: &Path,
+    stack: &TiledStack,
+    options: WriteOptions,
+    progress: &Progress,
+) -> Result<u64> {
     progress.check()?;
     validate(path, stack)?;
-    encode(path, stack, progress)
+    encode(path, stack, options, progress)
 }
 
 /// Writes `stack` as [`write_tiled`] does but without [`validate`]: for the reader's
 /// tests and fuzzers, which need files whose tables lie. Not for stacks meant to be read.
 #[doc(hidden)]
 pub fn write_tiled_unchecked(path: &Path, stack: &TiledStack) -> Result<u64> {
-    encode(path, stack, &Progress::new())
+    encode(path, stack, WriteOptions::default(), &Progress::new())
 }
 
-fn encode(path: &Path, stack: &TiledStack, progress: &Progress) -> Result<u64> {
+fn encode(
+    path: &Path,
+    stack: &TiledStack,
+    options: WriteOptions,
+    progress: &Progress,
+) -> Result<u64> {
     let with_lattice = stack.tiles.iter().any(|t| t.lattice.is_some());
     let version = if with_lattice {
         STACK_FORMAT_VERSION_TILED
@@ -227,28 +360,10 @@ fn encode(path: &Path, stack: &TiledStack, progress: &Progress) -> Result<u64> {
     for column in &mut table {
         column.resize(entry_size.0 * entry_size.1, 0);
     }
-    let padded_values = value_size.0 * value_size.1;
-    let values = match h.precision {
-        Precision::F16 => {
-            let mut v = crate::memory::try_with_capacity(padded_values, "the stack's values")?;
-            for t in &stack.tiles {
-                if let TileValues::F16(s) = &t.values {
-                    v.extend_from_slice(s);
-                }
-            }
-            v.resize(padded_values, half::f16::ZERO);
-            x::FlatSamples::F16(v)
-        }
-        Precision::F32 => {
-            let mut v = crate::memory::try_with_capacity(padded_values, "the stack's values")?;
-            for t in &stack.tiles {
-                if let TileValues::F32(s) = &t.values {
-                    v.extend_from_slice(s);
-                }
-            }
-            v.resize(padded_values, 0.0);
-            x::FlatSamples::F32(v)
-        }
+    let values = ValueSequence::new(&stack.tiles, h.precision);
+    let value_type = match h.precision {
+        Precision::F16 => x::SampleType::F16,
+        Precision::F32 => x::SampleType::F32,
     };
 
     let text = |s: &str| x::AttributeValue::Text(x::Text::from_slice_unchecked(s.as_bytes()));
@@ -261,50 +376,112 @@ fn encode(path: &Path, stack: &TiledStack, progress: &Progress) -> Result<u64> {
     other.insert(x::Text::from(ATTR_SCENE_HASH), text(&h.scene_hash));
     other.insert(x::Text::from(ATTR_LAYERS), text(&layers_json));
 
-    let [channels, layer, offset, scale, segments] = table;
-    let mut tile_channels = vec![channel(CHANNEL_COUNT, x::FlatSamples::U32(counts))];
-    let mut entry_channels: Vec<_> = [channels, layer, offset, scale]
-        .into_iter()
-        .zip(ENTRY_CHANNELS)
-        .map(|(v, name)| channel(name, x::FlatSamples::U32(v)))
+    let image_size = (h.width as usize, h.height as usize);
+    let tiles_size = (stack.tiles_x() as usize, stack.tiles_y() as usize);
+    let mut tile_channels = vec![(CHANNEL_COUNT, x::SampleType::U32)];
+    let mut entry_channels: Vec<(&str, x::SampleType)> = ENTRY_CHANNELS
+        .iter()
+        .map(|n| (*n, x::SampleType::U32))
         .collect();
     if with_lattice {
-        tile_channels.push(channel(CHANNEL_STEP, x::FlatSamples::U32(steps)));
-        entry_channels.push(channel(CHANNEL_MASK, x::FlatSamples::U32(segments)));
+        tile_channels.push((CHANNEL_STEP, x::SampleType::U32));
+        entry_channels.push((CHANNEL_MASK, x::SampleType::U32));
     }
-    let mut parts = vec![
-        part(
+    let mut headers: exr::meta::Headers = [
+        part_header(
             PART_TILES,
-            (stack.tiles_x() as usize, stack.tiles_y() as usize),
+            tiles_size,
+            image_size,
             other,
-            tile_channels,
+            &tile_channels,
+            options.compression,
         ),
-        part(PART_ENTRIES, entry_size, Default::default(), entry_channels),
-        part(
+        part_header(
+            PART_ENTRIES,
+            entry_size,
+            image_size,
+            Default::default(),
+            &entry_channels,
+            options.compression,
+        ),
+        part_header(
             PART_VALUES,
             value_size,
+            image_size,
             Default::default(),
-            vec![channel(CHANNEL_VALUE, values)],
+            &[(CHANNEL_VALUE, value_type)],
+            options.compression,
         ),
-    ];
+    ]
+    .into_iter()
+    .collect();
     if with_lattice {
-        parts.push(part(
+        headers.push(part_header(
             PART_SEGMENTS,
             map_size,
+            image_size,
             Default::default(),
-            vec![channel(CHANNEL_SEGMENT, x::FlatSamples::U32(maps))],
+            &[(CHANNEL_SEGMENT, x::SampleType::U32)],
+            options.compression,
         ));
     }
-    let image = x::Image::from_layers(
-        x::ImageAttributes::with_size((h.width as usize, h.height as usize)),
-        parts,
-    );
+    let u32_rows = |columns: &[&[u32]], width: usize, y: usize, lines: usize, out: &mut Vec<u8>| {
+        for line in y..y + lines {
+            for column in columns {
+                out.extend(
+                    column[line * width..(line + 1) * width]
+                        .iter()
+                        .flat_map(|v| v.to_ne_bytes()),
+                );
+            }
+        }
+    };
+    let [channels, layer, offset, scale, segments] = &table;
+    // Columns in the order EXR stores a part's channels (sorted by name, see the constants).
+    let tile_columns: Vec<&[u32]> = if with_lattice {
+        vec![&counts, &steps]
+    } else {
+        vec![&counts]
+    };
+    let entry_columns: Vec<&[u32]> = if with_lattice {
+        vec![channels, layer, offset, scale, segments]
+    } else {
+        vec![channels, layer, offset, scale]
+    };
+    // Each block's bytes are made from the stack when the compressor asks for them: the
+    // values are never copied whole, and at most a few blocks per thread are in flight.
+    let block_bytes = |index: exr::block::BlockIndex| -> Vec<u8> {
+        let (y, lines) = (index.pixel_position.y(), index.pixel_size.y());
+        let mut out = Vec::new();
+        match index.layer {
+            0 => u32_rows(&tile_columns, tiles_size.0, y, lines, &mut out),
+            1 => u32_rows(&entry_columns, entry_size.0, y, lines, &mut out),
+            2 => values.append(
+                y * value_size.0,
+                lines * value_size.0,
+                h.precision,
+                &mut out,
+            ),
+            _ => u32_rows(&[&maps], map_size.0, y, lines, &mut out),
+        }
+        out
+    };
     progress.check()?;
     write_atomic_checked(
         path,
         |w| {
             let writer = CancellableWriter { inner: w, progress };
-            image.write().to_buffered(writer).map_err(|e| match e {
+            exr::block::write(writer, headers, true, |meta, chunks| {
+                let blocks = meta.collect_ordered_block_data(block_bytes);
+                // (A writer that takes the chunks by value, as the compressors want.)
+                let chunks = chunks.on_progress(|_| {});
+                if options.parallel {
+                    chunks.compress_all_blocks_parallel(&meta, blocks)
+                } else {
+                    chunks.compress_all_blocks_sequential(&meta, blocks)
+                }
+            })
+            .map_err(|e| match e {
                 _ if progress.is_cancelled() => RelumeError::Cancelled,
                 x::Error::Io(io) => RelumeError::io(path, io),
                 other => format_err(path, format!("OpenEXR write failed: {other}")),
