@@ -219,7 +219,7 @@ fn a_bsdf_ray_along_a_light_sample_sees_its_radiance_and_pdf() {
         let (p, n) = (glam::Vec3::new(0.1, 0.0, 0.0), glam::Vec3::Z);
         let origin = p + n * 1e-4;
         let mut checked = vec![0u32; set.len()];
-        for emitter in 0..set.len() {
+        for (emitter, count) in checked.iter_mut().enumerate() {
             for i in 0..2000u64 {
                 let (u1, u2) = (uniform(2 * i), uniform(2 * i + 1));
                 let Some(s) = set.sample(emitter, p, n, u1, u2) else {
@@ -255,7 +255,7 @@ fn a_bsdf_ray_along_a_light_sample_sees_its_radiance_and_pdf() {
                     "emitter {emitter}: radiance/pdf {w:?} vs {:?}",
                     s.radiance_over_pdf
                 );
-                checked[emitter] += 1;
+                *count += 1;
             }
         }
         println!("{area_sampling:?}: light samples checked per emitter {checked:?}");
