@@ -1,6 +1,7 @@
 """The issue-14 grid: resolution × editable materials, one `relume bake --json` process per
-cell (the eight-material Cornell scene of scripts/make_cornell8.py, the draft preset's
-samples at the cell's full resolution, one bounce), then `relume bench relight` on the stack
+cell (the eight-material Cornell scene of scripts/make_cornell8.py, a named preset — draft unless
+`--preset` says otherwise, with its bounce-layer compression — at the cell's full resolution,
+one bounce), then `relume bench relight` on the stack
 it made. Prints one JSON object per cell: the forecast, peak memory (RSS growth over the
 bake) and its ratio to the stored stack and to the forecast, whether it is within issue 14's
 bound (2 × the stack + 500 MB), bake time with its per-layer part (assembly, denoising)
@@ -22,21 +23,25 @@ import sys
 import tempfile
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
-DRAFT_SAMPLES = ["--spp", "4", "--light-samples", "2", "--indirect-samples", "2", "--sampling", "mixture",
-                 "--tolerance", "0.05", "--denoise-bounce", "2", "--bounces", "1"]
 
 
-def cell(relume: str, tmp: pathlib.Path, res: str, k: int, threads: str = "0") -> dict:
+def preset_flags(preset: str) -> list[str]:
+    """The bake flags of a grid cell: the named preset, one bounce (the grid measures the
+    stack's scaling, not the frozen tail)."""
+    return ["--preset", preset, "--bounces", "1"]
+
+
+def cell(relume: str, tmp: pathlib.Path, res: str, k: int, threads: str = "0", preset: str = "draft") -> dict:
     scene = tmp / f"cornell8-{res}-k{k}.scene.json"
     subprocess.run([sys.executable, str(ROOT / "scripts" / "make_cornell8.py"), "--editable", str(k),
                     "--resolution", res, "--out", str(scene)], check=True, stdout=subprocess.DEVNULL)
     stack = tmp / "grid.exr"
     out = subprocess.run([relume, "bake", str(scene), "-o", str(stack), "--json", "--threads", threads,
-                          *DRAFT_SAMPLES],
+                          *preset_flags(preset)],
                          capture_output=True, text=True)
-    row: dict = {"resolution": res, "editable": k}
+    row: dict = {"resolution": res, "editable": k, "preset": preset}
     if out.returncode != 0:
-        est = subprocess.run([relume, "bake", str(scene), "-o", str(stack), "--estimate-only", *DRAFT_SAMPLES],
+        est = subprocess.run([relume, "bake", str(scene), "-o", str(stack), "--estimate-only", *preset_flags(preset)],
                              capture_output=True, text=True)
         row["refused"] = out.stderr.strip().splitlines()[-1] if out.stderr.strip() else f"exit {out.returncode}"
         if est.returncode == 0:
@@ -66,6 +71,10 @@ def cell(relume: str, tmp: pathlib.Path, res: str, k: int, threads: str = "0") -
         "peak_over_stack": round((j["peak_rss_bytes"] - j["rss_before_bake_bytes"])
                                  / max(r.get("stored_bytes", r["sample_bytes"]), 1), 2),
         "stack_file_mb": round(j["file_bytes"] / 1e6, 1),
+        # The bounce-layer compression: relit error against the uncompressed stack at the
+        # bake-time materials (relative L2) and the bytes it saved.
+        "compression_error": r.get("compression_error"),
+        "compression_saved_mb": round(r.get("compression_saved_bytes", 0) / 1e6, 1),
     })
     bench = subprocess.run([relume, "bench", "relight", str(stack), "--device", "cpu", "--repeats", "10", "--json"],
                            capture_output=True, text=True)
@@ -87,11 +96,12 @@ def main() -> None:
     ap.add_argument("--resolutions", default="512x512,1024x1024,1920x1080")
     ap.add_argument("--editable", default="1,2,4,8")
     ap.add_argument("--threads", default="0", help="bake threads (0: all cores)")
+    ap.add_argument("--preset", default="draft", choices=["draft", "preview", "final"])
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         for res in args.resolutions.split(","):
             for k in (int(v) for v in args.editable.split(",")):
-                print(json.dumps(cell(args.relume, pathlib.Path(tmp), res, k, args.threads)), flush=True)
+                print(json.dumps(cell(args.relume, pathlib.Path(tmp), res, k, args.threads, args.preset)), flush=True)
 
 
 if __name__ == "__main__":
