@@ -21,7 +21,8 @@ use relume_gpu::device::is_real_gpu;
 use relume_gpu::lattice::{block_words, MAX_NODE_SLOTS};
 use relume_gpu::{DeviceKind, DevicePreference, GpuError, GpuOptions, GpuRelighter, Relighter};
 
-/// Full relight, then `edits` single-region edits; GPU and CPU compared after each step.
+/// Full relight, then `edits` single-region edits; GPU and CPU compared after each step,
+/// images and what they report reading.
 fn compare(name: &str, stack: &Arc<TiledStack>, gpu: &mut GpuRelighter, edits: usize) -> f64 {
     let mut cpu = CpuRelighter::from_tiled(stack.clone()).unwrap();
     let (bases, coefs) = default_coefs(&stack.header);
@@ -37,6 +38,7 @@ fn compare(name: &str, stack: &Arc<TiledStack>, gpu: &mut GpuRelighter, edits: u
     let c = cpu.relight(&coefs).unwrap().to_vec();
     let g = gpu.relight(&coefs).unwrap().to_vec();
     check("full relight", &g, &c);
+    assert_eq!(gpu.last_stats(), cpu.last_stats(), "{name}: full relight");
     let n = gpu.editable_count();
     for k in 0..edits {
         let region = k % n;
@@ -44,6 +46,7 @@ fn compare(name: &str, stack: &Arc<TiledStack>, gpu: &mut GpuRelighter, edits: u
         let c = cpu.relight_region(region, &new).unwrap().to_vec();
         let g = gpu.relight_region(region, &new).unwrap().to_vec();
         check(&format!("edit {k} of region {region}"), &g, &c);
+        assert_eq!(gpu.last_stats(), cpu.last_stats(), "{name}: edit {k}");
     }
     worst
 }
