@@ -7,7 +7,8 @@ pub struct GpuMemory {
     /// The stack's values in their precision: its sample bytes, plus at most 2 bytes of
     /// padding per chunk (a chunk ends on a whole word).
     pub values: u64,
-    /// Tile starts (4 bytes a tile) and entry records (16 bytes an entry).
+    /// Tile starts and lattice pointers (8 bytes a tile), entry records (16 bytes an
+    /// entry) and the lattice blocks of the tiles that have one.
     pub tables: u64,
     /// The RGBA f32 image (16 bytes a pixel).
     pub image: u64,

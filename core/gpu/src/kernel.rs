@@ -21,6 +21,7 @@ use crate::device::adapter_label;
 use crate::error::GpuError;
 use crate::gpu_memory::GpuMemory;
 use crate::health::Health;
+use crate::lattice::check_and_count;
 use crate::layout::Layout;
 use crate::pipeline::{self, Bindings, Dispatch, Params};
 use crate::tiles::{entries_at, table_words};
@@ -109,7 +110,8 @@ impl Kernel {
             .map_or(binding_limit, |m| m.min(binding_limit));
         let layout = Layout::new(stack, max_chunk).map_err(too_large)?;
         let entries = stack.entry_count();
-        let table_bytes = table_words(stack.tiles.len(), entries) * 4;
+        let lattice_words = check_and_count(stack).map_err(too_large)?;
+        let table_bytes = table_words(stack.tiles.len(), entries, lattice_words) * 4;
         // Word indices into the tables are u32 in the kernel.
         if table_bytes > binding_limit.min(u32::MAX as u64 * 4) {
             return Err(too_large(format!(

@@ -8,6 +8,13 @@
 // `pixel = (grey + rgb)` on a full relight or `pixel += (grey + rgb)` on an incremental one.
 // The accumulators live in registers: the image is read at most once and written once.
 //
+// Lattice entries (lattice.rs, core/engine/src/stack/tiled/lattice.rs) are summed as the
+// CPU sums them: each adds `weight · scale · coefficient` into per-(segment, lattice node,
+// channel) accumulators in workgroup memory — invocation `lid` owns slots lid, lid + 256, …,
+// so every slot receives its additions in entry order from one invocation, without atomics —
+// and after a barrier each pixel adds its segment's ≤ 4 hat nodes into its RGB accumulator,
+// after every RGB entry and before `grey + rgb`, as the CPU's expansion does.
+//
 // Full relight: `weights` holds every layer's weight. Incremental: it holds the weight
 // changes of the edited layers and zero elsewhere; an entry of zero weight is skipped
 // unread, and a tile where nothing was added is left as it is.
@@ -31,8 +38,7 @@ struct Params {
 struct Entry {
     layer: u32,
     channels: u32,
-    // 0: one value per pixel and channel. Another kind (e.g. a per-tile lattice of
-    // coefficients) adds a case in `main`'s switch.
+    // 0: one value per pixel and channel; 1: lattice coefficients.
     kind: u32,
     // Which chunk binding of the group holds the values (0..3).
     slot: u32,
@@ -42,7 +48,11 @@ struct Entry {
 }
 
 const TILE: u32 = 16u;
+const INVOCATIONS: u32 = 256u;
 const KIND_VALUES: u32 = 0u;
+const KIND_LATTICE: u32 = 1u;
+// Three floats for each of lattice.rs's MAX_NODE_SLOTS (segment, node) pairs.
+const NODE_FLOATS: u32 = 3072u;
 
 @group(0) @binding(0) var<storage, read_write> image: array<vec4<f32>>;
 @group(0) @binding(1) var<uniform> params: Params;
@@ -52,6 +62,116 @@ const KIND_VALUES: u32 = 0u;
 @group(0) @binding(5) var<storage, read> chunk1: array<u32>;
 @group(0) @binding(6) var<storage, read> chunk2: array<u32>;
 @group(0) @binding(7) var<storage, read> chunk3: array<u32>;
+
+// The tile's lattice entries summed: per segment, per lattice node, RGB.
+var<workgroup> nodes: array<f32, NODE_FLOATS>;
+
+// Where a tile's lattice block (lattice.rs) keeps each part, in words of `tables`.
+struct Lattice {
+    step: u32,
+    segments: u32,
+    nx: u32,
+    ny: u32,
+    map_at: u32,
+    counts_at: u32,
+    sets_at: u32,
+    set_words: u32,
+    masks_at: u32,
+}
+
+fn lattice_of(block: u32, pixels: u32) -> Lattice {
+    let head = tables[block];
+    let segments = (head >> 8u) & 0xffu;
+    let nx = (head >> 16u) & 0xffu;
+    let ny = head >> 24u;
+    let map_at = block + 1u;
+    let counts_at = map_at + (pixels + 3u) / 4u;
+    let sets_at = counts_at + segments;
+    let set_words = (nx * ny + 31u) / 32u;
+    return Lattice(
+        head & 0xffu,
+        segments,
+        nx,
+        ny,
+        map_at,
+        counts_at,
+        sets_at,
+        set_words,
+        sets_at + segments * set_words,
+    );
+}
+
+// The two nodes along one axis of coordinate `x` and their weights, as lattice.rs's
+// axis_hats: cell min(x / step, n − 2), weights 1 − t and t.
+struct Hats {
+    i0: u32,
+    i1: u32,
+    w0: f32,
+    w1: f32,
+}
+
+fn axis_hats(x: u32, step: u32, n: u32) -> Hats {
+    if n <= 1u {
+        return Hats(0u, 0u, 1.0, 0.0);
+    }
+    let i = min(x / step, n - 2u);
+    let t = f32(x - i * step) / f32(step);
+    return Hats(i, i + 1u, 1.0 - t, t);
+}
+
+// Adds `ws ·` lattice entry `e` (covering the segments of `mask`) into the node slots
+// this invocation owns, `floats` of them in the tile.
+fn accumulate(l: Lattice, e: Entry, mask: u32, ws: vec3<f32>, lid: u32, floats: u32) {
+    let per_segment = 3u * l.nx * l.ny;
+    for (var j = lid; j < floats; j += INVOCATIONS) {
+        let s = j / per_segment;
+        let node = (j % per_segment) / 3u;
+        let ch = j % 3u;
+        if ((mask >> s) & 1u) == 0u {
+            continue;
+        }
+        let node_set = l.sets_at + s * l.set_words;
+        let bits = tables[node_set + node / 32u];
+        let bit = node % 32u;
+        if ((bits >> bit) & 1u) == 0u {
+            continue;
+        }
+        // The node's place among those the segment stores, and where the segment's
+        // coefficients start among the entry's (covered segments in id order).
+        var index = countOneBits(bits & ((1u << bit) - 1u));
+        for (var q = 0u; q < node / 32u; q++) {
+            index += countOneBits(tables[node_set + q]);
+        }
+        var start = 0u;
+        var below = mask & ((1u << s) - 1u);
+        while below != 0u {
+            start += tables[l.counts_at + firstTrailingBit(below)];
+            below &= below - 1u;
+        }
+        let at = e.offset + (start + index) * e.channels + select(ch, 0u, e.channels == 1u);
+        nodes[j] = nodes[j] + ws[ch] * sample(e.slot, at);
+    }
+}
+
+fn node(n: u32) -> vec3<f32> {
+    return vec3<f32>(nodes[3u * n], nodes[3u * n + 1u], nodes[3u * n + 2u]);
+}
+
+// Pixel (x, y)'s share of the tile's node accumulators: its segment's ≤ 4 hat nodes, in
+// lattice.rs's expand order (node rows outer, columns inner).
+fn expand(l: Lattice, x: u32, y: u32, i: u32) -> vec3<f32> {
+    let segment = (tables[l.map_at + i / 4u] >> (8u * (i % 4u))) & 0xffu;
+    let hx = axis_hats(x, l.step, l.nx);
+    let hy = axis_hats(y, l.step, l.ny);
+    let row0 = segment * l.nx * l.ny + hy.i0 * l.nx;
+    let row1 = segment * l.nx * l.ny + hy.i1 * l.nx;
+    var sum = vec3<f32>(0.0);
+    sum = sum + (hx.w0 * hy.w0) * node(row0 + hx.i0);
+    sum = sum + (hx.w1 * hy.w0) * node(row0 + hx.i1);
+    sum = sum + (hx.w0 * hy.w1) * node(row1 + hx.i0);
+    sum = sum + (hx.w1 * hy.w1) * node(row1 + hx.i1);
+    return sum;
+}
 
 fn entry(k: u32) -> Entry {
     let at = params.entries_at + 4u * k;
@@ -106,6 +226,7 @@ fn main(
     @builtin(workgroup_id) group: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
     @builtin(local_invocation_id) local: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
 ) {
     // Dispatches wider than the per-dimension limit fold into rows of `groups.x` tiles.
     let t = group.x + group.y * groups.x;
@@ -118,17 +239,31 @@ fn main(
     let y0 = (tile / params.tiles_x) * TILE;
     let tile_width = min(TILE, params.width - x0);
     let tile_height = min(TILE, params.height - y0);
-    // Invocations outside an edge tile run the loop without reading or writing, so that the
-    // workgroup stays in uniform control flow (a kind that shares work across the tile
-    // through workgroup memory needs barriers in the loop).
+    // Invocations outside an edge tile run the loop without reading or writing their pixel,
+    // so that the workgroup stays in uniform control flow: they still own node slots of the
+    // lattice entries, and every invocation reaches the barrier before the expansion.
     let inside = local.x < tile_width && local.y < tile_height;
     // The pixel's index among the tile's values (the tile's own width, row-major).
     let i = local.y * tile_width + local.x;
     var grey = vec3<f32>(0.0);
     var rgb = vec3<f32>(0.0);
     var added = false;
+    var lattice_added = false;
+    // The lattice pointers follow the entry records, whose count is the last tile start.
+    let lattices_at = params.entries_at + 4u * tables[params.entries_at - 1u];
+    let block = tables[lattices_at + tile];
+    var l: Lattice;
+    var node_floats = 0u;
+    if block != 0u {
+        l = lattice_of(block, tile_width * tile_height);
+        node_floats = 3u * l.segments * l.nx * l.ny;
+        for (var j = lid; j < node_floats; j += INVOCATIONS) {
+            nodes[j] = 0.0;
+        }
+    }
+    let first = tables[tile];
     let end = tables[tile + 1u];
-    for (var k = tables[tile]; k < end; k++) {
+    for (var k = first; k < end; k++) {
         let e = entry(k);
         let w = weights[e.layer].xyz;
         if all(w == vec3<f32>(0.0)) {
@@ -152,7 +287,19 @@ fn main(
                     }
                 }
             }
+            case KIND_LATTICE: {
+                lattice_added = true;
+                let mask = tables[l.masks_at + (k - first)];
+                accumulate(l, e, mask, ws, lid, node_floats);
+            }
             default: {}
+        }
+    }
+    if lattice_added {
+        // Every slot's sum is complete before any pixel reads it.
+        workgroupBarrier();
+        if inside {
+            rgb = rgb + expand(l, local.x, local.y, i);
         }
     }
     if !inside {

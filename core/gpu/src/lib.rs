@@ -29,6 +29,7 @@ pub mod error;
 pub mod gpu_memory;
 mod health;
 mod kernel;
+pub mod lattice;
 pub mod layout;
 mod pipeline;
 pub mod relight;

@@ -8,10 +8,14 @@
 //!   `[layer, flags, scale (f32 bits), offset]`, where `offset` is the entry's first sample
 //!   in its chunk and `flags` packs the channels (bits 0–7: 1 grey, 3 RGB), the entry kind
 //!   (bits 8–15, [`EntryKind`]) and the chunk's slot in its bind group (bits 16–23).
+//! - **Lattice pointers** (from word [`lattices_at`], one word a tile): the word where the
+//!   tile's lattice block starts, 0 when the tile has no lattice. The kernel finds this
+//!   table after the entry records, whose count is the last tile start.
+//! - **Lattice blocks** (`crate::lattice`): per tile with a lattice, its segment map, the
+//!   nodes each segment stores and its entries' segment masks.
 //!
-//! Sixteen bytes an entry, as the stack's own table in host memory. The kind byte is where a
-//! second way of storing an entry's values goes: the kernel switches on it per entry (see
-//! `kernel.wgsl`); today every entry is [`EntryKind::Values`].
+//! Sixteen bytes an entry, as the stack's own table in host memory, plus four a tile and
+//! the lattice blocks. The kernel switches on the kind byte per entry (see `kernel.wgsl`).
 
 /// Words of one entry record.
 pub const ENTRY_WORDS: usize = 4;
@@ -21,6 +25,9 @@ pub const ENTRY_WORDS: usize = 4;
 pub enum EntryKind {
     /// One value per pixel of the tile and channel, row-major, channels interleaved.
     Values = 0,
+    /// Coefficients of hat functions on the tile's lattice, per covered segment
+    /// (`crate::lattice`).
+    Lattice = 1,
 }
 
 /// The flags word of an entry record.
@@ -38,9 +45,14 @@ pub fn entries_at(tiles: usize) -> u64 {
     tiles as u64 + 1
 }
 
-/// Words of the whole table.
-pub fn table_words(tiles: usize, entries: usize) -> u64 {
+/// Word at which the lattice pointers start, after the entry records.
+pub fn lattices_at(tiles: usize, entries: usize) -> u64 {
     entries_at(tiles) + (entries * ENTRY_WORDS) as u64
+}
+
+/// Words of the whole table, with `lattice_words` words of lattice blocks.
+pub fn table_words(tiles: usize, entries: usize, lattice_words: u64) -> u64 {
+    lattices_at(tiles, entries) + tiles as u64 + lattice_words
 }
 
 #[cfg(test)]
@@ -53,6 +65,9 @@ mod tests {
         assert_eq!((f & 0xff, (f >> 8) & 0xff, f >> 16), (3, 0, 2));
         let r = entry_record(7, f, 0.25, 1234);
         assert_eq!(r, [7, f, 0.25f32.to_bits(), 1234]);
-        assert_eq!((entries_at(6), table_words(6, 10)), (7, 47));
+        assert_eq!((entries_at(6), lattices_at(6, 10)), (7, 47));
+        assert_eq!(table_words(6, 10, 20), 47 + 6 + 20);
+        let f = entry_flags(1, EntryKind::Lattice, 3);
+        assert_eq!((f & 0xff, (f >> 8) & 0xff, f >> 16), (1, 1, 3));
     }
 }

@@ -9,8 +9,9 @@
 use relume_engine::stack::tiled::{TileValues, TiledStack};
 
 use crate::error::GpuError;
+use crate::lattice::{block, block_words};
 use crate::layout::{Layout, CHUNKS_PER_GROUP};
-use crate::tiles::{entry_flags, entry_record, EntryKind};
+use crate::tiles::{entry_flags, entry_record, lattices_at, EntryKind};
 
 /// Bytes gathered on the host before one `write_buffer`.
 pub(crate) const PIECE_BYTES: usize = 4 << 20;
@@ -117,8 +118,8 @@ pub(crate) fn upload_values(
     Ok(())
 }
 
-/// Writes the tables (`tiles.rs`): the tile starts, then one record per entry with its
-/// offset in its chunk.
+/// Writes the tables (`tiles.rs`): the tile starts, one record per entry with its offset
+/// in its chunk, the lattice pointers, then the lattice blocks (`lattice.rs`).
 pub(crate) fn upload_tables(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
@@ -142,12 +143,28 @@ pub(crate) fn upload_tables(
         let tiles = &stack.tiles[chunk.first_tile as usize..][..chunk.tiles as usize];
         for tile in tiles {
             for e in &tile.entries {
-                let flags = entry_flags(e.channels, EntryKind::Values, slot);
+                let kind = if e.segments == 0 {
+                    EntryKind::Values
+                } else {
+                    EntryKind::Lattice
+                };
+                let flags = entry_flags(e.channels, kind, slot);
                 let offset = (tile_start + u64::from(e.offset)) as u32;
                 w.push(&entry_record(e.layer, flags, e.scale, offset), le)?;
             }
             tile_start += tile.values.len() as u64;
         }
+    }
+    // The table's size was checked to fit u32 word indices before the upload.
+    let mut block_at =
+        lattices_at(stack.tiles.len(), stack.entry_count()) + stack.tiles.len() as u64;
+    for tile in &stack.tiles {
+        let words = block_words(tile) as u64;
+        w.push(&[if words == 0 { 0 } else { block_at as u32 }], le)?;
+        block_at += words;
+    }
+    for tile in &stack.tiles {
+        w.push(&block(tile), le)?;
     }
     w.finish().map(|_| ())
 }
