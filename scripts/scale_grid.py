@@ -31,11 +31,12 @@ def preset_flags(preset: str) -> list[str]:
     return ["--preset", preset, "--bounces", "1"]
 
 
-def cell(relume: str, tmp: pathlib.Path, res: str, k: int, threads: str = "0", preset: str = "draft") -> dict:
+def cell(relume: str, tmp: pathlib.Path, res: str, k: int, threads: str = "0", preset: str = "draft",
+         keep: pathlib.Path | None = None) -> dict:
     scene = tmp / f"cornell8-{res}-k{k}.scene.json"
     subprocess.run([sys.executable, str(ROOT / "scripts" / "make_cornell8.py"), "--editable", str(k),
                     "--resolution", res, "--out", str(scene)], check=True, stdout=subprocess.DEVNULL)
-    stack = tmp / "grid.exr"
+    stack = (keep or tmp) / f"cornell8-{res}-k{k}-{preset}.exr"
     out = subprocess.run([relume, "bake", str(scene), "-o", str(stack), "--json", "--threads", threads,
                           *preset_flags(preset)],
                          capture_output=True, text=True)
@@ -97,11 +98,13 @@ def main() -> None:
     ap.add_argument("--editable", default="1,2,4,8")
     ap.add_argument("--threads", default="0", help="bake threads (0: all cores)")
     ap.add_argument("--preset", default="draft", choices=["draft", "preview", "final"])
+    ap.add_argument("--keep", help="folder to keep each cell's stack in (to re-run the relight bench)")
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         for res in args.resolutions.split(","):
             for k in (int(v) for v in args.editable.split(",")):
-                print(json.dumps(cell(args.relume, pathlib.Path(tmp), res, k, args.threads, args.preset)), flush=True)
+                print(json.dumps(cell(args.relume, pathlib.Path(tmp), res, k, args.threads, args.preset,
+                                      pathlib.Path(args.keep) if args.keep else None)), flush=True)
 
 
 if __name__ == "__main__":
