@@ -224,19 +224,23 @@ where
                         .as_ref()
                         .expect("validated: a lattice entry's tile has a lattice");
                     let nodes = &mut acc.nodes;
+                    let count = tile.value_count(&e, n);
                     match &tile.values {
                         TileValues::F16(v) => {
                             // Converted in one slice call (SIMD where the CPU has it), not
                             // one coefficient at a time.
-                            let count = tile.value_count(&e, n);
                             acc.coefficients.resize(count, 0.0);
                             v[start..start + count].convert_to_f32_slice(&mut acc.coefficients);
                             let c = &acc.coefficients;
-                            lattice.accumulate(nodes, e.segments, e.channels, |i| c[i], w)
+                            lattice.accumulate(nodes, e.segments, e.channels, c, w)
                         }
-                        TileValues::F32(v) => {
-                            lattice.accumulate(nodes, e.segments, e.channels, |i| v[start + i], w)
-                        }
+                        TileValues::F32(v) => lattice.accumulate(
+                            nodes,
+                            e.segments,
+                            e.channels,
+                            &v[start..start + count],
+                            w,
+                        ),
                     }
                 } else if e.channels == 1 {
                     let (r, g, b) = (&mut acc.r[..n], &mut acc.g[..n], &mut acc.b[..n]);

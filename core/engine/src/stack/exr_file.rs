@@ -354,7 +354,7 @@ const EXR_EOF_MESSAGE: &str = "reference to missing bytes";
 
 /// Maps an exr error. `in_pixels`: while decoding pixel data, where any invalid content
 /// means damage; in the meta data only missing bytes mean truncation.
-fn map_exr_err(path: &Path, e: x::Error, in_pixels: bool) -> RelumeError {
+pub(crate) fn map_exr_err(path: &Path, e: x::Error, in_pixels: bool) -> RelumeError {
     let truncated = |m: String| RelumeError::StackTruncated {
         path: path.to_path_buf(),
         message: m,
@@ -381,7 +381,11 @@ fn attr_text<'a>(attrs: &'a x::LayerAttributes, name: &str) -> Option<&'a x::Att
 }
 
 /// Reads a text attribute as UTF-8.
-fn text_attr(path: &Path, attrs: &x::LayerAttributes, name: &str) -> Result<Option<String>> {
+pub(crate) fn text_attr(
+    path: &Path,
+    attrs: &x::LayerAttributes,
+    name: &str,
+) -> Result<Option<String>> {
     match attr_text(attrs, name) {
         None => Ok(None),
         Some(x::AttributeValue::Text(t)) => String::from_utf8(t.as_slice().to_vec())

@@ -50,8 +50,8 @@ use crate::image_io::write_atomic_checked;
 use crate::layer_key::LayerKey;
 use crate::progress::Progress;
 use crate::stack::exr_file::{
-    read_stack, CancellableWriter, ATTR_FORMAT_VERSION, ATTR_HEADER, ATTR_LAYERS, ATTR_SCENE_HASH,
-    MAX_COMPRESSION_RATIO,
+    map_exr_err, read_stack, text_attr, CancellableWriter, ATTR_FORMAT_VERSION, ATTR_HEADER,
+    ATTR_LAYERS, ATTR_SCENE_HASH, MAX_COMPRESSION_RATIO,
 };
 use crate::stack::{Precision, StackHeader, STACK_FORMAT_VERSION};
 
@@ -489,43 +489,6 @@ fn encode(
         },
         || progress.check(),
     )
-}
-
-/// Maps an exr error like the dense reader does (its mapping is private to
-/// `exr_file.rs`): missing bytes → `StackTruncated`, a wrong magic number →
-/// `StackForeign`, damaged pixel data → `StackTruncated`, the rest → `StackFormat`.
-fn map_exr_err(path: &Path, e: x::Error, in_pixels: bool) -> RelumeError {
-    let truncated = |m: String| RelumeError::StackTruncated {
-        path: path.to_path_buf(),
-        message: m,
-    };
-    match e {
-        x::Error::Io(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
-            truncated(io.to_string())
-        }
-        x::Error::Io(io) => RelumeError::io(path, io),
-        x::Error::Invalid(m) if m == "reference to missing bytes" => {
-            truncated(format!("bytes missing ({m})"))
-        }
-        x::Error::Invalid(m) if m == "file identifier missing" => RelumeError::StackForeign {
-            path: path.to_path_buf(),
-            message: "not an OpenEXR file (wrong magic number)".into(),
-        },
-        x::Error::Invalid(m) if in_pixels => truncated(format!("pixel data: {m}")),
-        x::Error::Invalid(m) => format_err(path, format!("invalid OpenEXR meta data: {m}")),
-        x::Error::NotSupported(m) => format_err(path, format!("unsupported OpenEXR feature: {m}")),
-        x::Error::Aborted => format_err(path, "reading was aborted"),
-    }
-}
-
-fn text_attr(path: &Path, attrs: &x::LayerAttributes, name: &str) -> Result<Option<String>> {
-    match attrs.other.get(&x::Text::from(name)) {
-        None => Ok(None),
-        Some(x::AttributeValue::Text(t)) => String::from_utf8(t.as_slice().to_vec())
-            .map(Some)
-            .map_err(|_| format_err(path, format!("attribute {name} is not UTF-8 text"))),
-        Some(_) => Err(format_err(path, format!("attribute {name} is not text"))),
-    }
 }
 
 fn part_name(h: &exr::meta::header::Header) -> String {

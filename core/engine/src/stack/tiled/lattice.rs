@@ -290,35 +290,50 @@ impl TileLattice {
         starts
     }
 
-    /// Adds `weight ·` an entry's coefficients (`coef(i)`, `channels`, covering `mask`) into
+    /// Adds `weight ·` an entry's coefficients (`coef`, `channels`, covering `mask`) into
     /// node accumulators `acc`: per segment, per lattice node, RGB — `segment_count ×
     /// node_count × 3` floats. A grey entry adds its one value times each weight channel.
+    /// Walks the mask's set bits and the coefficients as slices (the relight calls this once
+    /// per lattice entry, so its per-entry cost is what a many-entry tile pays).
+    ///
+    /// # Panics
+    /// If `coef` holds fewer values than the mask's segments store
+    /// ([`coefficient_count`](Self::coefficient_count)) — impossible for a validated stack.
     pub fn accumulate(
         &self,
         acc: &mut [f32],
         mask: u32,
         channels: u8,
-        coef: impl Fn(usize) -> f32,
+        coef: &[f32],
         weight: [f32; 3],
     ) {
         let nodes = self.node_count();
         let c = channels as usize;
-        let mut at = 0usize;
-        for s in self.covered(mask) {
-            let base = s * nodes * 3;
-            for &node in &self.layout[s].nodes {
-                let dst = &mut acc[base + node as usize * 3..][..3];
-                if c == 1 {
-                    let v = coef(at);
-                    for ch in 0..3 {
-                        dst[ch] += weight[ch] * v;
-                    }
-                } else {
-                    for ch in 0..3 {
-                        dst[ch] += weight[ch] * coef(at + ch);
-                    }
+        let mut rest = coef;
+        let mut bits = mask;
+        while bits != 0 {
+            let s = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let Some(segment) = self.layout.get(s) else {
+                break;
+            };
+            let segment_acc = &mut acc[s * nodes * 3..(s + 1) * nodes * 3];
+            let (mine, tail) = rest.split_at(segment.nodes.len() * c);
+            rest = tail;
+            if c == 1 {
+                for (&node, &v) in segment.nodes.iter().zip(mine) {
+                    let dst = &mut segment_acc[node as usize * 3..node as usize * 3 + 3];
+                    dst[0] += weight[0] * v;
+                    dst[1] += weight[1] * v;
+                    dst[2] += weight[2] * v;
                 }
-                at += c;
+            } else {
+                for (&node, v) in segment.nodes.iter().zip(mine.chunks_exact(3)) {
+                    let dst = &mut segment_acc[node as usize * 3..node as usize * 3 + 3];
+                    dst[0] += weight[0] * v[0];
+                    dst[1] += weight[1] * v[1];
+                    dst[2] += weight[2] * v[2];
+                }
             }
         }
     }
