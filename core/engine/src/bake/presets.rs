@@ -132,10 +132,11 @@ impl Preset {
                     bounce_iterations: 2,
                 },
                 bounce_budget: 0.005,
-                compression: BounceCompression {
-                    step: 4,
-                    tolerance: COMPRESSION_TOLERANCE,
-                },
+                // The accuracy preset keeps every layer per pixel: a lattice fit can undershoot
+                // to slightly negative radiance in dark pixels (seen in the Cornell
+                // final-preset comparison with Cycles), an artefact final's users should not
+                // get in exchange for memory.
+                compression: BounceCompression::OFF,
             },
         }
     }
