@@ -9,43 +9,9 @@ mod common;
 use std::sync::Arc;
 
 use common::*;
-use relume_engine::relight::{CpuRelighter, FULL_RESUM_EVERY};
-use relume_engine::stack::tiled::TiledStack;
+use relume_engine::relight::FULL_RESUM_EVERY;
 use relume_engine::stack::Precision;
 use relume_gpu::{GpuOptions, GpuRelighter};
-
-/// Full relight, then `edits` single-region edits cycling over the editable regions; the
-/// two relighters are compared after every step, images and what they read. Returns the
-/// worst error seen.
-fn compare(name: &str, stack: &Arc<TiledStack>, gpu: &mut GpuRelighter, edits: usize) -> f64 {
-    let mut cpu = CpuRelighter::from_tiled(stack.clone()).unwrap();
-    let (bases, coefs) = default_coefs(&stack.header);
-    let mut worst: f64 = 0.0;
-    let mut check = |step: &str, g: &[f32], c: &[f32]| {
-        let e = rel_l2(g, c);
-        assert!(
-            e < TOLERANCE,
-            "{name}, {step}: GPU vs CPU relative L2 {e:.3e}"
-        );
-        worst = worst.max(e);
-    };
-    let c = cpu.relight(&coefs).unwrap().to_vec();
-    let g = gpu.relight(&coefs).unwrap().to_vec();
-    check("full relight", &g, &c);
-    assert!(!gpu.last_stats().incremental);
-    assert_eq!(gpu.last_stats(), cpu.last_stats(), "{name}: full relight");
-    let n = gpu.editable_count();
-    assert_eq!(n, cpu.editable_count(), "{name}");
-    for k in 0..edits {
-        let region = k % n;
-        let new = edit(&bases, region, k);
-        let c = cpu.relight_region(region, &new).unwrap().to_vec();
-        let g = gpu.relight_region(region, &new).unwrap().to_vec();
-        check(&format!("edit {k} of region {region}"), &g, &c);
-        assert_eq!(gpu.last_stats(), cpu.last_stats(), "{name}: edit {k}");
-    }
-    worst
-}
 
 fn all_assets(precision: Precision) {
     let Some(adapter) = gpu_or_skip("all_assets") else {
@@ -53,7 +19,7 @@ fn all_assets(precision: Precision) {
     };
     for (name, stack) in ASSETS.iter().map(|a| asset_tiled(a, precision)) {
         let mut gpu = GpuRelighter::new(stack.clone(), &adapter, GpuOptions::default()).unwrap();
-        let worst = compare(&name, &stack, &mut gpu, 6);
+        let worst = compare_with_cpu(&name, &stack, &mut gpu, 6);
         eprintln!(
             "{name}: {} layers, worst GPU/CPU relative L2 {worst:.2e}",
             stack.layers.len()
@@ -91,7 +57,7 @@ fn many_chunks_and_bind_groups_agree() {
         chunks > relume_gpu::layout::CHUNKS_PER_GROUP,
         "{name}: only {chunks} chunks, the test needs several bind groups"
     );
-    compare(&name, &stack, &mut gpu, 4);
+    compare_with_cpu(&name, &stack, &mut gpu, 4);
 }
 
 /// More edits than FULL_RESUM_EVERY: the periodic full re-sum happens on the GPU too and
@@ -103,7 +69,7 @@ fn incremental_edits_across_the_full_resum() {
     };
     let (name, stack) = asset_tiled("ring", Precision::F16);
     let mut gpu = GpuRelighter::new(stack.clone(), &adapter, GpuOptions::default()).unwrap();
-    compare(&name, &stack, &mut gpu, FULL_RESUM_EVERY + 3);
+    compare_with_cpu(&name, &stack, &mut gpu, FULL_RESUM_EVERY + 3);
     assert!(gpu.last_stats().incremental);
 }
 
@@ -196,7 +162,7 @@ fn extremes_stacks_agree_full_and_incremental() {
             .unwrap_or_else(|e| panic!("{name}: {e}"));
         let stack = Arc::new(stack);
         let mut gpu = GpuRelighter::new(stack.clone(), &adapter, GpuOptions::default()).unwrap();
-        let worst = compare(&name, &stack, &mut gpu, 4);
+        let worst = compare_with_cpu(&name, &stack, &mut gpu, 4);
         eprintln!(
             "{name}: {} layers, worst GPU/CPU relative L2 {worst:.2e}",
             stack.layers.len()

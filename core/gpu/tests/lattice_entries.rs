@@ -12,7 +12,6 @@ use std::sync::Arc;
 use common::*;
 use relume_engine::bake::presets::Preset;
 use relume_engine::bake::{bake_tiled, progress::Progress};
-use relume_engine::relight::CpuRelighter;
 use relume_engine::stack::tiled::lattice::nodes_along;
 use relume_engine::stack::tiled::validate::validate;
 use relume_engine::stack::tiled::{TileLattice, TileValues, TiledStack};
@@ -20,36 +19,6 @@ use relume_engine::stack::Precision;
 use relume_gpu::device::is_real_gpu;
 use relume_gpu::lattice::{block_words, MAX_NODE_SLOTS};
 use relume_gpu::{DeviceKind, DevicePreference, GpuError, GpuOptions, GpuRelighter, Relighter};
-
-/// Full relight, then `edits` single-region edits; GPU and CPU compared after each step,
-/// images and what they report reading.
-fn compare(name: &str, stack: &Arc<TiledStack>, gpu: &mut GpuRelighter, edits: usize) -> f64 {
-    let mut cpu = CpuRelighter::from_tiled(stack.clone()).unwrap();
-    let (bases, coefs) = default_coefs(&stack.header);
-    let mut worst: f64 = 0.0;
-    let mut check = |step: &str, g: &[f32], c: &[f32]| {
-        let e = rel_l2(g, c);
-        assert!(
-            e < TOLERANCE,
-            "{name}, {step}: GPU vs CPU relative L2 {e:.3e}"
-        );
-        worst = worst.max(e);
-    };
-    let c = cpu.relight(&coefs).unwrap().to_vec();
-    let g = gpu.relight(&coefs).unwrap().to_vec();
-    check("full relight", &g, &c);
-    assert_eq!(gpu.last_stats(), cpu.last_stats(), "{name}: full relight");
-    let n = gpu.editable_count();
-    for k in 0..edits {
-        let region = k % n;
-        let new = edit(&bases, region, k);
-        let c = cpu.relight_region(region, &new).unwrap().to_vec();
-        let g = gpu.relight_region(region, &new).unwrap().to_vec();
-        check(&format!("edit {k} of region {region}"), &g, &c);
-        assert_eq!(gpu.last_stats(), cpu.last_stats(), "{name}: edit {k}");
-    }
-    worst
-}
 
 fn lattice_entries(stack: &TiledStack) -> usize {
     stack
@@ -88,7 +57,7 @@ fn compressed_bakes_agree_full_and_incremental() {
             latticed += lattice_entries(&stack);
             let mut gpu = GpuRelighter::new(stack.clone(), &adapter, GpuOptions::default())
                 .unwrap_or_else(|e| panic!("{name}: {e}"));
-            let worst = compare(&name, &stack, &mut gpu, 4);
+            let worst = compare_with_cpu(&name, &stack, &mut gpu, 4);
             eprintln!(
                 "{name}: {} lattice entries of {}, worst GPU vs CPU {worst:.2e}",
                 lattice_entries(&stack),
@@ -209,7 +178,7 @@ fn synthetic_mixed_stacks_agree_full_and_incremental() {
         assert!(lattice_entries(&stack) > 0, "{name}");
         let mut gpu = GpuRelighter::new(stack.clone(), &adapter, GpuOptions::default())
             .unwrap_or_else(|e| panic!("{name}: {e}"));
-        let worst = compare(&name, &stack, &mut gpu, 6);
+        let worst = compare_with_cpu(&name, &stack, &mut gpu, 6);
         eprintln!(
             "{name} with lattices: {} lattice entries of {}, worst GPU vs CPU {worst:.2e}",
             lattice_entries(&stack),
@@ -225,7 +194,7 @@ fn synthetic_mixed_stacks_agree_full_and_incremental() {
         let mut gpu = GpuRelighter::new(stack.clone(), &adapter, options).unwrap();
         let chunks = gpu.layer_bytes_and_chunks().1;
         assert!(chunks > 4, "{name}: {chunks} chunks, one bind group");
-        compare(&format!("{name}, {chunks} chunks"), &stack, &mut gpu, 2);
+        compare_with_cpu(&format!("{name}, {chunks} chunks"), &stack, &mut gpu, 2);
     }
 }
 

@@ -156,3 +156,41 @@ pub fn gpu_or_skip(test: &str) -> Option<relume_gpu::wgpu::Adapter> {
         }
     }
 }
+
+/// Full relight, then `edits` single-region edits cycling over the editable regions; the
+/// two relighters are compared after every step, images and what they read. Returns the
+/// worst error seen.
+pub fn compare_with_cpu(
+    name: &str,
+    stack: &Arc<TiledStack>,
+    gpu: &mut relume_gpu::GpuRelighter,
+    edits: usize,
+) -> f64 {
+    let mut cpu = relume_engine::relight::CpuRelighter::from_tiled(stack.clone()).unwrap();
+    let (bases, coefs) = default_coefs(&stack.header);
+    let mut worst: f64 = 0.0;
+    let mut check = |step: &str, g: &[f32], c: &[f32]| {
+        let e = rel_l2(g, c);
+        assert!(
+            e < TOLERANCE,
+            "{name}, {step}: GPU vs CPU relative L2 {e:.3e}"
+        );
+        worst = worst.max(e);
+    };
+    let c = cpu.relight(&coefs).unwrap().to_vec();
+    let g = gpu.relight(&coefs).unwrap().to_vec();
+    check("full relight", &g, &c);
+    assert!(!gpu.last_stats().incremental);
+    assert_eq!(gpu.last_stats(), cpu.last_stats(), "{name}: full relight");
+    let n = gpu.editable_count();
+    assert_eq!(n, cpu.editable_count(), "{name}");
+    for k in 0..edits {
+        let region = k % n;
+        let new = edit(&bases, region, k);
+        let c = cpu.relight_region(region, &new).unwrap().to_vec();
+        let g = gpu.relight_region(region, &new).unwrap().to_vec();
+        check(&format!("edit {k} of region {region}"), &g, &c);
+        assert_eq!(gpu.last_stats(), cpu.last_stats(), "{name}: edit {k}");
+    }
+    worst
+}
