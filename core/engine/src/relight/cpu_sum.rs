@@ -4,7 +4,8 @@
 //!
 //! The sum is memory-bound: a full relight reads every entry of a non-zero weight once (a
 //! tile row per rayon task, the tile's accumulators in L1), an incremental one only the
-//! changed layers' entries (found per tile by binary search in the tile's sorted table).
+//! changed layers' entries (found per tile by binary search in the tile's sorted table, or,
+//! when many layers changed, by walking the table against a per-layer table of deltas).
 //! In the test profile (debug assertions on) the SIMD intrinsics carry UB checks and the
 //! sum is several times slower: time release builds only. Measured figures are in
 //! `docs/measurements.md`.

@@ -1,24 +1,32 @@
-//! The inner loops of the relight: `acc += w(RGB) · layer row segment`, into the per-row
-//! accumulators of the packed row sum (`packed.rs`), which merges them into the RGBA image
-//! once per row.
+//! The inner loops of the relight: `acc += w(RGB) · values`, for one tile entry (a layer's
+//! pixels in a tile, or one segment's lattice coefficients) into the tile's accumulators
+//! (`tile_accumulators.rs`), which are merged into the RGBA image once per tile.
 //!
 //! Every relight ends here, so this is where its time goes: the sum is bound by the memory
 //! bandwidth, and the arithmetic (one multiply-add per sample and channel, plus one
 //! f16 → f32 conversion per sample) must hide under the reads.
 //!
 //! Two shapes of accumulator, so that neither inner loop needs a permute:
-//! - **Planar grey** ([`Kernels::add_grey_planar`]): a grey sample adds to three separate
-//!   R, G and B rows, three fused multiply-adds per 8 pixels.
-//! - **Interleaved RGB** ([`Kernels::add_rgb_interleaved`]): an RGB sample adds to the same
-//!   position of an interleaved RGB row, with the weight vector rotated per 8-lane step
-//!   (the pattern repeats every 24 samples).
+//! - **Planar grey** ([`EntryKernels::grey`]): a grey sample adds to three separate R, G
+//!   and B rows, three fused multiply-adds per 8 values.
+//! - **Interleaved RGB** ([`EntryKernels::rgb`]): an RGB sample adds to the same position
+//!   of an interleaved RGB row, with the weight vector rotated per 8-lane step (the pattern
+//!   repeats every 24 samples).
 //!
-//! Two implementations, chosen once per [`Kernels::detect`]:
-//! - **AVX2 + FMA + F16C** (x86-64, detected at run time because the workspace builds for
-//!   baseline x86-64): 8 samples per step, `vcvtph2ps` converts f16 in registers, one fused
-//!   multiply-add per 8 samples and accumulator. No temporary buffer, no bounds checks.
-//! - **Portable**: converts a chunk of at most [`CHUNK`] samples into a stack buffer with
-//!   `half`'s slice conversion (which itself uses F16C where present), then plain loops.
+//! Entries are short (a lattice segment holds a few dozen values), so the loops are built
+//! for that: the accumulators are padded to whole 8-lane vectors ([`padded`]) and a last,
+//! partial vector is added whole — reading past the entry where the tile's values go on,
+//! else from a zero-filled copy — into padding lanes nobody reads. No scalar tail.
+//!
+//! Two implementations, each a type implementing [`EntryKernels`], so the tile loop that
+//! calls them is compiled once per implementation with the calls inlined (no dispatch per
+//! entry); [`Kernels`] says which one runs, chosen once per [`Kernels::detect`]:
+//! - **AVX2 + FMA + F16C** ([`Avx2`]; x86-64, detected at run time because the workspace
+//!   builds for baseline x86-64): 8 samples per step, `vcvtph2ps` converts f16 in
+//!   registers, one fused multiply-add per 8 samples and accumulator. Its methods are meant
+//!   to be inlined into a function compiled with those features (`tiled_sum.rs` does so).
+//! - **Portable** ([`Portable`]): converts a chunk of at most [`CHUNK`] samples into a
+//!   stack buffer with `half`'s slice conversion, then plain loops over exactly the entry.
 //!   Used on other CPUs, and by the tests to check the AVX2 path against it.
 //!
 //! The accumulators hold colour only; the image's alpha of 1 is never touched by a sum.
@@ -29,8 +37,19 @@ use half::f16;
 /// stack: small enough for L1, large enough to amortise the per-call dispatch of `half`).
 pub(crate) const CHUNK: usize = 64;
 
+/// Lanes of one vector step: accumulators are padded to a multiple of this.
+pub(crate) const LANES: usize = 8;
+
+/// Floats an accumulator for `len` values must hold: `len` rounded up to whole vectors.
+#[inline(always)]
+pub(crate) const fn padded(len: usize) -> usize {
+    len.div_ceil(LANES) * LANES
+}
+
 /// A sample type a layer can be stored in.
 pub(crate) trait Sample: Copy + Send + Sync + 'static {
+    /// The value 0.
+    const ZERO: Self;
     /// Converts `src` to f32 into `dst` (same length).
     fn convert(src: &[Self], dst: &mut [f32]);
     /// Loads 8 consecutive samples as f32.
@@ -42,6 +61,7 @@ pub(crate) trait Sample: Copy + Send + Sync + 'static {
 }
 
 impl Sample for f32 {
+    const ZERO: f32 = 0.0;
     #[inline(always)]
     fn convert(src: &[f32], dst: &mut [f32]) {
         dst.copy_from_slice(src);
@@ -55,6 +75,7 @@ impl Sample for f32 {
 }
 
 impl Sample for f16 {
+    const ZERO: f16 = f16::ZERO;
     #[inline(always)]
     fn convert(src: &[f16], dst: &mut [f32]) {
         use half::slice::HalfFloatSliceExt;
@@ -75,7 +96,7 @@ impl Sample for f16 {
 pub(crate) enum Kernels {
     Portable,
     #[cfg(target_arch = "x86_64")]
-    Avx2,
+    Avx2(Avx2),
 }
 
 impl Kernels {
@@ -83,55 +104,64 @@ impl Kernels {
     pub(crate) fn detect() -> Kernels {
         #[cfg(target_arch = "x86_64")]
         {
-            if std::arch::is_x86_feature_detected!("avx2")
-                && std::arch::is_x86_feature_detected!("fma")
-                && std::arch::is_x86_feature_detected!("f16c")
-            {
-                return Kernels::Avx2;
+            if let Some(k) = Avx2::new() {
+                return Kernels::Avx2(k);
             }
         }
         Kernels::Portable
     }
+}
 
-    /// Planar grey: `r[p] += w[0]·src[p]`, `g[p] += w[1]·src[p]`, `b[p] += w[2]·src[p]`.
-    /// Three fused multiply-adds per 8 pixels and no permutes: the form the packed row sum
-    /// uses for grey layers (the majority), merged into RGBA once per row.
-    #[inline]
-    pub(crate) fn add_grey_planar<S: Sample>(
+/// The two inner loops of one implementation. `len` values of `src` are added; `src` may
+/// hold more (the tile's later values), which a vector implementation may read into
+/// padding lanes.
+pub(crate) trait EntryKernels: Copy + std::fmt::Debug {
+    /// Planar grey: `r[p] += w[0]·src[p]`, `g[p] += w[1]·src[p]`, `b[p] += w[2]·src[p]`
+    /// for `p < len`. Each accumulator holds at least [`padded`]`(len)` floats; those from
+    /// `len` on may change (padding).
+    ///
+    /// # Panics
+    /// If an accumulator is shorter than that or `src` shorter than `len`.
+    fn grey<S: Sample>(
         self,
         r: &mut [f32],
         g: &mut [f32],
         b: &mut [f32],
         src: &[S],
+        len: usize,
+        w: [f32; 3],
+    );
+
+    /// Interleaved RGB: `acc[i] += w[i mod 3]·src[i]` for `i < len` (a multiple of 3).
+    /// `acc` holds at least [`padded`]`(len)` floats; those from `len` on may change.
+    ///
+    /// # Panics
+    /// If `acc` is shorter than that, `src` shorter than `len`, or `len` not a multiple of 3.
+    fn rgb<S: Sample>(self, acc: &mut [f32], src: &[S], len: usize, w: [f32; 3]);
+}
+
+/// The portable loops: exactly `len` values, no padding lanes touched.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Portable;
+
+impl EntryKernels for Portable {
+    #[inline]
+    fn grey<S: Sample>(
+        self,
+        r: &mut [f32],
+        g: &mut [f32],
+        b: &mut [f32],
+        src: &[S],
+        len: usize,
         w: [f32; 3],
     ) {
-        assert!(
-            r.len() == src.len() && g.len() == src.len() && b.len() == src.len(),
-            "planar grey: one output per sample"
-        );
-        match self {
-            Kernels::Portable => grey_planar_portable(r, g, b, src, w),
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: `Avx2` is only built by `detect` after checking AVX2, FMA and F16C;
-            // the lengths were checked above.
-            Kernels::Avx2 => unsafe { x86::grey_planar_avx2(r, g, b, src, w) },
-        }
+        grey_planar_portable(&mut r[..len], &mut g[..len], &mut b[..len], &src[..len], w);
     }
 
-    /// Interleaved RGB: `acc[i] += w[i mod 3]·src[i]`. With weights rotated per 8-lane
-    /// vector (period 24) it needs no permutes either.
     #[inline]
-    pub(crate) fn add_rgb_interleaved<S: Sample>(self, acc: &mut [f32], src: &[S], w: [f32; 3]) {
-        assert!(
-            acc.len() == src.len() && src.len().is_multiple_of(3),
-            "interleaved RGB: one output per sample"
-        );
-        match self {
-            Kernels::Portable => rgb_interleaved_portable(acc, src, w),
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: as in `add_grey_planar`.
-            Kernels::Avx2 => unsafe { x86::rgb_interleaved_avx2(acc, src, w) },
-        }
+    fn rgb<S: Sample>(self, acc: &mut [f32], src: &[S], len: usize, w: [f32; 3]) {
+        assert!(len.is_multiple_of(3), "interleaved RGB: whole pixels");
+        rgb_interleaved_portable(&mut acc[..len], &src[..len], w);
     }
 }
 
@@ -147,10 +177,15 @@ fn grey_planar_portable<S: Sample>(
         let t = &mut buf[..chunk.len()];
         S::convert(chunk, t);
         let o = k * CHUNK;
+        let (r, g, b) = (
+            &mut r[o..o + t.len()],
+            &mut g[o..o + t.len()],
+            &mut b[o..o + t.len()],
+        );
         for (i, v) in t.iter().enumerate() {
-            r[o + i] += w[0] * v;
-            g[o + i] += w[1] * v;
-            b[o + i] += w[2] * v;
+            r[i] += w[0] * v;
+            g[i] += w[1] * v;
+            b[i] += w[2] * v;
         }
     }
 }
@@ -161,85 +196,148 @@ fn rgb_interleaved_portable<S: Sample>(acc: &mut [f32], src: &[S], w: [f32; 3]) 
         let t = &mut buf[..chunk.len()];
         S::convert(chunk, t);
         let o = k * 3 * CHUNK;
-        for (i, v) in t.iter().enumerate() {
-            acc[o + i] += w[i % 3] * v;
+        for (a, v) in acc[o..o + t.len()]
+            .chunks_exact_mut(3)
+            .zip(t.chunks_exact(3))
+        {
+            a[0] += w[0] * v[0];
+            a[1] += w[1] * v[1];
+            a[2] += w[2] * v[2];
         }
     }
 }
 
 #[cfg(target_arch = "x86_64")]
+pub(crate) use x86::Avx2;
+
+#[cfg(target_arch = "x86_64")]
 mod x86 {
-    use super::{grey_planar_portable, rgb_interleaved_portable, Sample};
+    use super::{padded, EntryKernels, Sample, LANES};
     use std::arch::x86_64::*;
 
-    /// Planar grey, 8 samples per step.
-    ///
-    /// # Safety
-    /// AVX2, FMA and F16C present; all slices as long as `src`.
-    #[target_feature(enable = "avx2,fma,f16c")]
-    pub(super) unsafe fn grey_planar_avx2<S: Sample>(
-        r: &mut [f32],
-        g: &mut [f32],
-        b: &mut [f32],
-        src: &[S],
-        w: [f32; 3],
-    ) {
-        let n8 = src.len() / 8 * 8;
-        let (wr, wg, wb) = (
-            _mm256_set1_ps(w[0]),
-            _mm256_set1_ps(w[1]),
-            _mm256_set1_ps(w[2]),
-        );
-        let (rp, gp, bp, sp) = (r.as_mut_ptr(), g.as_mut_ptr(), b.as_mut_ptr(), src.as_ptr());
-        let mut i = 0;
-        while i < n8 {
-            // SAFETY: i + 8 ≤ len of every slice.
-            unsafe {
-                let v = S::load8(sp.add(i));
-                _mm256_storeu_ps(
-                    rp.add(i),
-                    _mm256_fmadd_ps(v, wr, _mm256_loadu_ps(rp.add(i))),
-                );
-                _mm256_storeu_ps(
-                    gp.add(i),
-                    _mm256_fmadd_ps(v, wg, _mm256_loadu_ps(gp.add(i))),
-                );
-                _mm256_storeu_ps(
-                    bp.add(i),
-                    _mm256_fmadd_ps(v, wb, _mm256_loadu_ps(bp.add(i))),
-                );
-            }
-            i += 8;
-        }
-        grey_planar_portable(&mut r[n8..], &mut g[n8..], &mut b[n8..], &src[n8..], w);
+    /// The AVX2 + FMA + F16C loops. Only [`Avx2::new`] makes one, after checking that the
+    /// CPU has those features, which is what makes its safe methods sound.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub(crate) struct Avx2 {
+        _checked: (),
     }
 
-    /// Interleaved RGB, 24 samples (8 pixels) per step with three rotated weight vectors.
+    impl Avx2 {
+        /// The AVX2 loops, when this CPU has AVX2, FMA and F16C.
+        pub(crate) fn new() -> Option<Avx2> {
+            (is_x86_feature_detected!("avx2")
+                && is_x86_feature_detected!("fma")
+                && is_x86_feature_detected!("f16c"))
+            .then_some(Avx2 { _checked: () })
+        }
+    }
+
+    /// Eight samples from `src[i..]`: read in place when eight are there, else the ones
+    /// that are, zero-filled (a last, partial vector at the end of a tile's values).
     ///
     /// # Safety
-    /// AVX2, FMA and F16C present; `acc.len() == src.len()`.
-    #[target_feature(enable = "avx2,fma,f16c")]
-    pub(super) unsafe fn rgb_interleaved_avx2<S: Sample>(acc: &mut [f32], src: &[S], w: [f32; 3]) {
-        let n24 = src.len() / 24 * 24;
-        let w0 = _mm256_setr_ps(w[0], w[1], w[2], w[0], w[1], w[2], w[0], w[1]);
-        let w1 = _mm256_setr_ps(w[2], w[0], w[1], w[2], w[0], w[1], w[2], w[0]);
-        let w2 = _mm256_setr_ps(w[1], w[2], w[0], w[1], w[2], w[0], w[1], w[2]);
-        let (ap, sp) = (acc.as_mut_ptr(), src.as_ptr());
-        let mut i = 0;
-        while i < n24 {
-            // SAFETY: i + 24 ≤ len of both slices.
+    /// AVX2 and F16C present; `i < src.len()`.
+    #[inline(always)]
+    unsafe fn load8_at<S: Sample>(src: &[S], i: usize) -> __m256 {
+        if i + LANES <= src.len() {
+            // SAFETY: eight values from i are in `src`; features as the caller promises.
+            unsafe { S::load8(src.as_ptr().add(i)) }
+        } else {
+            let mut buf = [S::ZERO; LANES];
+            let rest = &src[i..];
+            buf[..rest.len()].copy_from_slice(rest);
+            // SAFETY: `buf` holds eight values; features as the caller promises.
+            unsafe { S::load8(buf.as_ptr()) }
+        }
+    }
+
+    impl EntryKernels for Avx2 {
+        #[inline(always)]
+        fn grey<S: Sample>(
+            self,
+            r: &mut [f32],
+            g: &mut [f32],
+            b: &mut [f32],
+            src: &[S],
+            len: usize,
+            w: [f32; 3],
+        ) {
+            let end = padded(len);
+            assert!(
+                r.len() >= end && g.len() >= end && b.len() >= end && src.len() >= len,
+                "planar grey: accumulators of whole vectors, {len} values"
+            );
+            let (rp, gp, bp) = (r.as_mut_ptr(), g.as_mut_ptr(), b.as_mut_ptr());
+            // SAFETY: `self` exists only on a CPU with AVX2, FMA and F16C; every lane
+            // i..i + 8 < end is inside the accumulators (checked above) and `i < len ≤
+            // src.len()` for the loads.
             unsafe {
-                for (k, wk) in [(0, w0), (8, w1), (16, w2)] {
-                    let v = S::load8(sp.add(i + k));
+                let (wr, wg, wb) = (
+                    _mm256_set1_ps(w[0]),
+                    _mm256_set1_ps(w[1]),
+                    _mm256_set1_ps(w[2]),
+                );
+                let mut i = 0;
+                while i < len {
+                    let v = load8_at(src, i);
                     _mm256_storeu_ps(
-                        ap.add(i + k),
-                        _mm256_fmadd_ps(v, wk, _mm256_loadu_ps(ap.add(i + k))),
+                        rp.add(i),
+                        _mm256_fmadd_ps(v, wr, _mm256_loadu_ps(rp.add(i))),
                     );
+                    _mm256_storeu_ps(
+                        gp.add(i),
+                        _mm256_fmadd_ps(v, wg, _mm256_loadu_ps(gp.add(i))),
+                    );
+                    _mm256_storeu_ps(
+                        bp.add(i),
+                        _mm256_fmadd_ps(v, wb, _mm256_loadu_ps(bp.add(i))),
+                    );
+                    i += LANES;
                 }
             }
-            i += 24;
         }
-        rgb_interleaved_portable(&mut acc[n24..], &src[n24..], w);
+
+        #[inline(always)]
+        fn rgb<S: Sample>(self, acc: &mut [f32], src: &[S], len: usize, w: [f32; 3]) {
+            assert!(
+                len.is_multiple_of(3) && acc.len() >= padded(len) && src.len() >= len,
+                "interleaved RGB: whole pixels, accumulator of whole vectors"
+            );
+            let ap = acc.as_mut_ptr();
+            // SAFETY: as in `grey`: features checked at construction, lanes below
+            // `padded(len) ≤ acc.len()`, loads from `i < len ≤ src.len()`.
+            unsafe {
+                // The weights of lanes 0..8, 8..16, 16..24 of each 24-sample (8-pixel) step.
+                let rotations = [
+                    _mm256_setr_ps(w[0], w[1], w[2], w[0], w[1], w[2], w[0], w[1]),
+                    _mm256_setr_ps(w[2], w[0], w[1], w[2], w[0], w[1], w[2], w[0]),
+                    _mm256_setr_ps(w[1], w[2], w[0], w[1], w[2], w[0], w[1], w[2]),
+                ];
+                let mut i = 0;
+                while i + 3 * LANES <= len {
+                    for (k, wk) in rotations.iter().enumerate() {
+                        let at = i + k * LANES;
+                        let v = S::load8(src.as_ptr().add(at));
+                        _mm256_storeu_ps(
+                            ap.add(at),
+                            _mm256_fmadd_ps(v, *wk, _mm256_loadu_ps(ap.add(at))),
+                        );
+                    }
+                    i += 3 * LANES;
+                }
+                for wk in rotations {
+                    if i >= len {
+                        break;
+                    }
+                    let v = load8_at(src, i);
+                    _mm256_storeu_ps(
+                        ap.add(i),
+                        _mm256_fmadd_ps(v, wk, _mm256_loadu_ps(ap.add(i))),
+                    );
+                    i += LANES;
+                }
+            }
+        }
     }
 }
 
@@ -261,84 +359,95 @@ mod tests {
 
     const W: [f32; 3] = [0.5, -1.25, 2.0];
 
-    /// The planar grey kernel applied to an RGBA buffer (split, add, merge).
-    fn add_grey_rgba<S: Sample>(k: Kernels, rgba: &mut [f32], src: &[S]) {
-        let n = src.len();
-        let mut planes: Vec<Vec<f32>> = (0..3)
-            .map(|c| (0..n).map(|p| rgba[4 * p + c]).collect())
-            .collect();
-        let (r, gb) = planes.split_at_mut(1);
-        let (g, b) = gb.split_at_mut(1);
-        k.add_grey_planar(&mut r[0], &mut g[0], &mut b[0], src, W);
-        for p in 0..n {
-            for c in 0..3 {
-                rgba[4 * p + c] = planes[c][p];
-            }
-        }
-    }
-
-    /// The interleaved RGB kernel applied to an RGBA buffer.
-    fn add_rgb_rgba<S: Sample>(k: Kernels, rgba: &mut [f32], src: &[S]) {
-        let n = src.len() / 3;
-        let mut acc: Vec<f32> = (0..n)
-            .flat_map(|p| rgba[4 * p..4 * p + 3].to_vec())
-            .collect();
-        k.add_rgb_interleaved(&mut acc, src, W);
-        for p in 0..n {
-            rgba[4 * p..4 * p + 3].copy_from_slice(&acc[3 * p..3 * p + 3]);
-        }
-    }
-
-    /// Every kernel against a scalar sum, for lengths that exercise the 8-pixel steps and
-    /// the tails (0..=8 leftover pixels), f16 and f32, grey and RGB.
-    #[test]
-    fn kernels_match_scalar() {
-        let w = W;
-        let mut kinds = vec![Kernels::Portable];
-        if Kernels::detect() != Kernels::Portable {
-            kinds.push(Kernels::detect());
-        }
-        for k in kinds {
-            for px in [0usize, 1, 7, 8, 9, 16, 23, 64, 65, 200] {
-                for ch in [1usize, 3] {
-                    let vals = pseudo(px * ch, (px * 7 + ch) as u32);
-                    let halves: Vec<f16> = vals.iter().map(|&v| f16::from_f32(v)).collect();
-                    let init = pseudo(px * 4, 99);
-                    let mut expect = init.clone();
-                    for p in 0..px {
-                        for c in 0..3 {
-                            let v = if ch == 1 {
-                                halves[p]
-                            } else {
-                                halves[3 * p + c]
-                            };
-                            expect[4 * p + c] += w[c] * v.to_f32();
+    /// One implementation against a scalar sum: `len` values of a source that ends there
+    /// or goes on (values past the entry, as in a tile), f16 and f32, grey and RGB, lengths
+    /// that exercise whole vectors, 24-sample steps and every partial last vector.
+    fn check<K: EntryKernels>(k: K) {
+        for len in (0..=26).chain([48, 64, 65, 75, 200, 256]) {
+            for extra in [0usize, 3, 8, 30] {
+                let vals = pseudo(len + extra, (len * 7 + extra) as u32);
+                let halves: Vec<f16> = vals.iter().map(|&v| f16::from_f32(v)).collect();
+                let exact: Vec<f32> = halves.iter().map(|h| h.to_f32()).collect();
+                let end = padded(len);
+                // Grey: three planes.
+                let init = pseudo(3 * end, 99);
+                let mut expect = init.clone();
+                for p in 0..len {
+                    for c in 0..3 {
+                        expect[c * end + p] += W[c] * exact[p];
+                    }
+                }
+                for src in [Source::Half(&halves), Source::Single(&exact)] {
+                    let mut got = init.clone();
+                    let (r, gb) = got.split_at_mut(end);
+                    let (g, b) = gb.split_at_mut(end);
+                    match src {
+                        Source::Half(s) => k.grey(r, g, b, s, len, W),
+                        Source::Single(s) => k.grey(r, g, b, s, len, W),
+                    }
+                    for c in 0..3 {
+                        for p in 0..len {
+                            let (x, y) = (got[c * end + p], expect[c * end + p]);
+                            // FMA rounds once instead of twice.
+                            assert!(
+                                (x - y).abs() <= 1e-6 * (1.0 + y.abs()),
+                                "{k:?} grey len {len} +{extra}: {x} vs {y}"
+                            );
                         }
                     }
-                    let mut got16 = init.clone();
-                    let exact: Vec<f32> = halves.iter().map(|h| h.to_f32()).collect();
-                    let mut got32 = init.clone();
-                    if ch == 1 {
-                        add_grey_rgba(k, &mut got16, &halves);
-                        add_grey_rgba(k, &mut got32, &exact);
-                    } else {
-                        add_rgb_rgba(k, &mut got16, &halves);
-                        add_rgb_rgba(k, &mut got32, &exact);
+                }
+                // RGB: whole pixels of the same values.
+                let len3 = len / 3 * 3;
+                let end3 = padded(len3);
+                let init = pseudo(end3, 7);
+                let mut expect = init.clone();
+                for i in 0..len3 {
+                    expect[i] += W[i % 3] * exact[i];
+                }
+                for src in [Source::Half(&halves), Source::Single(&exact)] {
+                    let mut got = init.clone();
+                    match src {
+                        Source::Half(s) => k.rgb(&mut got, s, len3, W),
+                        Source::Single(s) => k.rgb(&mut got, s, len3, W),
                     }
-                    for i in 0..expect.len() {
-                        // FMA rounds once instead of twice: allow one ulp-scale difference.
-                        let tol = 1e-6 * (1.0 + expect[i].abs());
+                    for i in 0..len3 {
+                        let (x, y) = (got[i], expect[i]);
                         assert!(
-                            (got16[i] - expect[i]).abs() <= tol,
-                            "{k:?} px {px} ch {ch} i {i}"
-                        );
-                        assert!(
-                            (got32[i] - expect[i]).abs() <= tol,
-                            "{k:?} px {px} ch {ch} i {i}"
+                            (x - y).abs() <= 1e-6 * (1.0 + y.abs()),
+                            "{k:?} rgb len {len3} +{extra}: {x} vs {y}"
                         );
                     }
                 }
             }
         }
+    }
+
+    #[derive(Clone, Copy)]
+    enum Source<'a> {
+        Half(&'a [f16]),
+        Single(&'a [f32]),
+    }
+
+    #[test]
+    fn portable_kernels_match_scalar() {
+        check(Portable);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx2_kernels_match_scalar() {
+        match Avx2::new() {
+            Some(k) => check(k),
+            None => eprintln!("no AVX2 + FMA + F16C on this CPU: only the portable loops run"),
+        }
+    }
+
+    #[test]
+    fn portable_kernels_leave_the_padding_alone() {
+        let src = pseudo(13, 5);
+        let mut acc = vec![0.0f32; padded(12)];
+        Portable.rgb(&mut acc, &src, 12, W);
+        assert!(acc[..12].iter().any(|v| *v != 0.0));
+        assert!(acc[12..].iter().all(|v| *v == 0.0));
     }
 }

@@ -16,7 +16,8 @@
 //! - `bookkeeping`: [`RelightBookkeeping`], coefficients → weights, the layers an edit
 //!   touches, the periodic full re-sum; shared by the CPU and the GPU relighters.
 //! - [`tiled_sum`]: the CPU's sum over a [`crate::stack::tiled::TiledStack`] (per tile, only
-//!   the layers present there); `kernels`: its SIMD inner loops.
+//!   the layers present there); `tile_accumulators`: what one tile sums into (pixels and
+//!   lattice nodes) and the expansion of the nodes; `kernels`: its SIMD inner loops.
 //! - `cpu_sum`: that sum as the CPU's [`LayerSum`], with its image.
 //! - `cpu`: [`CpuRelighter`], the bookkeeping over the CPU sum.
 //! - [`bandwidth`]: how fast this machine reads memory, the floor under any relight.
@@ -31,6 +32,7 @@ mod cpu_sum;
 pub(crate) mod kernels;
 mod layer_sum;
 mod shape;
+mod tile_accumulators;
 pub mod tiled_sum;
 mod weight;
 

@@ -4,28 +4,32 @@
 //! The image layout is the dense relighter's ([`super::CpuRelighter::image`]): RGBA f32,
 //! rows top-down, alpha 1. Tile rows run in parallel: each owns 16 image rows, handed out
 //! with `par_chunks_mut`. Per tile, grey entries accumulate into planar R, G, B tiles and
-//! RGB entries into an interleaved RGB tile with the dense relighter's kernels
-//! ([`Kernels`]: f16 converted in registers or in small chunks, fused multiply-adds), and
-//! the two are added into the image at the end — per pixel the same order of additions as
-//! the dense sum, so both agree to rounding.
+//! RGB entries into an interleaved RGB tile ([`TileAccumulators`]) with the kernels of
+//! [`super::kernels`] (f16 converted in registers or in small chunks, fused multiply-adds),
+//! and the two are added into the image at the end — per pixel the same order of additions
+//! as the dense sum, so both agree to rounding.
 //!
 //! Lattice entries ([`crate::stack::tiled::lattice`]) are summed in the lattice: each adds
 //! weight × its coefficients into per-segment node accumulators (cost ∝ its coefficients,
-//! not the tile's pixels), and the tile's nodes are expanded to pixels once, into the RGB
+//! not the tile's pixels; the same vector loops as the pixels, one contiguous run per
+//! covered segment), and the tile's nodes are expanded to pixels once, into the RGB
 //! accumulators, before they are added to the image. The lattice is linear, so this equals
 //! the relight of the same entries expanded to pixels ([`TiledStack::to_dense`]) to
 //! rounding.
+//!
+//! A tile holds hundreds of small entries at many editable materials, so what an entry
+//! costs besides its values matters as much as the values: the loop over a tile's entries
+//! is one function per implementation of the kernels and sample type, the kernels inlined
+//! into it (compiled with AVX2 where that is the implementation), with no dynamic dispatch
+//! or precision match per entry.
 
-use half::slice::HalfFloatSliceExt;
 use rayon::prelude::*;
 
-use super::kernels::Kernels;
+use super::kernels::{EntryKernels, Kernels, Portable, Sample};
 use super::layer_weight;
-use crate::stack::tiled::{StackTile, TileValues, TiledStack, STACK_TILE};
+use super::tile_accumulators::TileAccumulators;
+use crate::stack::tiled::{StackTile, TileRect, TileValues, TiledStack, STACK_TILE};
 use crate::{RelumeError, Result, Rgb};
-
-/// Values per tile and channel.
-const TILE_PIXELS: usize = (STACK_TILE * STACK_TILE) as usize;
 
 /// Every layer's weight for `coefs[region][basis]`: [`layer_weight`] times the factor of
 /// the layer's light group (`group_factors`, as [`super::group_factors`] gives for the
@@ -109,14 +113,7 @@ pub(crate) fn full_with(
     kernels: Kernels,
 ) -> Result<()> {
     check_shapes(stack, weights.len(), out)?;
-    sum(stack, out, true, kernels, |tile, add| {
-        for (k, e) in tile.entries.iter().enumerate() {
-            let w = weights[e.layer as usize];
-            if w != Rgb::ZERO {
-                add(k, w);
-            }
-        }
-    });
+    sum(stack, out, true, kernels, &EveryLayer { weights });
     Ok(())
 }
 
@@ -152,139 +149,269 @@ pub(crate) fn incremental_with(
     }
     // Layer order, as the full sum adds them.
     changed.sort_by_key(|(l, _)| *l);
-    sum(stack, out, false, kernels, |tile, add| {
-        for (l, delta) in &changed {
-            if let Ok(k) = tile.entries.binary_search_by_key(l, |e| e.layer) {
-                add(k, *delta);
-            }
-        }
-    });
+    if changed.len() < DENSE_CHANGE_SHARE * stack.layers.len() / 100 {
+        sum(
+            stack,
+            out,
+            false,
+            kernels,
+            &SearchedLayers { changed: &changed },
+        );
+        return Ok(());
+    }
+    // A layer changed twice adds both deltas, as the search would find its entry twice.
+    let mut deltas: Vec<Rgb> = crate::memory::try_zeroed(stack.layers.len(), "relight deltas")?;
+    for (l, d) in &changed {
+        deltas[*l as usize] += *d;
+    }
+    sum(
+        stack,
+        out,
+        false,
+        kernels,
+        &LookedUpLayers { deltas: &deltas },
+    );
     Ok(())
 }
 
-/// Per-tile accumulators: planar R, G, B for grey entries, interleaved RGB for RGB ones.
-struct Accumulators {
-    r: [f32; TILE_PIXELS],
-    g: [f32; TILE_PIXELS],
-    b: [f32; TILE_PIXELS],
-    rgb: [f32; 3 * TILE_PIXELS],
-    /// Per segment, per lattice node, RGB: the tile's lattice entries summed.
-    nodes: Vec<f32>,
-    /// Scratch: an f16 lattice entry's coefficients as f32.
-    coefficients: Vec<f32>,
+/// Share of the stack's layers (in %) from which an incremental sum looks each entry's
+/// layer up in a table of deltas instead of searching each changed layer in each tile: the
+/// tile's table is then walked once, as the full sum walks it, rather than searched once per
+/// changed layer.
+const DENSE_CHANGE_SHARE: usize = 5;
+
+/// Which of a tile's entries a sum adds, and with what weight. An iterator rather than a
+/// callback, so the entry loop's body stays in the function compiled for the kernels (a
+/// closure is a function of its own, and not always inlined).
+trait EntrySelection: Sync {
+    /// `(entry index, weight)` of each entry of `tile` to add, in entry order.
+    fn entries<'t>(&'t self, tile: &'t StackTile) -> impl Iterator<Item = (usize, Rgb)> + 't;
 }
 
-/// Runs `select(tile, add)` for every tile, where `add(entry, weight)` adds
-/// `weight · entry` into the tile's accumulators, then adds the accumulators into `out`
-/// (after setting it to (0, 0, 0, 1) when `reset`; without `reset`, a tile where nothing
-/// was added is left untouched).
-fn sum<F>(stack: &TiledStack, out: &mut [f32], reset: bool, kernels: Kernels, select: F)
-where
-    F: Fn(&StackTile, &mut dyn FnMut(usize, Rgb)) + Sync,
-{
+/// A full sum: every entry whose layer has a non-zero weight.
+struct EveryLayer<'a> {
+    weights: &'a [Rgb],
+}
+
+impl EntrySelection for EveryLayer<'_> {
+    #[inline(always)]
+    fn entries<'t>(&'t self, tile: &'t StackTile) -> impl Iterator<Item = (usize, Rgb)> + 't {
+        tile.entries.iter().enumerate().filter_map(|(k, e)| {
+            let w = self.weights[e.layer as usize];
+            (w != Rgb::ZERO).then_some((k, w))
+        })
+    }
+}
+
+/// An incremental sum of few layers: the entries of the changed layers (sorted by layer,
+/// non-zero deltas), found by binary search in the tile's sorted table.
+struct SearchedLayers<'a> {
+    changed: &'a [(u32, Rgb)],
+}
+
+impl EntrySelection for SearchedLayers<'_> {
+    #[inline(always)]
+    fn entries<'t>(&'t self, tile: &'t StackTile) -> impl Iterator<Item = (usize, Rgb)> + 't {
+        self.changed.iter().filter_map(|(l, delta)| {
+            let k = tile.entries.binary_search_by_key(l, |e| e.layer).ok()?;
+            Some((k, *delta))
+        })
+    }
+}
+
+/// An incremental sum of many layers: the tile's table walked, each entry's layer looked up
+/// in `deltas` (per layer id, 0 for an unchanged layer).
+struct LookedUpLayers<'a> {
+    deltas: &'a [Rgb],
+}
+
+impl EntrySelection for LookedUpLayers<'_> {
+    #[inline(always)]
+    fn entries<'t>(&'t self, tile: &'t StackTile) -> impl Iterator<Item = (usize, Rgb)> + 't {
+        tile.entries.iter().enumerate().filter_map(|(k, e)| {
+            let d = self.deltas[e.layer as usize];
+            (d != Rgb::ZERO).then_some((k, d))
+        })
+    }
+}
+
+/// Adds the selected entries of every tile into its accumulators, then the accumulators
+/// into `out` (after setting it to (0, 0, 0, 1) when `reset`; without `reset`, a tile where
+/// nothing was added is left untouched).
+fn sum<Sel: EntrySelection>(
+    stack: &TiledStack,
+    out: &mut [f32],
+    reset: bool,
+    kernels: Kernels,
+    select: &Sel,
+) {
     let width = stack.header.width as usize;
     let tiles_x = stack.tiles_x() as usize;
     let band = (STACK_TILE as usize * width * 4).max(4);
     out.par_chunks_mut(band).enumerate().for_each(|(ty, rows)| {
-        let mut acc = Box::new(Accumulators {
-            r: [0.0; TILE_PIXELS],
-            g: [0.0; TILE_PIXELS],
-            b: [0.0; TILE_PIXELS],
-            rgb: [0.0; 3 * TILE_PIXELS],
-            nodes: Vec::new(),
-            coefficients: Vec::new(),
-        });
+        let mut acc = TileAccumulators::new();
         for tx in 0..tiles_x {
             let index = ty * tiles_x + tx;
             let tile = &stack.tiles[index];
             let rect = stack.tile_rect(index);
-            let n = rect.pixels();
-            let acc = &mut *acc;
-            acc.r[..n].fill(0.0);
-            acc.g[..n].fill(0.0);
-            acc.b[..n].fill(0.0);
-            acc.rgb[..3 * n].fill(0.0);
-            let node_floats = tile
-                .lattice
-                .as_ref()
-                .map_or(0, |l| l.segment_count() * l.node_count() * 3);
-            acc.nodes.clear();
-            acc.nodes.resize(node_floats, 0.0);
-            let mut added = false;
-            let mut lattice_added = false;
-            select(tile, &mut |k, w| {
-                added = true;
-                let e = tile.entries[k];
-                let w = (w * e.scale).to_array();
-                let start = e.offset as usize;
-                if e.segments != 0 {
-                    lattice_added = true;
-                    let lattice = tile
-                        .lattice
-                        .as_ref()
-                        .expect("validated: a lattice entry's tile has a lattice");
-                    let nodes = &mut acc.nodes;
-                    let count = tile.value_count(&e, n);
-                    match &tile.values {
-                        TileValues::F16(v) => {
-                            // Converted in one slice call (SIMD where the CPU has it), not
-                            // one coefficient at a time.
-                            acc.coefficients.resize(count, 0.0);
-                            v[start..start + count].convert_to_f32_slice(&mut acc.coefficients);
-                            let c = &acc.coefficients;
-                            lattice.accumulate(nodes, e.segments, e.channels, c, w)
-                        }
-                        TileValues::F32(v) => lattice.accumulate(
-                            nodes,
-                            e.segments,
-                            e.channels,
-                            &v[start..start + count],
-                            w,
-                        ),
-                    }
-                } else if e.channels == 1 {
-                    let (r, g, b) = (&mut acc.r[..n], &mut acc.g[..n], &mut acc.b[..n]);
-                    match &tile.values {
-                        TileValues::F16(v) => {
-                            kernels.add_grey_planar(r, g, b, &v[start..start + n], w)
-                        }
-                        TileValues::F32(v) => {
-                            kernels.add_grey_planar(r, g, b, &v[start..start + n], w)
-                        }
-                    }
-                } else {
-                    let rgb = &mut acc.rgb[..3 * n];
-                    match &tile.values {
-                        TileValues::F16(v) => {
-                            kernels.add_rgb_interleaved(rgb, &v[start..start + 3 * n], w)
-                        }
-                        TileValues::F32(v) => {
-                            kernels.add_rgb_interleaved(rgb, &v[start..start + 3 * n], w)
-                        }
-                    }
-                }
-            });
-            if !reset && !added {
-                continue;
-            }
-            if lattice_added {
-                if let Some(lattice) = &tile.lattice {
-                    lattice.expand(&acc.nodes, &mut acc.rgb[..3 * n]);
-                }
-            }
-            let tw = rect.width as usize;
-            for dy in 0..rect.height as usize {
-                let row = &mut rows[(dy * width + rect.x0 as usize) * 4..][..tw * 4];
-                for (dx, px) in row.chunks_exact_mut(4).enumerate() {
-                    let i = dy * tw + dx;
-                    if reset {
-                        px.copy_from_slice(&[0.0, 0.0, 0.0, 1.0]);
-                    }
-                    px[0] += acc.r[i] + acc.rgb[3 * i];
-                    px[1] += acc.g[i] + acc.rgb[3 * i + 1];
-                    px[2] += acc.b[i] + acc.rgb[3 * i + 2];
-                }
+            let added = add_tile(kernels, tile, rect.pixels(), select, &mut acc);
+            if added {
+                add_to_image(&acc, rect, width, reset, rows);
+            } else if reset {
+                clear_image(rect, width, rows);
             }
         }
     });
+}
+
+/// Adds the selected entries of `tile` (of `pixels` pixels) into `acc`, with the loop
+/// compiled for `kernels` and the tile's sample type. Whether any entry was added.
+fn add_tile<Sel: EntrySelection>(
+    kernels: Kernels,
+    tile: &StackTile,
+    pixels: usize,
+    select: &Sel,
+    acc: &mut TileAccumulators,
+) -> bool {
+    match (kernels, &tile.values) {
+        (Kernels::Portable, TileValues::F16(v)) => {
+            add_entries(Portable, tile, v, pixels, select, acc)
+        }
+        (Kernels::Portable, TileValues::F32(v)) => {
+            add_entries(Portable, tile, v, pixels, select, acc)
+        }
+        // SAFETY: an `Avx2` exists only where the CPU has AVX2, FMA and F16C.
+        #[cfg(target_arch = "x86_64")]
+        (Kernels::Avx2(k), TileValues::F16(v)) => unsafe {
+            avx2::add_entries(k, tile, v, pixels, select, acc)
+        },
+        #[cfg(target_arch = "x86_64")]
+        (Kernels::Avx2(k), TileValues::F32(v)) => unsafe {
+            avx2::add_entries(k, tile, v, pixels, select, acc)
+        },
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use super::{EntrySelection, Sample, StackTile, TileAccumulators};
+    use crate::relight::kernels::Avx2;
+
+    /// [`super::add_entries`] with the AVX2 kernels, compiled with those features so the
+    /// kernels inline into the entry loop.
+    ///
+    /// # Safety
+    /// The CPU has AVX2, FMA and F16C.
+    #[target_feature(enable = "avx2,fma,f16c")]
+    pub(super) unsafe fn add_entries<S: Sample, Sel: EntrySelection>(
+        kernels: Avx2,
+        tile: &StackTile,
+        values: &[S],
+        pixels: usize,
+        select: &Sel,
+        acc: &mut TileAccumulators,
+    ) -> bool {
+        super::add_entries(kernels, tile, values, pixels, select, acc)
+    }
+}
+
+/// The entry loop of one tile: each selected entry times its weight and scale into the
+/// per-pixel or node accumulators, then the nodes expanded to pixels. The per-pixel
+/// accumulators are zeroed at the first entry, so a tile nothing selects costs nothing.
+#[inline(always)]
+fn add_entries<K: EntryKernels, S: Sample, Sel: EntrySelection>(
+    kernels: K,
+    tile: &StackTile,
+    values: &[S],
+    pixels: usize,
+    select: &Sel,
+    acc: &mut TileAccumulators,
+) -> bool {
+    let mut added = false;
+    let mut lattice_added = false;
+    for (k, w) in select.entries(tile) {
+        if !added {
+            acc.clear_pixels(pixels);
+            added = true;
+        }
+        let e = &tile.entries[k];
+        let w = (w * e.scale).to_array();
+        let src = &values[e.offset as usize..];
+        if e.segments == 0 {
+            if e.channels == 1 {
+                kernels.grey(&mut acc.r, &mut acc.g, &mut acc.b, src, pixels, w);
+            } else {
+                kernels.rgb(&mut acc.rgb, src, 3 * pixels, w);
+            }
+            continue;
+        }
+        if !lattice_added {
+            let lattice = tile
+                .lattice
+                .as_ref()
+                .expect("validated: a lattice entry's tile has a lattice");
+            acc.clear_nodes(lattice);
+            lattice_added = true;
+        }
+        let mut at = 0;
+        let mut bits = e.segments;
+        while bits != 0 {
+            let s = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            let seg = acc.segment(s);
+            if e.channels == 1 {
+                kernels.grey(seg.r, seg.g, seg.b, &src[at..], seg.nodes, w);
+                at += seg.nodes;
+            } else {
+                kernels.rgb(seg.rgb, &src[at..], 3 * seg.nodes, w);
+                at += 3 * seg.nodes;
+            }
+        }
+    }
+    if lattice_added {
+        if let Some(lattice) = &tile.lattice {
+            acc.expand_nodes(lattice);
+        }
+    }
+    added
+}
+
+/// Adds a tile's accumulators into its pixels of `rows` (the tile row's image rows).
+fn add_to_image(
+    acc: &TileAccumulators,
+    rect: TileRect,
+    width: usize,
+    reset: bool,
+    rows: &mut [f32],
+) {
+    let tw = rect.width as usize;
+    for dy in 0..rect.height as usize {
+        let row = &mut rows[(dy * width + rect.x0 as usize) * 4..][..tw * 4];
+        let i0 = dy * tw;
+        let (r, g, b) = (
+            &acc.r[i0..i0 + tw],
+            &acc.g[i0..i0 + tw],
+            &acc.b[i0..i0 + tw],
+        );
+        let rgb = &acc.rgb[3 * i0..3 * (i0 + tw)];
+        for (dx, px) in row.chunks_exact_mut(4).enumerate() {
+            if reset {
+                px.copy_from_slice(&[0.0, 0.0, 0.0, 1.0]);
+            }
+            px[0] += r[dx] + rgb[3 * dx];
+            px[1] += g[dx] + rgb[3 * dx + 1];
+            px[2] += b[dx] + rgb[3 * dx + 2];
+        }
+    }
+}
+
+/// Sets a tile's pixels of `rows` to (0, 0, 0, 1).
+fn clear_image(rect: TileRect, width: usize, rows: &mut [f32]) {
+    let tw = rect.width as usize;
+    for dy in 0..rect.height as usize {
+        let row = &mut rows[(dy * width + rect.x0 as usize) * 4..][..tw * 4];
+        for px in row.chunks_exact_mut(4) {
+            px.copy_from_slice(&[0.0, 0.0, 0.0, 1.0]);
+        }
+    }
 }
