@@ -46,6 +46,19 @@ pub(crate) const fn padded(len: usize) -> usize {
     len.div_ceil(LANES) * LANES
 }
 
+/// A grey lattice entry of a tile waiting for its segments to be summed
+/// ([`EntryKernels::grey_many`]).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct PendingEntry {
+    /// Where its values for the next segment it covers start in the tile's values: segments
+    /// are summed in ascending order, so this moves on by each covered segment's node count.
+    pub cursor: usize,
+    /// The segments it covers (bit `s`: segment `s`).
+    pub segments: u32,
+    /// Weight × scale.
+    pub weight: [f32; 3],
+}
+
 /// A sample type a layer can be stored in.
 pub(crate) trait Sample: Copy + Send + Sync + 'static {
     /// The value 0.
@@ -138,6 +151,34 @@ pub(crate) trait EntryKernels: Copy + std::fmt::Debug {
     /// # Panics
     /// If `acc` is shorter than that, `src` shorter than `len`, or `len` not a multiple of 3.
     fn rgb<S: Sample>(self, acc: &mut [f32], src: &[S], len: usize, w: [f32; 3]);
+
+    /// [`grey`](Self::grey) for the entries of `pending` that cover segment bit `segment`
+    /// into the same rows: `len` values of `values` from each one's cursor, in `pending`'s
+    /// order; each such cursor then moves on by `len` (to its next segment's values).
+    /// A vector implementation keeps short rows (a lattice segment's nodes) in registers
+    /// across the entries and stores them once, instead of once per entry: it sums the
+    /// entries first and adds the sum to the rows, which for rows that start at 0 (a
+    /// tile's node rows) are the same additions in the same order as `grey` per entry.
+    ///
+    /// # Panics
+    /// As [`grey`](Self::grey), for any entry.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn grey_many<S: Sample>(
+        self,
+        r: &mut [f32],
+        g: &mut [f32],
+        b: &mut [f32],
+        values: &[S],
+        len: usize,
+        segment: u32,
+        pending: &mut [PendingEntry],
+    ) {
+        for p in pending.iter_mut().filter(|p| p.segments & segment != 0) {
+            self.grey(r, g, b, &values[p.cursor..], len, p.weight);
+            p.cursor += len;
+        }
+    }
 }
 
 /// The portable loops: exactly `len` values, no padding lanes touched.
@@ -212,7 +253,7 @@ pub(crate) use x86::Avx2;
 
 #[cfg(target_arch = "x86_64")]
 mod x86 {
-    use super::{padded, EntryKernels, Sample, LANES};
+    use super::{padded, EntryKernels, PendingEntry, Sample, LANES};
     use std::arch::x86_64::*;
 
     /// The AVX2 + FMA + F16C loops. Only [`Avx2::new`] makes one, after checking that the
@@ -335,6 +376,88 @@ mod x86 {
                         _mm256_fmadd_ps(v, wk, _mm256_loadu_ps(ap.add(i))),
                     );
                     i += LANES;
+                }
+            }
+        }
+
+        #[inline(always)]
+        fn grey_many<S: Sample>(
+            self,
+            r: &mut [f32],
+            g: &mut [f32],
+            b: &mut [f32],
+            values: &[S],
+            len: usize,
+            segment: u32,
+            pending: &mut [PendingEntry],
+        ) {
+            // Rows of up to four vectors (a lattice segment at the presets' steps) stay in
+            // twelve registers; longer ones go through memory per entry.
+            let args = (values, len, segment);
+            match padded(len) / LANES {
+                1 => grey_in_registers::<S, 1>(r, g, b, args, pending),
+                2 => grey_in_registers::<S, 2>(r, g, b, args, pending),
+                3 => grey_in_registers::<S, 3>(r, g, b, args, pending),
+                4 => grey_in_registers::<S, 4>(r, g, b, args, pending),
+                _ => {
+                    for p in pending.iter_mut().filter(|p| p.segments & segment != 0) {
+                        self.grey(r, g, b, &values[p.cursor..], len, p.weight);
+                        p.cursor += len;
+                    }
+                }
+            }
+        }
+    }
+
+    /// [`EntryKernels::grey_many`] for rows of `V` vectors (`padded(len) == V · 8`), held
+    /// in registers: per entry, per vector one load and three fused multiply-adds, and one
+    /// add into the rows at the end. The loop calls nothing, so the accumulators stay in
+    /// registers (every vector register is caller-saved).
+    ///
+    /// Only called from `Avx2`'s methods, so the CPU has AVX2, FMA and F16C.
+    #[inline(always)]
+    fn grey_in_registers<S: Sample, const V: usize>(
+        r: &mut [f32],
+        g: &mut [f32],
+        b: &mut [f32],
+        (values, len, segment): (&[S], usize, u32),
+        pending: &mut [PendingEntry],
+    ) {
+        let end = V * LANES;
+        assert!(
+            padded(len) == end && r.len() >= end && g.len() >= end && b.len() >= end,
+            "planar grey: accumulators of whole vectors, {len} values"
+        );
+        // SAFETY: only reached through an `Avx2`, which exists only on a CPU with AVX2,
+        // FMA and F16C; loads from `v · 8 < len ≤ src.len()` (checked per entry), stores
+        // below `end`, inside the rows (checked above).
+        unsafe {
+            let zero = _mm256_setzero_ps();
+            let (mut ar, mut ag, mut ab) = ([zero; V], [zero; V], [zero; V]);
+            for p in pending.iter_mut() {
+                if p.segments & segment == 0 {
+                    continue;
+                }
+                let src = &values[p.cursor..];
+                assert!(src.len() >= len, "planar grey: {len} values");
+                p.cursor += len;
+                let (wr, wg, wb) = (
+                    _mm256_set1_ps(p.weight[0]),
+                    _mm256_set1_ps(p.weight[1]),
+                    _mm256_set1_ps(p.weight[2]),
+                );
+                for v in 0..V {
+                    let x = load8_at(src, v * LANES);
+                    ar[v] = _mm256_fmadd_ps(x, wr, ar[v]);
+                    ag[v] = _mm256_fmadd_ps(x, wg, ag[v]);
+                    ab[v] = _mm256_fmadd_ps(x, wb, ab[v]);
+                }
+            }
+            for (row, sums) in [(r, ar), (g, ag), (b, ab)] {
+                let p = row.as_mut_ptr();
+                for (v, sum) in sums.iter().enumerate() {
+                    let at = p.add(v * LANES);
+                    _mm256_storeu_ps(at, _mm256_add_ps(_mm256_loadu_ps(at), *sum));
                 }
             }
         }

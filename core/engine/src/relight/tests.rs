@@ -128,8 +128,8 @@ fn simd_and_portable_paths_agree() {
 }
 
 /// A tiled stack over `w × h` mixing every kind of entry: per-pixel grey and RGB, lattice
-/// grey and RGB over three segments per tile (steps 3 and 4 alternating, so the lattice
-/// shape changes between tiles), layers absent from some tiles; random values.
+/// grey and RGB over one or three segments per tile (steps 3 and 4 alternating, so the
+/// lattice shape changes between tiles), layers absent from some tiles; random values.
 fn mixed_tiled_stack(w: u32, h: u32, precision: Precision) -> crate::stack::tiled::TiledStack {
     use crate::stack::tiled::{
         tile_rect, tiles_along, TileCoefficients, TileLattice, TileRadiance, TiledStackBuilder,
@@ -154,16 +154,15 @@ fn mixed_tiled_stack(w: u32, h: u32, precision: Precision) -> crate::stack::tile
     for t in 0..(tiles_along(w) * tiles_along(h)) as usize {
         let rect = tile_rect(w, h, t);
         let (tw, th) = (rect.width, rect.height);
+        // Every third tile one segment, the others three.
+        let split = t % 3 != 0;
         let map: Vec<u8> = (0..th)
             .flat_map(|y| {
-                (0..tw).map(move |x| {
-                    if x < tw / 2 {
-                        0
-                    } else if y < th / 2 {
-                        1
-                    } else {
-                        2
-                    }
+                (0..tw).map(move |x| match (split, x < tw / 2, y < th / 2) {
+                    (false, _, _) => 0,
+                    (true, true, _) => 0,
+                    (true, false, true) => 1,
+                    (true, false, false) => 2,
                 })
             })
             .collect();
@@ -175,7 +174,11 @@ fn mixed_tiled_stack(w: u32, h: u32, precision: Precision) -> crate::stack::tile
                 continue;
             }
             if (i + t) % 3 != 0 {
-                let mask = 1 + (i as u32 + t as u32) % 7;
+                let mask = if split {
+                    1 + (i as u32 + t as u32) % 7
+                } else {
+                    1
+                };
                 let n = lattice.coefficient_count(mask, *channels).unwrap();
                 fitted.push((
                     i as u32,

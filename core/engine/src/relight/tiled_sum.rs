@@ -25,7 +25,7 @@
 
 use rayon::prelude::*;
 
-use super::kernels::{EntryKernels, Kernels, Portable, Sample};
+use super::kernels::{EntryKernels, Kernels, PendingEntry, Portable, Sample};
 use super::layer_weight;
 use super::tile_accumulators::TileAccumulators;
 use crate::stack::tiled::{StackTile, TileRect, TileValues, TiledStack, STACK_TILE};
@@ -329,6 +329,11 @@ fn add_entries<K: EntryKernels, S: Sample, Sel: EntrySelection>(
 ) -> bool {
     let mut added = false;
     let mut lattice_added = false;
+    // Grey lattice entries (most of a compressed stack's entries) are gathered, then summed
+    // per segment with that segment's rows in registers.
+    let mut pending = std::mem::take(&mut acc.pending);
+    pending.clear();
+    let mut pending_segments = 0u32;
     for (k, w) in select.entries(tile) {
         if !added {
             acc.clear_pixels(pixels);
@@ -336,8 +341,9 @@ fn add_entries<K: EntryKernels, S: Sample, Sel: EntrySelection>(
         }
         let e = &tile.entries[k];
         let w = (w * e.scale).to_array();
-        let src = &values[e.offset as usize..];
+        let start = e.offset as usize;
         if e.segments == 0 {
+            let src = &values[start..];
             if e.channels == 1 {
                 kernels.grey(&mut acc.r, &mut acc.g, &mut acc.b, src, pixels, w);
             } else {
@@ -353,21 +359,33 @@ fn add_entries<K: EntryKernels, S: Sample, Sel: EntrySelection>(
             acc.clear_nodes(lattice);
             lattice_added = true;
         }
-        let mut at = 0;
+        if e.channels == 1 {
+            pending.push(PendingEntry {
+                cursor: start,
+                segments: e.segments,
+                weight: w,
+            });
+            pending_segments |= e.segments;
+            continue;
+        }
+        let mut at = start;
         let mut bits = e.segments;
         while bits != 0 {
             let s = bits.trailing_zeros() as usize;
             bits &= bits - 1;
             let seg = acc.segment(s);
-            if e.channels == 1 {
-                kernels.grey(seg.r, seg.g, seg.b, &src[at..], seg.nodes, w);
-                at += seg.nodes;
-            } else {
-                kernels.rgb(seg.rgb, &src[at..], 3 * seg.nodes, w);
-                at += 3 * seg.nodes;
-            }
+            kernels.rgb(seg.rgb, &values[at..], 3 * seg.nodes, w);
+            at += 3 * seg.nodes;
         }
     }
+    let mut bits = pending_segments;
+    while bits != 0 {
+        let s = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
+        let seg = acc.segment(s);
+        kernels.grey_many(seg.r, seg.g, seg.b, values, seg.nodes, 1 << s, &mut pending);
+    }
+    acc.pending = pending;
     if lattice_added {
         if let Some(lattice) = &tile.lattice {
             acc.expand_nodes(lattice);
