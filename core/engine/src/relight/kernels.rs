@@ -2,9 +2,10 @@
 //! pixels in a tile, or one segment's lattice coefficients) into the tile's accumulators
 //! (`tile_accumulators.rs`), which are merged into the RGBA image once per tile.
 //!
-//! Every relight ends here, so this is where its time goes: the sum is bound by the memory
-//! bandwidth, and the arithmetic (one multiply-add per sample and channel, plus one
-//! f16 → f32 conversion per sample) must hide under the reads.
+//! Every relight ends here, so this is where its time goes: the sum reads each sample once,
+//! so memory bandwidth is its floor, and the arithmetic (one multiply-add per sample and
+//! channel, plus one f16 → f32 conversion per sample) must hide under the reads as far as
+//! it can (on two cores it does not quite: `docs/scale.md`).
 //!
 //! Two shapes of accumulator, so that neither inner loop needs a permute:
 //! - **Planar grey** ([`EntryKernels::grey`]): a grey sample adds to three separate R, G
@@ -12,6 +13,9 @@
 //! - **Interleaved RGB** ([`EntryKernels::rgb`]): an RGB sample adds to the same position
 //!   of an interleaved RGB row, with the weight vector rotated per 8-lane step (the pattern
 //!   repeats every 24 samples).
+//!
+//! A third loop, [`EntryKernels::grey_many`], adds many grey entries into one short row (a
+//! lattice segment's nodes): the AVX2 one keeps the row in registers across the entries.
 //!
 //! Entries are short (a lattice segment holds a few dozen values), so the loops are built
 //! for that: the accumulators are padded to whole 8-lane vectors ([`padded`]) and a last,
@@ -551,16 +555,69 @@ mod tests {
         Single(&'a [f32]),
     }
 
+    /// `grey_many` against a scalar sum: entries covering the segment or not, rows of one
+    /// to five vectors (registers, and memory past four), cursors moved on by exactly the
+    /// covered entries.
+    fn check_many<K: EntryKernels>(k: K) {
+        for len in [1usize, 7, 8, 9, 16, 25, 31, 32, 33, 40] {
+            let values: Vec<f16> = pseudo(6 * len + 5, len as u32)
+                .iter()
+                .map(|&v| f16::from_f32(v))
+                .collect();
+            let mut pending: Vec<PendingEntry> = (0..6)
+                .map(|i| PendingEntry {
+                    cursor: i * len,
+                    segments: if i % 3 == 1 { 0b10 } else { 0b11 },
+                    weight: [0.5 - i as f32 * 0.1, 1.0, -0.25 * i as f32],
+                })
+                .collect();
+            let end = padded(len);
+            let mut rows = vec![0.0f32; 3 * end];
+            let mut expect = vec![0.0f32; 3 * end];
+            for p in pending.iter().filter(|p| p.segments & 1 != 0) {
+                for i in 0..len {
+                    for c in 0..3 {
+                        expect[c * end + i] += p.weight[c] * values[p.cursor + i].to_f32();
+                    }
+                }
+            }
+            let (r, gb) = rows.split_at_mut(end);
+            let (g, b) = gb.split_at_mut(end);
+            k.grey_many(r, g, b, &values, len, 1, &mut pending);
+            for c in 0..3 {
+                for i in 0..len {
+                    let (x, y) = (rows[c * end + i], expect[c * end + i]);
+                    assert!(
+                        (x - y).abs() <= 1e-6 * (1.0 + y.abs()),
+                        "{k:?} len {len}: {x} vs {y}"
+                    );
+                }
+            }
+            for (i, p) in pending.iter().enumerate() {
+                let moved = if i % 3 == 1 { 0 } else { len };
+                assert_eq!(
+                    p.cursor,
+                    i * len + moved,
+                    "{k:?} len {len}: cursor of entry {i}"
+                );
+            }
+        }
+    }
+
     #[test]
     fn portable_kernels_match_scalar() {
         check(Portable);
+        check_many(Portable);
     }
 
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn avx2_kernels_match_scalar() {
         match Avx2::new() {
-            Some(k) => check(k),
+            Some(k) => {
+                check(k);
+                check_many(k);
+            }
             None => eprintln!("no AVX2 + FMA + F16C on this CPU: only the portable loops run"),
         }
     }

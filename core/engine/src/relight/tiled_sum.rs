@@ -11,11 +11,12 @@
 //!
 //! Lattice entries ([`crate::stack::tiled::lattice`]) are summed in the lattice: each adds
 //! weight × its coefficients into per-segment node accumulators (cost ∝ its coefficients,
-//! not the tile's pixels; the same vector loops as the pixels, one contiguous run per
-//! covered segment), and the tile's nodes are expanded to pixels once, into the RGB
-//! accumulators, before they are added to the image. The lattice is linear, so this equals
-//! the relight of the same entries expanded to pixels ([`TiledStack::to_dense`]) to
-//! rounding.
+//! not the tile's pixels; one contiguous run per covered segment). RGB ones are added as
+//! they come; grey ones (most of them) are gathered and summed segment by segment, the
+//! segment's node rows held in registers across the entries. The tile's nodes are then
+//! expanded to pixels once, into the planar accumulators, before they are added to the
+//! image. The lattice is linear, so this equals the relight of the same entries expanded
+//! to pixels ([`TiledStack::to_dense`]) to rounding.
 //!
 //! A tile holds hundreds of small entries at many editable materials, so what an entry
 //! costs besides its values matters as much as the values: the loop over a tile's entries
