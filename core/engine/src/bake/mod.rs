@@ -47,6 +47,7 @@ pub mod subsurface_light;
 pub mod tiles;
 pub mod to_file;
 pub mod trace;
+mod traced_tile;
 pub mod vertex_brdf;
 
 use std::time::Instant;
