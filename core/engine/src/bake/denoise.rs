@@ -24,20 +24,17 @@ use rayon::prelude::*;
 use crate::bake::context::BakeContext;
 use crate::bake::drop::RawLayer;
 
-mod sparse;
-pub use sparse::{step_rows, PixelRect, SparseScratch, SparseTiles};
-
 /// Floats per pixel of the records gathered while tracing: see [`EyeFeatures::EMPTY`].
 pub const FEATURE_STRIDE: usize = 9;
 
 /// What the filter knows of a pixel: the eye hits of all its eye samples.
 pub struct EyeFeatures {
-    width: usize,
-    height: usize,
+    pub(super) width: usize,
+    pub(super) height: usize,
     /// The region every eye sample hit, or `None` (mixed, world, or textured: not filtered).
-    region: Vec<Option<u32>>,
+    pub(super) region: Vec<Option<u32>>,
     /// One more than the highest region in `region`.
-    region_count: usize,
+    pub(super) region_count: usize,
     normal: Vec<Vec3>,
     position: Vec<Vec3>,
     /// World size of one pixel at the hit (the distance between neighbouring camera rays
@@ -302,9 +299,17 @@ impl EyeFeatures {
     }
 }
 
+/// The pixel rows step `k` of an `iterations`-step sparse filter computes so that the
+/// rows `wanted` come out exact: `wanted` widened on each side by the tap reach of the
+/// later steps (2·step each), within the `height` rows there are.
+pub fn step_rows(wanted: &Range<usize>, k: u32, iterations: u32, height: usize) -> Range<usize> {
+    let later: usize = (k + 1..iterations).map(|j| 2 * (1usize << j)).sum();
+    wanted.start.saturating_sub(later)..(wanted.end + later).min(height)
+}
+
 /// The per-step tap weights of one filter ([`EyeFeatures::weights_for`]).
 pub struct FilterWeights {
-    steps: Vec<Vec<[f32; 25]>>,
+    pub(super) steps: Vec<Vec<[f32; 25]>>,
 }
 
 /// Pixels an `iterations`-step filter reaches on each side: 2·(2^iterations − 1).
@@ -323,14 +328,14 @@ impl EyeFeatures {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::layer_key::LayerKey;
 
     /// A `w`×`h` view of two walls meeting at the middle column: region 0 facing +Z on the
     /// left, region 1 facing +X on the right, one world pixel in the corner (0, 0) and a
     /// silhouette pixel (mixed regions) at (1, 1).
-    pub(super) fn two_walls(w: usize, h: usize) -> EyeFeatures {
+    pub(crate) fn two_walls(w: usize, h: usize) -> EyeFeatures {
         let n = w * h;
         let mut f = EyeFeatures {
             width: w,
@@ -357,7 +362,7 @@ mod tests {
         f
     }
 
-    pub(super) fn layer(data: Vec<f32>, channels: u32) -> RawLayer {
+    pub(crate) fn layer(data: Vec<f32>, channels: u32) -> RawLayer {
         RawLayer {
             key: LayerKey::new(vec![]),
             channels,
@@ -365,7 +370,7 @@ mod tests {
         }
     }
 
-    pub(super) fn noise(i: usize) -> f32 {
+    pub(crate) fn noise(i: usize) -> f32 {
         (crate::geometry::sampling::mix64(i as u64) >> 40) as f32 / (1u64 << 24) as f32
     }
 

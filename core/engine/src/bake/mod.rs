@@ -19,6 +19,7 @@ pub mod bounce_budget;
 pub mod bounces;
 pub mod context;
 pub mod denoise;
+pub mod denoise_sparse;
 pub mod drop;
 pub mod estimate;
 pub mod farm_file;

@@ -1,8 +1,10 @@
 //! The one-pass bake whose memory follows the data: tile rows are traced in bands, each
-//! traced tile is kept only as its sparse averages (the layers non-zero there) and its
-//! pixels' eye features, and a tile row is finalised into the tiled stack as soon as the
-//! rows its denoiser reads are traced. Peak memory is the stack built so far plus the rows
-//! in flight, not layers × frame.
+//! traced tile is kept only as its sparse averages (the layers non-zero there, a grey one
+//! on one channel: [`super::traced_tile`]) and its pixels' eye features, and a tile row is
+//! finalised into the tiled stack as soon as the rows its denoiser reads are traced. Peak
+//! memory is the stack built so far plus the rows in flight, not layers × frame; the
+//! allocator's free pages are handed back after each window
+//! ([`crate::memory::release_free_memory`]), so what is resident follows what is held.
 //!
 //! The denoiser ([`super::denoise`]) is a fixed linear operator whose weights depend only
 //! on the eye features, with a footprint of [`super::denoise::footprint_radius`] pixels. A
@@ -20,7 +22,8 @@ use std::time::Instant;
 use super::assemble::stack_header;
 use super::band::apron_rows;
 use super::context::BakeContext;
-use super::denoise::{footprint_radius, EyeFeatures, SparseScratch, SparseTiles, FEATURE_STRIDE};
+use super::denoise::{footprint_radius, EyeFeatures, FEATURE_STRIDE};
+use super::denoise_sparse::{SparseScratch, SparseTiles};
 use super::finalise::{
     builder_for, finalise_tile, finish_stack, layer_weights, tile_surfaces, Finished, LatticePlan,
     LayerFacts, StackTally, TileInput, TileTally,
@@ -164,6 +167,10 @@ pub(crate) fn bake_streaming(
             }
             freed += 1;
         }
+        // The rows and the window's buffers just freed lie between the stack's tiles: give
+        // their pages back before the next band is traced, so resident memory follows what
+        // is held rather than the largest window so far.
+        crate::memory::release_free_memory();
         next = last + 1;
     }
     drop(rows);
@@ -179,6 +186,8 @@ pub(crate) fn bake_streaming(
         settings.drop_budget as f64,
     )?;
     assembly_seconds += finish_start.elapsed().as_secs_f64();
+    // What follows (writing the stack) holds the stack and its own buffers only.
+    crate::memory::release_free_memory();
     Ok(Streamed {
         finished,
         denoise_seconds,
@@ -312,9 +321,9 @@ impl Window<'_> {
         let centre_tiles = (self.centre.0 - self.lo) * tx..(self.centre.1 + 1 - self.lo) * tx;
         // Stages interleave row by row: the row's filtering, then its tiles' storing.
         self.stage(progress, Stage::Denoising);
-        // Per layer: its channels and values on each centre tile (None: absent there). Each
-        // worker keeps its scratch window from layer to layer.
-        let per_layer: Vec<Result<Vec<Option<(u8, Vec<f32>)>>>> = pool.install(|| {
+        // Per layer: the centre tiles it is present on (position in `centre`) and its values
+        // there. Each worker keeps its scratch window from layer to layer.
+        let per_layer: Vec<Result<Vec<(usize, TileInput)>>> = pool.install(|| {
             ids.par_iter()
                 .zip(present.par_iter())
                 .map_init(
@@ -325,7 +334,19 @@ impl Window<'_> {
                         let (Some(f), true) = (&features, iterations > 0) else {
                             return Ok(centre
                                 .iter()
-                                .map(|t| t.layer(layer).map(|l| (l.channels, l.data.clone())))
+                                .enumerate()
+                                .filter_map(|(i, t)| {
+                                    t.layer(layer).map(|l| {
+                                        (
+                                            i,
+                                            TileInput {
+                                                layer,
+                                                channels: l.channels,
+                                                data: l.data.clone(),
+                                            },
+                                        )
+                                    })
+                                })
                                 .collect());
                         };
                         // A filtered layer reaches the footprint around its tiles.
@@ -343,7 +364,7 @@ impl Window<'_> {
                             }
                         }
                         if !reach[centre_tiles.clone()].iter().any(|r| *r) {
-                            return Ok(centre.iter().map(|_| None).collect());
+                            return Ok(Vec::new());
                         }
                         let w = if self.path_len[layer as usize] == 1 {
                             direct.as_ref()
@@ -356,7 +377,7 @@ impl Window<'_> {
                         }
                         let scratch = scratch.as_mut().expect("made above");
                         // Grey on every tile it is present on: filtered on one channel (the
-                        // same values as each of the three; see `denoise::sparse`).
+                        // same values as each of the three; see `denoise_sparse`).
                         let c = if tiles.iter().all(|(_, l)| l.channels == 1) {
                             1
                         } else {
@@ -378,7 +399,8 @@ impl Window<'_> {
                         let filtered = scratch.output();
                         let out = centre
                             .iter()
-                            .map(|t| {
+                            .enumerate()
+                            .filter_map(|(i, t)| {
                                 let at = (t.rect.y0 as usize / TILE as usize - self.lo) * tx
                                     + (t.rect.x0 / TILE) as usize;
                                 if !reach[at] {
@@ -397,7 +419,14 @@ impl Window<'_> {
                                 }
                                 let mut out = Vec::with_capacity(t.rect.pixels() * c);
                                 rows.for_each(|r| out.extend_from_slice(r));
-                                Some((c as u8, out))
+                                Some((
+                                    i,
+                                    TileInput {
+                                        layer,
+                                        channels: c as u8,
+                                        data: out,
+                                    },
+                                ))
                             })
                             .collect();
                         scratch.clear(&region, self.width, h);
@@ -413,16 +442,10 @@ impl Window<'_> {
         };
         let mut inputs: Vec<Vec<TileInput>> = centre.iter().map(|_| Vec::new()).collect();
         let mut row_values = 0usize;
-        for (&layer, per_tile) in ids.iter().zip(per_layer) {
-            for (col, data) in per_tile?.into_iter().enumerate() {
-                if let Some((channels, data)) = data {
-                    row_values += data.len();
-                    inputs[col].push(TileInput {
-                        layer,
-                        channels,
-                        data,
-                    });
-                }
+        for per_tile in per_layer {
+            for (col, input) in per_tile? {
+                row_values += input.data.len();
+                inputs[col].push(input);
             }
         }
         progress.check()?;

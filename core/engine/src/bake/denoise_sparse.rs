@@ -9,7 +9,7 @@
 
 use std::ops::Range;
 
-use super::{footprint_radius, EyeFeatures, FilterWeights};
+use super::denoise::{footprint_radius, step_rows, EyeFeatures, FilterWeights};
 
 impl EyeFeatures {
     /// [`Self::filter_one`] of a layer of `scratch.channels()` channels that is zero outside
@@ -120,14 +120,6 @@ fn for_each_pixel(
             }
         }
     }
-}
-
-/// The pixel rows step `k` of an `iterations`-step sparse filter computes so that the
-/// rows `wanted` come out exact: `wanted` widened on each side by the tap reach of the
-/// later steps (2·step each), within the `height` rows there are.
-pub fn step_rows(wanted: &Range<usize>, k: u32, iterations: u32, height: usize) -> Range<usize> {
-    let later: usize = (k + 1..iterations).map(|j| 2 * (1usize << j)).sum();
-    wanted.start.saturating_sub(later)..(wanted.end + later).min(height)
 }
 
 /// Where one layer may be non-zero on a window once filtered, and which rows are wanted
@@ -276,7 +268,7 @@ impl SparseScratch {
 
 #[cfg(test)]
 mod tests {
-    use super::super::tests::{layer, noise, two_walls};
+    use super::super::denoise::tests::{layer, noise, two_walls};
     use super::*;
 
     /// The tiles of a `w`×`h` window (`tile` pixels a side) a layer present on `present`
@@ -399,15 +391,16 @@ mod tests {
         f.filter_sparse(&weights, &mut three, &region);
         assert_eq!((one.channels(), three.channels()), (1, 3));
         let mut changed = false;
-        for p in 8 * w..24 * w {
-            let v = one.output()[p];
-            changed |= v != grey[p];
-            for c in 0..3 {
-                assert_eq!(
-                    v.to_bits(),
-                    three.output()[p * 3 + c].to_bits(),
-                    "pixel {p}"
-                );
+        let wanted = 8 * w..24 * w;
+        let rgb_out = three.output()[wanted.start * 3..wanted.end * 3].chunks_exact(3);
+        for ((v, before), rgb) in one.output()[wanted.clone()]
+            .iter()
+            .zip(&grey[wanted.clone()])
+            .zip(rgb_out)
+        {
+            changed |= v != before;
+            for c in rgb {
+                assert_eq!(v.to_bits(), c.to_bits());
             }
         }
         assert!(changed, "the filter changed nothing");
