@@ -104,6 +104,25 @@ pub fn try_zeroed<T: Clone + Default>(len: usize, what: &str) -> Result<Vec<T>> 
     Ok(v)
 }
 
+/// Hands the allocator's free memory back to the OS where it can (glibc's `malloc_trim`:
+/// free pages inside its heaps, not only at their top), so that memory freed by one stage
+/// of a long piece of work — a streaming bake's finished tile rows, scattered between the
+/// stack's tiles that stay — is not still resident when the next stage peaks. A no-op
+/// where the allocator is not glibc's.
+pub fn release_free_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    {
+        extern "C" {
+            fn malloc_trim(pad: usize) -> std::ffi::c_int;
+        }
+        // SAFETY: malloc_trim takes no pointer and only returns free pages of glibc's own
+        // heaps to the OS; it is safe to call from any thread at any time.
+        unsafe {
+            malloc_trim(0);
+        }
+    }
+}
+
 /// Peak resident memory of this process so far (`VmHWM`), for benchmarks and the
 /// estimate's accuracy test; `None` off Linux.
 pub fn peak_rss_bytes() -> Option<u64> {

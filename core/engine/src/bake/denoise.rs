@@ -29,12 +29,12 @@ pub const FEATURE_STRIDE: usize = 9;
 
 /// What the filter knows of a pixel: the eye hits of all its eye samples.
 pub struct EyeFeatures {
-    width: usize,
-    height: usize,
+    pub(super) width: usize,
+    pub(super) height: usize,
     /// The region every eye sample hit, or `None` (mixed, world, or textured: not filtered).
-    region: Vec<Option<u32>>,
+    pub(super) region: Vec<Option<u32>>,
     /// One more than the highest region in `region`.
-    region_count: usize,
+    pub(super) region_count: usize,
     normal: Vec<Vec3>,
     position: Vec<Vec3>,
     /// World size of one pixel at the hit (the distance between neighbouring camera rays
@@ -299,107 +299,6 @@ impl EyeFeatures {
     }
 }
 
-impl EyeFeatures {
-    /// [`Self::filter_one`] of a 3-channel layer that is zero outside the tiles
-    /// `region.reach` marks, computing only what the rows `region.rows` need: at step k the
-    /// pixels of the reached tiles on [`step_rows`] (the wanted rows widened by the taps of
-    /// the steps after k). The layer comes in `scratch.input()` (zero outside its tiles) and
-    /// its filtered rows are in `scratch.output()` afterwards.
-    ///
-    /// Why the wanted rows come out bit for bit as [`Self::filter_one`] gives them: each
-    /// computed pixel runs the same taps in the same order on the same weights and the same
-    /// values. A pixel it reads that lies outside the reached tiles is zero in both (the
-    /// filter is linear with weights from the features only: a pixel farther than the
-    /// footprint from every non-zero one stays zero), and a pixel it reads inside them was
-    /// computed at the step before, since the rows of step k − 1 cover step k's taps.
-    /// Skipping a tap on a zero value changes no sum: adding +0 leaves any sum but −0 as it
-    /// was, and a sum starting at +0 never becomes −0.
-    pub fn filter_sparse(
-        &self,
-        weights: &FilterWeights,
-        scratch: &mut SparseScratch,
-        region: &SparseTiles,
-    ) {
-        const C: usize = 3;
-        let iterations = weights.steps.len() as u32;
-        scratch.result_in_b = false;
-        for (k, w) in weights.steps.iter().enumerate() {
-            let step = 1usize << k;
-            let rows = step_rows(&region.rows, k as u32, iterations, self.height);
-            let read = rows.start.saturating_sub(2 * step)..(rows.end + 2 * step).min(self.height);
-            // Where the layer can be non-zero after this step: within the reach of the
-            // steps so far (2·step each) of the tiles it is present on.
-            let rects =
-                region.reached_rects(footprint_radius(k as u32 + 1), self.width, self.height);
-            let (src, out) = if scratch.result_in_b {
-                (&scratch.b, &mut scratch.a)
-            } else {
-                (&scratch.a, &mut scratch.b)
-            };
-            // Regions the layer is non-zero on among the pixels this step reads (weights
-            // never cross regions, so the others' pixels keep their value).
-            let mut live = vec![false; self.region_count];
-            for_each_pixel(&rects, self.width, &read, |p| {
-                if let Some(r) = self.region[p] {
-                    if !live[r as usize] && src[p * C..p * C + C].iter().any(|v| *v != 0.0) {
-                        live[r as usize] = true;
-                    }
-                }
-            });
-            // The taps' offsets in the buffer, in the order the weights list them.
-            let offsets: [isize; 25] = std::array::from_fn(|t| {
-                ((t as isize / 5 - 2) * self.width as isize + (t as isize % 5 - 2)) * step as isize
-            });
-            for_each_pixel(&rects, self.width, &rows, |p| {
-                let wp = &w[p];
-                if wp[12] == 0.0 || !self.region[p].is_some_and(|r| live[r as usize]) {
-                    out[p * C..p * C + C].copy_from_slice(&src[p * C..p * C + C]);
-                    return;
-                }
-                let mut acc = [0.0f32; C];
-                for (&wt, &offset) in wp.iter().zip(&offsets) {
-                    if wt == 0.0 {
-                        continue;
-                    }
-                    // A tap with a weight lies inside the window.
-                    let q = (p as isize + offset) as usize * C;
-                    let v = &src[q..q + C];
-                    acc[0] += wt * v[0];
-                    acc[1] += wt * v[1];
-                    acc[2] += wt * v[2];
-                }
-                out[p * C..p * C + C].copy_from_slice(&acc);
-            });
-            scratch.result_in_b = !scratch.result_in_b;
-        }
-    }
-}
-
-/// A rectangle of pixels: columns `x0..x1`, rows `y0..y1`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct PixelRect {
-    x0: usize,
-    x1: usize,
-    y0: usize,
-    y1: usize,
-}
-
-/// Calls `f` with every pixel index of the `rects` on the pixel rows `rows`.
-fn for_each_pixel(
-    rects: &[PixelRect],
-    width: usize,
-    rows: &Range<usize>,
-    mut f: impl FnMut(usize),
-) {
-    for r in rects {
-        for y in r.y0.max(rows.start)..r.y1.min(rows.end) {
-            for x in r.x0..r.x1 {
-                f(y * width + x);
-            }
-        }
-    }
-}
-
 /// The pixel rows step `k` of an `iterations`-step sparse filter computes so that the
 /// rows `wanted` come out exact: `wanted` widened on each side by the tap reach of the
 /// later steps (2·step each), within the `height` rows there are.
@@ -408,137 +307,9 @@ pub fn step_rows(wanted: &Range<usize>, k: u32, iterations: u32, height: usize) 
     wanted.start.saturating_sub(later)..(wanted.end + later).min(height)
 }
 
-/// Where one layer may be non-zero on a window once filtered, and which rows are wanted
-/// ([`EyeFeatures::filter_sparse`]).
-pub struct SparseTiles<'a> {
-    /// Per tile of the window, row-major: whether the layer is non-zero there (it is zero
-    /// on every other tile).
-    pub present: &'a [bool],
-    /// Per tile of the window, row-major: whether the layer may be non-zero there once
-    /// filtered (the present tiles and those within the filter's footprint of them).
-    pub reach: &'a [bool],
-    pub tiles_x: usize,
-    /// Tile side in pixels (the last column and row cut by the window's edges).
-    pub tile: usize,
-    /// The window's pixel rows whose filtered values are wanted.
-    pub rows: Range<usize>,
-}
-
-impl SparseTiles<'_> {
-    /// Per reached tile, the pixels within `radius` of a present tile (the bounding box of
-    /// that part of the tile): a superset of where the layer can be non-zero once filtered
-    /// with a footprint of `radius`, growing with it.
-    fn reached_rects(&self, radius: usize, width: usize, height: usize) -> Vec<PixelRect> {
-        let t = self.tile;
-        let tiles_y = self.reach.len() / self.tiles_x.max(1);
-        let grow = radius.div_ceil(t);
-        let mut rects = Vec::new();
-        for (i, _) in self.reach.iter().enumerate().filter(|(_, r)| **r) {
-            let (cx, cy) = (i % self.tiles_x, i / self.tiles_x);
-            let tile = PixelRect {
-                x0: cx * t,
-                x1: ((cx + 1) * t).min(width),
-                y0: cy * t,
-                y1: ((cy + 1) * t).min(height),
-            };
-            let mut bbox: Option<PixelRect> = None;
-            for py in cy.saturating_sub(grow)..(cy + grow + 1).min(tiles_y) {
-                for px in cx.saturating_sub(grow)..(cx + grow + 1).min(self.tiles_x) {
-                    if !self.present[py * self.tiles_x + px] {
-                        continue;
-                    }
-                    let near = PixelRect {
-                        x0: (px * t).saturating_sub(radius).max(tile.x0),
-                        x1: ((px + 1) * t + radius).min(tile.x1),
-                        y0: (py * t).saturating_sub(radius).max(tile.y0),
-                        y1: ((py + 1) * t + radius).min(tile.y1),
-                    };
-                    if near.x0 >= near.x1 || near.y0 >= near.y1 {
-                        continue;
-                    }
-                    bbox = Some(match bbox {
-                        None => near,
-                        Some(b) => PixelRect {
-                            x0: b.x0.min(near.x0),
-                            x1: b.x1.max(near.x1),
-                            y0: b.y0.min(near.y0),
-                            y1: b.y1.max(near.y1),
-                        },
-                    });
-                }
-            }
-            rects.extend(bbox);
-        }
-        rects
-    }
-}
-
-/// Two 3-channel window-sized buffers that [`EyeFeatures::filter_sparse`] steps between,
-/// reused from layer to layer: a layer only writes the tiles it reaches, and
-/// [`Self::clear`] zeroes those again, so a reused buffer costs what the layer covers,
-/// not the window.
-pub struct SparseScratch {
-    a: Vec<f32>,
-    b: Vec<f32>,
-    result_in_b: bool,
-}
-
-impl SparseScratch {
-    /// Zeroed buffers for a window of `pixels` pixels.
-    pub fn new(pixels: usize) -> crate::Result<SparseScratch> {
-        Ok(SparseScratch {
-            a: crate::memory::try_zeroed(pixels * 3, "a denoiser window's layer")?,
-            b: crate::memory::try_zeroed(pixels * 3, "a denoiser window's layer")?,
-            result_in_b: false,
-        })
-    }
-
-    /// Where the layer to filter is put (zero outside the tiles it reaches).
-    pub fn input(&mut self) -> &mut [f32] {
-        &mut self.a
-    }
-
-    /// The filtered layer after [`EyeFeatures::filter_sparse`] (the input if it had no step).
-    pub fn output(&self) -> &[f32] {
-        if self.result_in_b {
-            &self.b
-        } else {
-            &self.a
-        }
-    }
-
-    /// Zeroes the `tiles` of both buffers (the tiles a layer reached) for the next layer.
-    pub fn clear(&mut self, region: &SparseTiles, width: usize, height: usize) {
-        let t = region.tile;
-        let tiles: Vec<PixelRect> = region
-            .reach
-            .iter()
-            .enumerate()
-            .filter(|(_, r)| **r)
-            .map(|(i, _)| {
-                let (cx, cy) = (i % region.tiles_x, i / region.tiles_x);
-                PixelRect {
-                    x0: cx * t,
-                    x1: ((cx + 1) * t).min(width),
-                    y0: cy * t,
-                    y1: ((cy + 1) * t).min(height),
-                }
-            })
-            .collect();
-        for buf in [&mut self.a, &mut self.b] {
-            for r in &tiles {
-                for y in r.y0..r.y1 {
-                    buf[(y * width + r.x0) * 3..(y * width + r.x1) * 3].fill(0.0);
-                }
-            }
-        }
-        self.result_in_b = false;
-    }
-}
-
 /// The per-step tap weights of one filter ([`EyeFeatures::weights_for`]).
 pub struct FilterWeights {
-    steps: Vec<Vec<[f32; 25]>>,
+    pub(super) steps: Vec<Vec<[f32; 25]>>,
 }
 
 /// Pixels an `iterations`-step filter reaches on each side: 2·(2^iterations − 1).
@@ -557,14 +328,14 @@ impl EyeFeatures {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::layer_key::LayerKey;
 
     /// A `w`×`h` view of two walls meeting at the middle column: region 0 facing +Z on the
     /// left, region 1 facing +X on the right, one world pixel in the corner (0, 0) and a
     /// silhouette pixel (mixed regions) at (1, 1).
-    fn two_walls(w: usize, h: usize) -> EyeFeatures {
+    pub(crate) fn two_walls(w: usize, h: usize) -> EyeFeatures {
         let n = w * h;
         let mut f = EyeFeatures {
             width: w,
@@ -591,7 +362,7 @@ mod tests {
         f
     }
 
-    fn layer(data: Vec<f32>, channels: u32) -> RawLayer {
+    pub(crate) fn layer(data: Vec<f32>, channels: u32) -> RawLayer {
         RawLayer {
             key: LayerKey::new(vec![]),
             channels,
@@ -599,7 +370,7 @@ mod tests {
         }
     }
 
-    fn noise(i: usize) -> f32 {
+    pub(crate) fn noise(i: usize) -> f32 {
         (crate::geometry::sampling::mix64(i as u64) >> 40) as f32 / (1u64 << 24) as f32
     }
 
@@ -651,74 +422,6 @@ mod tests {
         for p in 0..w * h {
             if p != 0 && p != w + 1 {
                 assert!((l.data[p] - 1.0).abs() < 1e-5, "pixel {p}: {}", l.data[p]);
-            }
-        }
-    }
-
-    /// A layer non-zero on a few 8-px tiles of a 40×30 window, filtered sparsely for some
-    /// wanted rows, equals the whole-window filter on those rows bit for bit.
-    #[test]
-    fn the_sparse_filter_gives_the_whole_filter_on_the_wanted_rows() {
-        let (w, h, tile) = (40, 30, 8);
-        let f = two_walls(w, h);
-        let (tx, ty) = (w.div_ceil(tile), h.div_ceil(tile));
-        let present = [(0, 1), (2, 2), (4, 0), (3, 3)];
-        let mut data = vec![0.0f32; w * h * 3];
-        for &(cx, cy) in &present {
-            for y in cy * tile..((cy + 1) * tile).min(h) {
-                for x in cx * tile..((cx + 1) * tile).min(w) {
-                    for c in 0..3 {
-                        data[(y * w + x) * 3 + c] = noise((y * w + x) * 3 + c) + c as f32;
-                    }
-                }
-            }
-        }
-        for iterations in 1..=3u32 {
-            let grow = footprint_radius(iterations).div_ceil(tile);
-            let mut reach = vec![false; tx * ty];
-            let mut present_mask = vec![false; tx * ty];
-            for &(cx, cy) in &present {
-                present_mask[cy * tx + cx] = true;
-            }
-            for &(cx, cy) in &present {
-                for y in cy.saturating_sub(grow)..(cy + grow + 1).min(ty) {
-                    for x in cx.saturating_sub(grow)..(cx + grow + 1).min(tx) {
-                        reach[y * tx + x] = true;
-                    }
-                }
-            }
-            let mut whole = layer(data.clone(), 3);
-            let all = f.weights_for(iterations);
-            f.filter_one(&all, &mut whole);
-            let mut scratch = SparseScratch::new(w * h).unwrap();
-            for wanted in [6..14, 0..30, 22..30] {
-                let region = SparseTiles {
-                    present: &present_mask,
-                    reach: &reach,
-                    tiles_x: tx,
-                    tile,
-                    rows: wanted.clone(),
-                };
-                scratch.input().copy_from_slice(&data);
-                f.filter_sparse(
-                    &f.weights_for_rows(iterations, wanted.clone()),
-                    &mut scratch,
-                    &region,
-                );
-                let got = &scratch.output()[wanted.start * w * 3..wanted.end * w * 3];
-                let want = &whole.data[wanted.start * w * 3..wanted.end * w * 3];
-                assert!(want.iter().any(|v| *v != 0.0));
-                for (i, (a, b)) in got.iter().zip(want).enumerate() {
-                    assert_eq!(
-                        a.to_bits(),
-                        b.to_bits(),
-                        "{iterations} steps, rows {wanted:?}, value {i}"
-                    );
-                }
-                // Clearing leaves the scratch zero for the next layer.
-                scratch.clear(&region, w, h);
-                assert!(scratch.input().iter().all(|v| *v == 0.0));
-                assert!(scratch.output().iter().all(|v| *v == 0.0));
             }
         }
     }

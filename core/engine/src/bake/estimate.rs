@@ -164,9 +164,10 @@ struct StreamingCosts {
 }
 
 /// The streaming bake's stack bytes and peak: the tiled stack, plus the tile rows in flight
-/// (the band being traced and the denoiser's window, each tile its non-zero layers as f32
-/// RGB and its pixels' features), the row being stored, the per-thread tile buffers and
-/// denoiser windows, and the geometry; writing holds the stack and the file's encoded copy.
+/// (the band being traced and the denoiser's window, each tile its non-zero layers as f32,
+/// one channel for a grey layer and three for a coloured one, and its pixels' features),
+/// the row being stored, the per-thread tile buffers and denoiser windows, and the
+/// geometry; writing holds the stack and the file's encoded copy.
 fn streaming_peak(ctx: &BakeContext, c: &StreamingCosts) -> (u64, u64) {
     let res = ctx.resolution;
     let tile_px = (super::tiles::TILE * super::tiles::TILE) as u64;
@@ -177,8 +178,9 @@ fn streaming_peak(ctx: &BakeContext, c: &StreamingCosts) -> (u64, u64) {
     let apron = super::band::apron_rows(&ctx.settings.denoise) as u64;
     let band = super::band::default_band_rows(res.width, c.threads as usize, apron as usize) as u64;
     let rows_held = (band + 2 * apron + 1).min(tiles_y);
-    let per_tile_traced = (c.entries.div_ceil(c.tiles.max(1))) * tile_px * 12
-        + tile_px * super::denoise::FEATURE_STRIDE as u64 * 4;
+    // f32 values per tile: a pixel's grey entry holds one, a coloured one three.
+    let values_per_tile = (grey + 3 * c.entries_rgb).div_ceil(c.tiles.max(1)) * tile_px;
+    let per_tile_traced = values_per_tile * 4 + tile_px * super::denoise::FEATURE_STRIDE as u64 * 4;
     let traced = rows_held * tiles_x * per_tile_traced;
     let window_px = res.width as u64 * ((2 * apron + band) * super::tiles::TILE as u64);
     let window = if apron > 0 {
@@ -190,8 +192,8 @@ fn streaming_peak(ctx: &BakeContext, c: &StreamingCosts) -> (u64, u64) {
     } else {
         0
     };
-    // The row being stored: its layers in f32 RGB on their way to the builder.
-    let row_out = band * tiles_x * c.entries.div_ceil(c.tiles.max(1)) * tile_px * 12;
+    // The rows being stored: their layers in f32 on their way to the builder.
+    let row_out = band * tiles_x * values_per_tile * 4;
     let tracing = stack + traced + c.tile_buffers + window + row_out;
     // Writing: the stack, the entry tables as the file's columns (four u32 per entry) and
     // the chunks in flight (the writer makes each from the stack when it is compressed).

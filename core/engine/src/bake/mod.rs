@@ -19,6 +19,7 @@ pub mod bounce_budget;
 pub mod bounces;
 pub mod context;
 pub mod denoise;
+pub mod denoise_sparse;
 pub mod drop;
 pub mod estimate;
 pub mod farm_file;
@@ -47,6 +48,7 @@ pub mod subsurface_light;
 pub mod tiles;
 pub mod to_file;
 pub mod trace;
+mod traced_tile;
 pub mod vertex_brdf;
 
 use std::time::Instant;

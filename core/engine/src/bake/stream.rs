@@ -1,8 +1,10 @@
 //! The one-pass bake whose memory follows the data: tile rows are traced in bands, each
-//! traced tile is kept only as its sparse averages (the layers non-zero there) and its
-//! pixels' eye features, and a tile row is finalised into the tiled stack as soon as the
-//! rows its denoiser reads are traced. Peak memory is the stack built so far plus the rows
-//! in flight, not layers × frame.
+//! traced tile is kept only as its sparse averages (the layers non-zero there, a grey one
+//! on one channel: [`super::traced_tile`]) and its pixels' eye features, and a tile row is
+//! finalised into the tiled stack as soon as the rows its denoiser reads are traced. Peak
+//! memory is the stack built so far plus the rows in flight, not layers × frame; the
+//! allocator's free pages are handed back after each window
+//! ([`crate::memory::release_free_memory`]), so what is resident follows what is held.
 //!
 //! The denoiser ([`super::denoise`]) is a fixed linear operator whose weights depend only
 //! on the eye features, with a footprint of [`super::denoise::footprint_radius`] pixels. A
@@ -20,19 +22,20 @@ use std::time::Instant;
 use super::assemble::stack_header;
 use super::band::apron_rows;
 use super::context::BakeContext;
-use super::denoise::{footprint_radius, EyeFeatures, SparseScratch, SparseTiles, FEATURE_STRIDE};
+use super::denoise::{footprint_radius, EyeFeatures, FEATURE_STRIDE};
+use super::denoise_sparse::{SparseScratch, SparseTiles};
 use super::finalise::{
     builder_for, finalise_tile, finish_stack, layer_weights, tile_surfaces, Finished, LatticePlan,
     LayerFacts, StackTally, TileInput, TileTally,
 };
 use super::settings::BakeSettings;
-use super::tiles::{self, Tile, TILE};
-use super::trace::trace_tile_records;
+use super::tiles::{self, TILE};
+use super::traced_tile::{trace_sparse, TracedLayer, TracedTile};
 use super::vertex_brdf::BasisBrdf;
 use crate::progress::{Progress, Stage};
 use crate::scene::Scene;
 use crate::stack::tiled::{tiles_along, TileRect, TiledStackBuilder};
-use crate::{RelumeError, Result};
+use crate::Result;
 
 /// What the streaming bake made.
 pub(crate) struct Streamed {
@@ -44,89 +47,6 @@ pub(crate) struct Streamed {
     pub assembly_seconds: f64,
     /// The most bytes held at once in stored tiles, traced rows and denoiser windows.
     pub peak_accounted_bytes: usize,
-}
-
-/// One traced tile: its averaged layers (those with a non-zero sum, RGB, sorted by id) and
-/// its pixels' eye-feature records.
-struct TracedTile {
-    rect: TileRect,
-    features: Vec<f32>,
-    layers: Vec<(u32, Vec<f32>)>,
-    /// Layer ids whose averaged channels differ somewhere in the tile.
-    coloured: Vec<u32>,
-}
-
-impl TracedTile {
-    fn bytes(&self) -> usize {
-        4 * (self.features.len() + self.layers.iter().map(|(_, d)| d.len()).sum::<usize>())
-    }
-
-    fn layer(&self, id: u32) -> Option<&[f32]> {
-        self.layers
-            .binary_search_by_key(&id, |(l, _)| *l)
-            .ok()
-            .map(|i| &self.layers[i].1[..])
-    }
-}
-
-fn rect_of(tile: &Tile) -> TileRect {
-    TileRect {
-        x0: tile.x0,
-        y0: tile.y0,
-        width: tile.width,
-        height: tile.height,
-    }
-}
-
-/// Traces all `spp` samples of `tile` (the canonical tree's root per pixel) and keeps the
-/// sparse averages.
-fn trace_sparse(
-    ctx: &BakeContext,
-    brdf: &BasisBrdf,
-    tile: &Tile,
-    spp: u32,
-    progress: &Progress,
-    rays: &std::sync::atomic::AtomicU64,
-) -> Result<TracedTile> {
-    let buf = trace_tile_records(ctx, brdf, 1, true, tile, 0..spp, progress, rays)?
-        .ok_or(RelumeError::Cancelled)?;
-    let layer_count = ctx.layer_count();
-    let record = layer_count * 3 + FEATURE_STRIDE;
-    let tp = tile.pixels();
-    let mut features = Vec::with_capacity(tp * FEATURE_STRIDE);
-    for p in 0..tp {
-        let at = p * record + layer_count * 3;
-        features.extend_from_slice(&buf[at..at + FEATURE_STRIDE]);
-    }
-    let inv_spp = 1.0 / spp as f32;
-    let mut layers = Vec::new();
-    let mut coloured = Vec::new();
-    // Which layers are non-zero somewhere in the tile, in one pass over the records in
-    // memory order (a layer's texels lie a whole record apart).
-    let mut non_zero = vec![false; layer_count];
-    for p in 0..tp {
-        let texels = &buf[p * record..p * record + layer_count * 3];
-        for (seen, texel) in non_zero.iter_mut().zip(texels.chunks_exact(3)) {
-            *seen |= texel.iter().any(|v| *v != 0.0);
-        }
-    }
-    for layer in (0..layer_count).filter(|l| non_zero[*l]) {
-        let texel = |p: usize| &buf[p * record + layer * 3..p * record + layer * 3 + 3];
-        let mut data = crate::memory::try_with_capacity(tp * 3, "a tile's layer averages")?;
-        for p in 0..tp {
-            data.extend(texel(p).iter().map(|v| v * inv_spp));
-        }
-        if data.chunks_exact(3).any(|c| c[0] != c[1] || c[1] != c[2]) {
-            coloured.push(layer as u32);
-        }
-        layers.push((layer as u32, data));
-    }
-    Ok(TracedTile {
-        rect: rect_of(tile),
-        features,
-        layers,
-        coloured,
-    })
 }
 
 /// Bakes `settings.spp` samples per pixel in one pass, streaming tile rows into the tiled
@@ -195,11 +115,9 @@ pub(crate) fn bake_streaming(
             let mut done = done.into_iter().collect::<Result<Vec<_>>>()?;
             for t in &done {
                 held_rows += t.bytes();
-                for (l, _) in &t.layers {
-                    facts.reached[*l as usize] = true;
-                }
-                for l in &t.coloured {
-                    facts.coloured[*l as usize] = true;
+                for l in &t.layers {
+                    facts.reached[l.id as usize] = true;
+                    facts.coloured[l.id as usize] |= l.channels == 3;
                 }
             }
             for r in (traced..upto).rev() {
@@ -249,6 +167,10 @@ pub(crate) fn bake_streaming(
             }
             freed += 1;
         }
+        // The rows and the window's buffers just freed lie between the stack's tiles: give
+        // their pages back before the next band is traced, so resident memory follows what
+        // is held rather than the largest window so far.
+        crate::memory::release_free_memory();
         next = last + 1;
     }
     drop(rows);
@@ -264,6 +186,8 @@ pub(crate) fn bake_streaming(
         settings.drop_budget as f64,
     )?;
     assembly_seconds += finish_start.elapsed().as_secs_f64();
+    // What follows (writing the stack) holds the stack and its own buffers only.
+    crate::memory::release_free_memory();
     Ok(Streamed {
         finished,
         denoise_seconds,
@@ -359,7 +283,7 @@ impl Window<'_> {
         // Every layer present in the window may reach the centre row once filtered.
         let mut ids: Vec<u32> = (self.lo..=self.hi)
             .flat_map(|r| self.row(r).iter())
-            .flat_map(|t| t.layers.iter().map(|(l, _)| *l))
+            .flat_map(|t| t.layers.iter().map(|l| l.id))
             .collect();
         ids.sort_unstable();
         ids.dedup();
@@ -382,13 +306,13 @@ impl Window<'_> {
         let window_bytes = self.width * h * 3 * 4;
         // The window's tiles each layer is present on, built once for all layers.
         let tx = tiles_along(self.width as u32) as usize;
-        let mut present: Vec<Vec<(usize, &[f32])>> = ids.iter().map(|_| Vec::new()).collect();
+        let mut present: Vec<Vec<(usize, &TracedLayer)>> = ids.iter().map(|_| Vec::new()).collect();
         for r in self.lo..=self.hi {
             for t in self.row(r) {
                 let at = (r - self.lo) * tx + (t.rect.x0 / TILE) as usize;
-                for (l, data) in &t.layers {
-                    if let Ok(i) = ids.binary_search(l) {
-                        present[i].push((at, &data[..]));
+                for l in &t.layers {
+                    if let Ok(i) = ids.binary_search(&l.id) {
+                        present[i].push((at, l));
                     }
                 }
             }
@@ -397,9 +321,9 @@ impl Window<'_> {
         let centre_tiles = (self.centre.0 - self.lo) * tx..(self.centre.1 + 1 - self.lo) * tx;
         // Stages interleave row by row: the row's filtering, then its tiles' storing.
         self.stage(progress, Stage::Denoising);
-        // Per layer: its values on each centre tile (None: absent there). Each worker keeps
-        // its scratch window from layer to layer.
-        let per_layer: Vec<Result<Vec<Option<Vec<f32>>>>> = pool.install(|| {
+        // Per layer: the centre tiles it is present on (position in `centre`) and its values
+        // there. Each worker keeps its scratch window from layer to layer.
+        let per_layer: Vec<Result<Vec<(usize, TileInput)>>> = pool.install(|| {
             ids.par_iter()
                 .zip(present.par_iter())
                 .map_init(
@@ -410,7 +334,19 @@ impl Window<'_> {
                         let (Some(f), true) = (&features, iterations > 0) else {
                             return Ok(centre
                                 .iter()
-                                .map(|t| t.layer(layer).map(<[f32]>::to_vec))
+                                .enumerate()
+                                .filter_map(|(i, t)| {
+                                    t.layer(layer).map(|l| {
+                                        (
+                                            i,
+                                            TileInput {
+                                                layer,
+                                                channels: l.channels,
+                                                data: l.data.clone(),
+                                            },
+                                        )
+                                    })
+                                })
                                 .collect());
                         };
                         // A filtered layer reaches the footprint around its tiles.
@@ -428,7 +364,7 @@ impl Window<'_> {
                             }
                         }
                         if !reach[centre_tiles.clone()].iter().any(|r| *r) {
-                            return Ok(centre.iter().map(|_| None).collect());
+                            return Ok(Vec::new());
                         }
                         let w = if self.path_len[layer as usize] == 1 {
                             direct.as_ref()
@@ -440,15 +376,17 @@ impl Window<'_> {
                             *scratch = Some(SparseScratch::new(self.width * h)?);
                         }
                         let scratch = scratch.as_mut().expect("made above");
-                        let input = scratch.input();
-                        for &(at, data) in tiles.iter() {
+                        // Grey on every tile it is present on: filtered on one channel (the
+                        // same values as each of the three; see `denoise_sparse`).
+                        let c = if tiles.iter().all(|(_, l)| l.channels == 1) {
+                            1
+                        } else {
+                            3
+                        };
+                        let input = scratch.input(c);
+                        for &(at, l) in tiles.iter() {
                             let rect = tile_in_window(at, tx, self.width, h);
-                            for py in 0..rect.height as usize {
-                                let dst =
-                                    ((rect.y0 as usize + py) * self.width + rect.x0 as usize) * 3;
-                                let n = rect.width as usize * 3;
-                                input[dst..dst + n].copy_from_slice(&data[py * n..(py + 1) * n]);
-                            }
+                            put_tile(input, c, self.width, rect, l);
                         }
                         let region = SparseTiles {
                             present: &on,
@@ -461,7 +399,8 @@ impl Window<'_> {
                         let filtered = scratch.output();
                         let out = centre
                             .iter()
-                            .map(|t| {
+                            .enumerate()
+                            .filter_map(|(i, t)| {
                                 let at = (t.rect.y0 as usize / TILE as usize - self.lo) * tx
                                     + (t.rect.x0 / TILE) as usize;
                                 if !reach[at] {
@@ -471,16 +410,23 @@ impl Window<'_> {
                                 let rows = (0..t.rect.height as usize).map(|py| {
                                     let at = ((t.rect.y0 as usize + py - y0) * self.width
                                         + t.rect.x0 as usize)
-                                        * 3;
-                                    &filtered[at..at + tw * 3]
+                                        * c;
+                                    &filtered[at..at + tw * c]
                                 });
                                 // A tile the filtered layer does not reach stays out.
                                 if rows.clone().all(|r| r.iter().all(|v| *v == 0.0)) {
                                     return None;
                                 }
-                                let mut out = Vec::with_capacity(t.rect.pixels() * 3);
+                                let mut out = Vec::with_capacity(t.rect.pixels() * c);
                                 rows.for_each(|r| out.extend_from_slice(r));
-                                Some(out)
+                                Some((
+                                    i,
+                                    TileInput {
+                                        layer,
+                                        channels: c as u8,
+                                        data: out,
+                                    },
+                                ))
                             })
                             .collect();
                         scratch.clear(&region, self.width, h);
@@ -496,16 +442,10 @@ impl Window<'_> {
         };
         let mut inputs: Vec<Vec<TileInput>> = centre.iter().map(|_| Vec::new()).collect();
         let mut row_values = 0usize;
-        for (&layer, per_tile) in ids.iter().zip(per_layer) {
-            for (col, data) in per_tile?.into_iter().enumerate() {
-                if let Some(data) = data {
-                    row_values += data.len();
-                    inputs[col].push(TileInput {
-                        layer,
-                        channels: 3,
-                        data,
-                    });
-                }
+        for per_tile in per_layer {
+            for (col, input) in per_tile? {
+                row_values += input.data.len();
+                inputs[col].push(input);
             }
         }
         progress.check()?;
@@ -584,6 +524,34 @@ struct WindowDone {
     finalise_seconds: f64,
 }
 
+/// Writes `layer`'s values on the window-local tile `rect` into a window `width` pixels
+/// wide of `channels` (1 or 3) per pixel; a grey tile of a layer filtered as RGB is
+/// widened to three equal channels (exactly the values the RGB form would hold).
+fn put_tile(
+    window: &mut [f32],
+    channels: usize,
+    width: usize,
+    rect: TileRect,
+    layer: &TracedLayer,
+) {
+    let n = rect.width as usize;
+    let from = layer.channels as usize;
+    for py in 0..rect.height as usize {
+        let dst = ((rect.y0 as usize + py) * width + rect.x0 as usize) * channels;
+        let src = &layer.data[py * n * from..(py + 1) * n * from];
+        let dst = &mut window[dst..dst + n * channels];
+        if from == channels {
+            dst.copy_from_slice(src);
+        } else {
+            for (px, v) in dst.chunks_exact_mut(channels).zip(src.chunks_exact(from)) {
+                for (c, out) in px.iter_mut().enumerate() {
+                    *out = v[c.min(from - 1)];
+                }
+            }
+        }
+    }
+}
+
 /// The window-local rectangle of the window's tile `at` (row-major, `tx` per row) in a
 /// window of `width` × `height` pixels.
 fn tile_in_window(at: usize, tx: usize, width: usize, height: usize) -> TileRect {
@@ -593,5 +561,46 @@ fn tile_in_window(at: usize, tx: usize, width: usize, height: usize) -> TileRect
         y0: y0 as u32,
         width: (TILE as usize).min(width - x0) as u32,
         height: (TILE as usize).min(height - y0) as u32,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn traced(channels: u8, data: Vec<f32>) -> TracedLayer {
+        TracedLayer {
+            id: 0,
+            channels,
+            data,
+        }
+    }
+
+    /// A grey tile put into an RGB window holds what its RGB form would; a tile of the
+    /// window's own channels is copied; nothing outside the tile is written.
+    #[test]
+    fn a_grey_tile_in_an_rgb_window_is_its_rgb_form() {
+        let (width, height) = (40usize, 20usize);
+        let rect = tile_in_window(2, 3, width, height);
+        assert_eq!((rect.x0, rect.width, rect.height), (32, 8, 16));
+        let grey: Vec<f32> = (0..rect.pixels()).map(|i| i as f32 * 0.5 - 3.0).collect();
+        let rgb: Vec<f32> = grey.iter().flat_map(|v| [*v; 3]).collect();
+        let mut from_grey = vec![0.0f32; width * height * 3];
+        put_tile(&mut from_grey, 3, width, rect, &traced(1, grey.clone()));
+        let mut from_rgb = vec![0.0f32; width * height * 3];
+        put_tile(&mut from_rgb, 3, width, rect, &traced(3, rgb));
+        assert_eq!(from_grey, from_rgb);
+        let mut one = vec![0.0f32; width * height];
+        put_tile(&mut one, 1, width, rect, &traced(1, grey));
+        for y in 0..height {
+            for x in 0..width {
+                let inside = x >= 32 && y < 16;
+                let v = one[y * width + x];
+                assert_eq!(v != 0.0 || (x == 38 && y == 0), inside, "({x}, {y})");
+                for c in 0..3 {
+                    assert_eq!(from_grey[(y * width + x) * 3 + c].to_bits(), v.to_bits());
+                }
+            }
+        }
     }
 }

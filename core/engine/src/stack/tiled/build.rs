@@ -479,6 +479,10 @@ impl TiledStackBuilder {
             });
         }
         let lattice = lattice.filter(|_| entries.iter().any(|e| e.segments != 0));
+        // The values grew as they came; the stack keeps them for the rest of the bake, so
+        // they give back what the growth over-allocated.
+        entries.shrink_to_fit();
+        let values = fitted_values(values);
         let mut slot = slot.lock().unwrap_or_else(|p| p.into_inner());
         if slot.is_some() {
             return Err(RelumeError::invalid(
@@ -562,6 +566,15 @@ fn expand_lattice_entry(
     let start = e.offset as usize;
     lattice.reconstruct(e.segments, e.channels, |i| tile.values.get(start + i), out);
     Ok(())
+}
+
+/// `values` with no room beyond its length.
+fn fitted_values(mut values: TileValues) -> TileValues {
+    match &mut values {
+        TileValues::F16(v) => v.shrink_to_fit(),
+        TileValues::F32(v) => v.shrink_to_fit(),
+    }
+    values
 }
 
 fn truncate_values(mut values: TileValues, len: usize) -> TileValues {

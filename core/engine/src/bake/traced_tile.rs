@@ -1,0 +1,117 @@
+//! One tile as the streaming bake ([`super::stream`]) holds it between tracing and
+//! finalising: its pixels' eye features and, per layer with a non-zero sum there, the
+//! averaged radiance — one channel where the layer is grey over the tile (equal R, G and B
+//! at every pixel), else RGB. The grey form holds the same values (the first channel of
+//! each pixel, which equals the other two) in a third of the bytes; the tiles in flight
+//! are most of the bake's memory besides the stack.
+
+use super::context::BakeContext;
+use super::denoise::FEATURE_STRIDE;
+use super::tiles::Tile;
+use super::trace::trace_tile_records;
+use super::vertex_brdf::BasisBrdf;
+use crate::progress::Progress;
+use crate::stack::tiled::TileRect;
+use crate::{RelumeError, Result};
+
+/// One layer's averages over a traced tile: the tile's pixels row-major, `channels`
+/// (1: grey, 3: RGB) interleaved.
+pub(crate) struct TracedLayer {
+    pub id: u32,
+    pub channels: u8,
+    pub data: Vec<f32>,
+}
+
+/// One traced tile: its non-zero layers (sorted by id) and its pixels' eye-feature records.
+pub(crate) struct TracedTile {
+    pub rect: TileRect,
+    pub features: Vec<f32>,
+    pub layers: Vec<TracedLayer>,
+}
+
+impl TracedTile {
+    /// Bytes its features and layers hold.
+    pub fn bytes(&self) -> usize {
+        4 * (self.features.len() + self.layers.iter().map(|l| l.data.len()).sum::<usize>())
+    }
+
+    pub fn layer(&self, id: u32) -> Option<&TracedLayer> {
+        self.layers
+            .binary_search_by_key(&id, |l| l.id)
+            .ok()
+            .map(|i| &self.layers[i])
+    }
+}
+
+fn rect_of(tile: &Tile) -> TileRect {
+    TileRect {
+        x0: tile.x0,
+        y0: tile.y0,
+        width: tile.width,
+        height: tile.height,
+    }
+}
+
+/// Traces all `spp` samples of `tile` (the canonical tree's root per pixel) and keeps the
+/// sparse averages.
+pub(crate) fn trace_sparse(
+    ctx: &BakeContext,
+    brdf: &BasisBrdf,
+    tile: &Tile,
+    spp: u32,
+    progress: &Progress,
+    rays: &std::sync::atomic::AtomicU64,
+) -> Result<TracedTile> {
+    let buf = trace_tile_records(ctx, brdf, 1, true, tile, 0..spp, progress, rays)?
+        .ok_or(RelumeError::Cancelled)?;
+    let layer_count = ctx.layer_count();
+    let record = layer_count * 3 + FEATURE_STRIDE;
+    let tp = tile.pixels();
+    let mut features =
+        crate::memory::try_with_capacity(tp * FEATURE_STRIDE, "a tile's eye features")?;
+    for p in 0..tp {
+        let at = p * record + layer_count * 3;
+        features.extend_from_slice(&buf[at..at + FEATURE_STRIDE]);
+    }
+    let inv_spp = 1.0 / spp as f32;
+    // Which layers are non-zero somewhere in the tile, in one pass over the records in
+    // memory order (a layer's texels lie a whole record apart).
+    let mut non_zero = vec![false; layer_count];
+    for p in 0..tp {
+        let texels = &buf[p * record..p * record + layer_count * 3];
+        for (seen, texel) in non_zero.iter_mut().zip(texels.chunks_exact(3)) {
+            *seen |= texel.iter().any(|v| *v != 0.0);
+        }
+    }
+    let mut layers = Vec::new();
+    for layer in (0..layer_count).filter(|l| non_zero[*l]) {
+        let average = |p: usize| {
+            let at = p * record + layer * 3;
+            [
+                buf[at] * inv_spp,
+                buf[at + 1] * inv_spp,
+                buf[at + 2] * inv_spp,
+            ]
+        };
+        // Grey by the averages' own comparison, as the stack's grey test makes it.
+        let grey = (0..tp).all(|p| {
+            let [r, g, b] = average(p);
+            r == g && g == b
+        });
+        let channels = if grey { 1 } else { 3 };
+        let mut data = crate::memory::try_with_capacity(tp * channels, "a tile's layer averages")?;
+        for p in 0..tp {
+            data.extend_from_slice(&average(p)[..channels]);
+        }
+        layers.push(TracedLayer {
+            id: layer as u32,
+            channels: channels as u8,
+            data,
+        });
+    }
+    Ok(TracedTile {
+        rect: rect_of(tile),
+        features,
+        layers,
+    })
+}
