@@ -83,21 +83,21 @@ pub(crate) fn solve_nonnegative(a: &[f64], n: usize, b: &[f64], x: &mut [f64]) {
             for i in (0..n).filter(|&i| free[i] && z[i] <= 0.0) {
                 let room = x[i] - z[i];
                 let t = if room > 0.0 { x[i] / room } else { 0.0 };
-                if t < alpha || blocking.is_none() {
+                if blocking.is_none() || t < alpha {
                     alpha = alpha.min(t);
                     blocking = Some(i);
                 }
             }
-            for i in 0..n {
-                x[i] += alpha * (z[i] - x[i]);
+            for (xi, zi) in x[..n].iter_mut().zip(&z) {
+                *xi += alpha * (zi - *xi);
             }
             if let Some(i) = blocking {
                 x[i] = 0.0;
             }
-            for i in 0..n {
-                if free[i] && x[i] <= 0.0 {
-                    x[i] = 0.0;
-                    free[i] = false;
+            for (xi, fi) in x[..n].iter_mut().zip(free.iter_mut()) {
+                if *fi && *xi <= 0.0 {
+                    *xi = 0.0;
+                    *fi = false;
                 }
             }
             if !free.iter().any(|f| *f) {
