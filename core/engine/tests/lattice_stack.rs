@@ -13,12 +13,14 @@ use common::synthetic_stack::*;
 use relume_engine::bake::presets::Preset;
 use relume_engine::bake::settings::BounceCompression;
 use relume_engine::bake::{bake_tiled, bake_tiled_banded, progress::Progress, BakeSettings};
+use relume_engine::brdf::{BlinnPhong, MaterialSpec};
 use relume_engine::layer_key::LayerKey;
 use relume_engine::relight::{tiled_sum, CpuRelighter};
 use relume_engine::scene::{file::load_scene, Resolution};
+use relume_engine::stack::bases::StackBases;
 use relume_engine::stack::exr_file::ATTR_FORMAT_VERSION;
 use relume_engine::stack::tiled::file::{read_tiled, write_tiled, write_tiled_unchecked};
-use relume_engine::stack::tiled::lattice::{nodes_along, LatticeFitter};
+use relume_engine::stack::tiled::lattice::{nodes_along, FitSign, LatticeFitter};
 use relume_engine::stack::tiled::{
     tile_rect, tiles_along, TileCoefficients, TileLattice, TileRadiance, TiledStack,
     TiledStackBuilder,
@@ -61,7 +63,9 @@ fn split_map(w: u32, h: u32) -> Vec<u8> {
 }
 
 /// Fits fields drawn by `field` (per segment and channel: a + b·x + c·y + d·x·y) on
-/// `split_map(w, h)` and returns the worst error relative to max(|value|, 1).
+/// `split_map(w, h)` by plain least squares and returns the worst error relative to
+/// max(|value|, 1). (The sign-keeping fit is exact only where the field's values at the
+/// segment's nodes, some outside its pixels, are ≥ 0 as well: see the sign tests.)
 fn worst_fit_error(w: u32, h: u32, step: u32, rng: &mut Rng, bilinear_term: f32) -> f32 {
     let map = split_map(w, h);
     let lattice = TileLattice::new(step, w, h, map.clone()).unwrap();
@@ -90,7 +94,9 @@ fn worst_fit_error(w: u32, h: u32, step: u32, rng: &mut Rng, bilinear_term: f32)
             }
         }
     }
-    let fit = LatticeFitter::new(&lattice).fit(&data, 3).unwrap();
+    let fit = LatticeFitter::new(&lattice)
+        .fit_with(&data, 3, FitSign::Free)
+        .unwrap();
     assert_eq!(fit.mask, (1u32 << lattice.segment_count()) - 1);
     assert_eq!(
         Some(fit.coefficients.len()),
@@ -150,6 +156,111 @@ fn a_full_tile_segment_is_fitted_exactly() {
     for (a, b) in data.iter().zip(&fit.reconstructed) {
         assert!((a - b).abs() < 1e-5, "{a} vs {b}");
     }
+}
+
+/// Shapes whose plain least-squares fit dips below zero on a 16 × 16 tile of one segment:
+/// a step edge inside a lattice cell, a one-pixel peak inside a cell, a bright corner.
+fn undershooting_shapes(step: u32) -> Vec<(&'static str, Vec<f32>)> {
+    let at = |f: &dyn Fn(u32, u32) -> f32| -> Vec<f32> {
+        (0..256u32).map(|p| f(p % 16, p / 16)).collect()
+    };
+    vec![
+        (
+            "step edge",
+            at(&|x, _| if x > step + 1 { 1.0 } else { 0.0 }),
+        ),
+        (
+            "peak",
+            at(&|x, y| {
+                if (x, y) == (step + 1, step + 2) {
+                    5.0
+                } else {
+                    0.0
+                }
+            }),
+        ),
+        (
+            "bright corner",
+            at(&|x, y| if x + y <= 2 { 2.0 } else { 0.01 }),
+        ),
+    ]
+}
+
+/// Σ (a − b)² over two images.
+fn sq_error(a: &[f32], b: &[f32]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (*x as f64 - *y as f64).powi(2))
+        .sum()
+}
+
+#[test]
+fn a_step_or_a_peak_inside_a_segment_is_fitted_without_going_below_zero() {
+    for step in [4, 8] {
+        let lattice = TileLattice::new(step, 16, 16, vec![0; 256]).unwrap();
+        let fitter = LatticeFitter::new(&lattice);
+        for (name, data) in undershooting_shapes(step) {
+            let free = fitter.fit_with(&data, 1, FitSign::Free).unwrap();
+            let lowest_free = free.reconstructed.iter().fold(0.0f32, |m, v| m.min(*v));
+            // The shape must be one plain least squares gets wrong, or this proves nothing.
+            assert!(
+                lowest_free < -1e-3,
+                "step {step}, {name}: free fit ≥ {lowest_free}"
+            );
+            let kept = fitter.fit(&data, 1).unwrap();
+            assert!(kept.sign_kept > 0, "step {step}, {name}");
+            assert!(kept.coefficients.iter().all(|v| *v >= 0.0));
+            let lowest = kept.reconstructed.iter().fold(f32::MAX, |m, v| m.min(*v));
+            assert!(lowest >= 0.0, "step {step}, {name}: fit reaches {lowest}");
+            // The constrained optimum: no worse than the free fit with its negative nodes
+            // clamped to 0 (the cheap repair), no better than the free fit.
+            let mut clamped = vec![0.0; 256];
+            lattice.reconstruct(
+                free.mask,
+                1,
+                |i| free.coefficients[i].max(0.0),
+                &mut clamped,
+            );
+            let (e_free, e_kept, e_clamped) = (
+                sq_error(&free.reconstructed, &data),
+                sq_error(&kept.reconstructed, &data),
+                sq_error(&clamped, &data),
+            );
+            assert!(
+                e_free <= e_kept * (1.0 + 1e-9) && e_kept <= e_clamped * (1.0 + 1e-6),
+                "step {step}, {name}: squared errors free {e_free}, kept {e_kept}, clamped {e_clamped}"
+            );
+        }
+    }
+}
+
+#[test]
+fn only_the_channels_and_segments_that_are_non_negative_are_constrained() {
+    // Channel 0 a step edge ≥ 0 (constrained), channel 1 the same edge minus a constant so
+    // the layer is signed there (a PCA basis' layer can be): left as plain least squares.
+    let lattice = TileLattice::new(4, 16, 16, vec![0; 256]).unwrap();
+    let fitter = LatticeFitter::new(&lattice);
+    let edge = |x: u32| if x > 5 { 1.0f32 } else { 0.0 };
+    let data: Vec<f32> = (0..256u32)
+        .flat_map(|p| {
+            let e = edge(p % 16);
+            [e, e - 0.5, 0.2 + 0.01 * (p / 16) as f32]
+        })
+        .collect();
+    let kept = fitter.fit(&data, 3).unwrap();
+    let free = fitter.fit_with(&data, 3, FitSign::Free).unwrap();
+    assert_eq!(kept.sign_kept, 1);
+    for (k, f) in kept
+        .reconstructed
+        .chunks_exact(3)
+        .zip(free.reconstructed.chunks_exact(3))
+    {
+        assert!(k[0] >= 0.0);
+        assert_eq!(k[1], f[1]);
+        // The smooth, positive third channel needs no constraint: the same fit.
+        assert_eq!(k[2], f[2]);
+    }
+    assert!(free.reconstructed.chunks_exact(3).any(|p| p[0] < 0.0));
 }
 
 /// A stack over `w × h` with the one-bounce keys of two bases: smooth layers, the bounce
@@ -545,6 +656,88 @@ fn a_compressed_bake_relights_within_its_budget_of_the_uncompressed_one() {
     }
 }
 
+/// The editable regions' materials of `scene` with every Ks set to 0 and each Kd scaled by
+/// U[0, 1.5] per channel (kept ≤ 1): a diffuse edit.
+fn diffuse_edit(scene: &relume_engine::scene::Scene, rng: &mut Rng) -> Vec<MaterialSpec> {
+    scene
+        .regions
+        .iter()
+        .filter(|r| r.editable)
+        .map(|r| match &r.material {
+            MaterialSpec::BlinnPhong(m) => MaterialSpec::BlinnPhong(BlinnPhong {
+                kd: m.kd.map(|v| (v * rng.range(0.0, 1.5)).min(1.0)),
+                ks: [0.0; 3],
+                ns: m.ns,
+            }),
+            other => other.clone(),
+        })
+        .collect()
+}
+
+/// The lowest relit value of `compressed` over the pixel channels where `plain` is ≥ 0,
+/// relative to the largest `plain` value.
+fn lowest_where_plain_is_not_negative(compressed: &[f32], plain: &[f32]) -> f32 {
+    let scale = plain.iter().fold(0.0f32, |m, v| m.max(v.abs())).max(1e-30);
+    compressed
+        .iter()
+        .zip(plain)
+        .enumerate()
+        .filter(|(i, (_, p))| i % 4 != 3 && **p >= 0.0)
+        .map(|(_, (c, _))| *c)
+        .fold(0.0f32, f32::min)
+        / scale
+}
+
+#[test]
+fn a_compressed_bake_relights_below_zero_nowhere_the_uncompressed_one_does_not() {
+    // A loose tolerance, so that many bounce layers are fitted (the glossy walls' signed
+    // PCA layers among them); f32 storage, so that only the fits differ.
+    let scene = cornell(48);
+    let settings = |compression| {
+        let mut s = preview(48, compression);
+        s.precision = Precision::F32;
+        s
+    };
+    let on = BounceCompression {
+        step: 4,
+        tolerance: 0.1,
+    };
+    let (compressed, _) = bake_tiled(&scene, &settings(on), &Progress::new()).unwrap();
+    let (plain, _) =
+        bake_tiled(&scene, &settings(BounceCompression::OFF), &Progress::new()).unwrap();
+    assert!(compressed
+        .tiles
+        .iter()
+        .flat_map(|t| &t.entries)
+        .any(|e| e.segments != 0));
+    let bases = StackBases::from_header(&plain.header).unwrap();
+    let bake_coefs = common::bake_material_coefs(&plain.header, &scene);
+    let mut a = CpuRelighter::from_tiled(Arc::new(compressed)).unwrap();
+    let mut b = CpuRelighter::from_tiled(Arc::new(plain)).unwrap();
+    // Under diffuse edits every layer that counts is ≥ 0, so every fit of it keeps its
+    // nodes ≥ 0 and the relit image is a sum of non-negative terms: ≥ 0 exactly.
+    let mut rng = Rng::new(31);
+    for _ in 0..4 {
+        let coefs = bases.coefficients(&diffuse_edit(&scene, &mut rng)).unwrap();
+        let plain = b.relight(&coefs).unwrap().to_vec();
+        assert!(plain.iter().all(|v| *v >= 0.0));
+        let lowest = a
+            .relight(&coefs)
+            .unwrap()
+            .iter()
+            .fold(0.0f32, |m, v| m.min(*v));
+        assert!(lowest >= 0.0, "diffuse edit: {lowest}");
+    }
+    // At the bake-time materials the glossy walls' signed layers count too; the per-tile
+    // guard keeps the tile image ≥ 0 where it is, before the negligible layers are dropped
+    // (which it does not see) — so only about rounding and the dropped layers' share below.
+    let lowest = lowest_where_plain_is_not_negative(
+        a.relight(&bake_coefs).unwrap(),
+        b.relight(&bake_coefs).unwrap(),
+    );
+    assert!(lowest >= -1e-4, "bake-time materials: {lowest}");
+}
+
 #[test]
 fn the_streaming_and_dense_paths_compress_alike() {
     let scene = cornell(40);
@@ -681,11 +874,31 @@ fn measure_compression() {
                 .filter(|e| e.segments != 0)
                 .count();
             let mut relighter = CpuRelighter::from_tiled(Arc::new(stack.clone())).unwrap();
+            // Per image (bake-time materials, then the edits): the relit error, and the pixel
+            // channels that are < 0 where the uncompressed image is ≥ 0 and the lowest of them.
+            let mut negatives = Vec::new();
             let errors: Vec<f64> = std::iter::once(&bake_coefs)
                 .chain(&edits)
                 .zip(&plain_images)
-                .map(|(c, reference)| rel_l2(relighter.relight(c).unwrap(), reference))
+                .map(|(c, reference)| {
+                    let image = relighter.relight(c).unwrap();
+                    let below = image
+                        .iter()
+                        .zip(reference)
+                        .enumerate()
+                        .filter(|(i, (v, r))| i % 4 != 3 && **r >= 0.0 && **v < 0.0)
+                        .count();
+                    negatives.push((below, lowest_where_plain_is_not_negative(image, reference)));
+                    rel_l2(image, reference)
+                })
                 .collect();
+            println!(
+                "{{\"negative_pixel_channels_bake\":{},\"negative_pixel_channels_edits\":{},\"lowest_rel_bake\":{:.3e},\"lowest_rel_edits\":{:.3e}}}",
+                negatives[0].0,
+                negatives[1..].iter().map(|n| n.0).sum::<usize>(),
+                negatives[0].1,
+                negatives[1..].iter().map(|n| n.1).fold(0.0f32, f32::min),
+            );
             let edit_errors = &errors[1..];
             println!("{{\"mb_by_path_len\":{:?}}}", by_len(&stack));
             println!(

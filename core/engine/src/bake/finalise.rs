@@ -25,6 +25,7 @@ use crate::layer_key::LayerKey;
 use crate::layer_key::PathVertex;
 use crate::scene::Scene;
 use crate::stack::tiled::lattice::{segment_map, LatticeFitter, PixelSurface};
+use crate::stack::tiled::lattice_sign::{self, SignedFit};
 use crate::stack::tiled::{
     StackTile, TileCoefficients, TileLattice, TileLayer, TileRadiance, TileRect, TileValues,
     TiledLayerInfo, TiledStack, TiledStackBuilder,
@@ -178,7 +179,7 @@ pub(crate) fn finalise_tile(
     let image_sumsq: f64 = image.iter().map(|v| v * v).sum();
     let compressed = match lattice {
         Some(plan) if surfaces.len() == rect.pixels() => {
-            compress_tile(plan, rect, surfaces, &kept, image_sumsq, weights)
+            compress_tile(plan, rect, surfaces, &kept, &image, image_sumsq, weights)
         }
         _ => None,
     };
@@ -259,11 +260,17 @@ struct KeptFit {
 /// `(tolerance · ‖tile image‖)²`: layers' fitting errors are mostly independent noise, so
 /// the image's error at the bake-time materials stays near `tolerance`; the bake measures
 /// what it actually is.
+///
+/// Sign: each fit keeps a layer that is ≥ 0 on a segment ≥ 0 there, and of the kept fits
+/// those that would take the tile's bake-time `image` below zero where it is not are given
+/// up ([`lattice_sign`]).
+#[allow(clippy::too_many_arguments)]
 fn compress_tile(
     plan: &LatticePlan,
     rect: TileRect,
     surfaces: &[PixelSurface],
     kept: &[TileInput],
+    image: &[f64],
     image_sumsq: f64,
     weights: &[Rgb],
 ) -> Option<(TileLattice, Vec<KeptFit>)> {
@@ -321,6 +328,23 @@ fn compress_tile(
         spent += err;
         fits.push(fit);
     }
+    let signed: Vec<SignedFit> = fits
+        .iter()
+        .map(|f| {
+            let input = &kept[f.input];
+            let w = weights[input.layer as usize];
+            SignedFit {
+                weight: [w.x as f64, w.y as f64, w.z as f64],
+                channels: input.channels,
+                data: &input.data,
+                fitted: &f.reconstructed,
+            }
+        })
+        .collect();
+    let keep = lattice_sign::repair_negative_pixels(image, &signed);
+    drop(signed);
+    let mut keep = keep.into_iter();
+    fits.retain(|_| keep.next().unwrap_or(false));
     fits.sort_by_key(|f| f.input);
     (!fits.is_empty()).then_some((lattice, fits))
 }

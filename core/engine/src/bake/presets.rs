@@ -16,9 +16,14 @@ use serde::Serialize;
 use super::settings::{BakeSettings, BounceCompression, Denoise, IndirectSampling};
 use crate::brdf::BasisCount;
 
-/// Per-entry tolerance of the presets' bounce-layer compression
+/// Per-entry tolerance of the draft and preview presets' bounce-layer compression
 /// ([`BounceCompression::tolerance`]); chosen by measurement (docs/scale.md).
 const COMPRESSION_TOLERANCE: f32 = 0.02;
+
+/// The final preset's compression tolerance: tighter, so that the error the compression
+/// adds stays small against the final preset's own error against a converged reference
+/// (measured: docs/scale.md, "Lattice fits and the sign").
+const FINAL_COMPRESSION_TOLERANCE: f32 = 0.005;
 
 /// A named quality preset.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -132,11 +137,13 @@ impl Preset {
                     bounce_iterations: 2,
                 },
                 bounce_budget: 0.005,
-                // The accuracy preset keeps every layer per pixel: a lattice fit can undershoot
-                // to slightly negative radiance in dark pixels (seen in the Cornell
-                // final-preset comparison with Cycles), an artefact final's users should not
-                // get in exchange for memory.
-                compression: BounceCompression::OFF,
+                // Lattice fits keep the sign of the layers they stand in for
+                // (`stack::tiled::lattice_sign`), so compression no longer risks negative
+                // pixels; final spends a quarter of the other presets' tolerance.
+                compression: BounceCompression {
+                    step: 4,
+                    tolerance: FINAL_COMPRESSION_TOLERANCE,
+                },
             },
         }
     }
@@ -178,6 +185,9 @@ mod tests {
         assert!(Preset::Final.values().basis_tolerance < Preset::Preview.values().basis_tolerance);
         assert!(Preset::Final.values().bounce_budget < Preset::Preview.values().bounce_budget);
         assert!(Preset::Preview.values().bounce_budget < Preset::Draft.values().bounce_budget);
+        let tolerance = |p: Preset| p.values().compression.tolerance;
+        assert!(tolerance(Preset::Final) > 0.0);
+        assert!(tolerance(Preset::Final) < tolerance(Preset::Preview));
     }
 
     #[test]

@@ -19,13 +19,16 @@
 //!
 //! The fit ([`LatticeFitter`]) is least squares over the segment's pixels; its normal
 //! matrix depends only on the segment map, so it is factored once per segment and shared
-//! by every layer and channel. A node with weak support (few pixels, small hat weights
+//! by every layer and channel. Where a layer is ≥ 0 on a segment its fit there keeps every
+//! node coefficient ≥ 0, so the fitted layer is ≥ 0 too ([`super::lattice_sign`]). A node with weak support (few pixels, small hat weights
 //! there) is poorly determined by the data, so it is also pulled towards the straight-line
 //! extrapolation of its neighbours along each axis: a penalty on second differences, which
 //! is zero on any bilinear field, so such fields are still reproduced exactly. Every node
 //! gets a negligible ridge besides, so the system is always solvable.
 //!
 //! This module knows nothing of the bake: the bake hands it each pixel's surface class.
+
+use super::lattice_sign::solve_nonnegative;
 
 /// Most segments in one tile (an entry's covered segments are a 32-bit mask).
 pub const MAX_SEGMENTS: usize = 32;
@@ -424,9 +427,21 @@ pub fn segment_map(surfaces: &[PixelSurface]) -> Option<Vec<u8>> {
 /// layers over that tile.
 pub struct LatticeFitter<'a> {
     lattice: &'a TileLattice,
-    /// Per segment, the lower Cholesky factor (row-major, n × n) of its normal matrix plus
-    /// ridge.
+    /// Per segment, its normal matrix plus penalties and ridge (row-major, n × n): what the
+    /// sign-keeping solve works on.
+    normals: Vec<Vec<f64>>,
+    /// Per segment, the lower Cholesky factor of `normals`.
     factors: Vec<Vec<f64>>,
+}
+
+/// Whether a fit keeps the sign of a layer that is ≥ 0 (see [`LatticeFitter::fit`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FitSign {
+    /// Where the layer is ≥ 0 on a segment (per channel), every node coefficient there is
+    /// ≥ 0: the fitted layer never goes below zero where the layer does not.
+    KeepNonNegative,
+    /// Plain least squares, which can undershoot below zero next to a step or a peak.
+    Free,
 }
 
 /// One layer fitted over a tile.
@@ -438,6 +453,9 @@ pub struct LatticeFit {
     pub coefficients: Vec<f32>,
     /// The fit at every pixel (row-major, channels interleaved): what the stack will hold.
     pub reconstructed: Vec<f32>,
+    /// Segment-channels whose least-squares fit had a negative node on a segment where the
+    /// layer is ≥ 0, and so were solved with non-negative nodes instead.
+    pub sign_kept: u32,
 }
 
 impl<'a> LatticeFitter<'a> {
@@ -479,7 +497,7 @@ impl<'a> LatticeFitter<'a> {
             }
         }
         let (nx, ny) = lattice.nodes();
-        let factors = normal
+        let normals: Vec<Vec<f64>> = normal
             .into_iter()
             .zip(&lattice.layout)
             .map(|(mut m, seg)| {
@@ -514,17 +532,34 @@ impl<'a> LatticeFitter<'a> {
                 for k in 0..n {
                     m[k * n + k] += RIDGE_ALL * full;
                 }
-                cholesky(&mut m, n);
                 m
             })
             .collect();
-        LatticeFitter { lattice, factors }
+        let factors = normals
+            .iter()
+            .zip(&lattice.layout)
+            .map(|(m, seg)| {
+                let mut f = m.clone();
+                cholesky(&mut f, seg.nodes.len());
+                f
+            })
+            .collect();
+        LatticeFitter {
+            lattice,
+            normals,
+            factors,
+        }
     }
 
     /// The least-squares fit of `data` (the tile's pixels row-major, `channels`
-    /// interleaved) on the segments where it is non-zero; `None` when it is zero
-    /// everywhere.
+    /// interleaved) on the segments where it is non-zero, keeping the sign where the data is
+    /// ≥ 0 ([`FitSign::KeepNonNegative`]); `None` when it is zero everywhere.
     pub fn fit(&self, data: &[f32], channels: u8) -> Option<LatticeFit> {
+        self.fit_with(data, channels, FitSign::KeepNonNegative)
+    }
+
+    /// The fit of `data` as [`fit`](Self::fit), with the sign handled as `sign` says.
+    pub fn fit_with(&self, data: &[f32], channels: u8, sign: FitSign) -> Option<LatticeFit> {
         let l = self.lattice;
         let c = channels as usize;
         let mut mask = 0u32;
@@ -555,15 +590,39 @@ impl<'a> LatticeFitter<'a> {
                 }
             }
         }
+        // Per segment and channel, whether the data is ≥ 0 at every pixel of the segment.
+        let mut nonnegative = [[true; 3]; MAX_SEGMENTS];
+        if sign == FitSign::KeepNonNegative {
+            for (p, px) in data.chunks_exact(c).enumerate() {
+                let s = l.segments[p] as usize;
+                for (ch, v) in px.iter().enumerate() {
+                    if *v < 0.0 {
+                        nonnegative[s][ch] = false;
+                    }
+                }
+            }
+        }
         let mut coefficients = vec![0.0f32; total];
         let mut column = Vec::new();
+        let mut constrained = Vec::new();
+        let mut sign_kept = 0;
         for s in l.covered(mask) {
             let start = starts[s].unwrap_or(0);
             let n = l.layout[s].nodes.len();
             for ch in 0..c {
                 column.clear();
                 column.extend((0..n).map(|i| rhs[start + i * c + ch]));
+                let b = column.clone();
                 cholesky_solve(&self.factors[s], n, &mut column);
+                if sign == FitSign::KeepNonNegative
+                    && nonnegative[s][ch]
+                    && column.iter().any(|v| *v < 0.0)
+                {
+                    constrained.resize(n, 0.0);
+                    solve_nonnegative(&self.normals[s], n, &b, &mut constrained);
+                    column.copy_from_slice(&constrained);
+                    sign_kept += 1;
+                }
                 for (i, v) in column.iter().enumerate() {
                     coefficients[start + i * c + ch] = *v as f32;
                 }
@@ -575,6 +634,7 @@ impl<'a> LatticeFitter<'a> {
             mask,
             coefficients,
             reconstructed,
+            sign_kept,
         })
     }
 }

@@ -16,11 +16,14 @@
 //! - [`validate`]: the structural checks shared by the writer and the reader.
 //! - [`lattice`]: lattice entries — a layer over a tile as hat coefficients per segment of
 //!   the tile, for the smooth bounce layers.
+//! - [`lattice_sign`]: lattice fits that never take a layer or a tile image below zero
+//!   where it is not.
 //! - [`file`]: stack file format version [`STACK_FORMAT_VERSION_TILED`] (still OpenEXR).
 
 pub mod build;
 pub mod file;
 pub mod lattice;
+pub mod lattice_sign;
 pub mod layout;
 pub mod validate;
 
