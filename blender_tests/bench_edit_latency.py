@@ -16,12 +16,13 @@ image — to the moment the image holds the new pixels (checked after every edit
 
 Per cell it prints, as JSON: edit→pixels, the relighter's own time for the same edits
 (`Relighter.last_ms`), the overhead (their difference, edit by edit) and its ratio to the
-relight (medians), where the overhead goes, and the upload floor: one
-`Image.pixels.foreach_set` of a float32 buffer of that size alone. The overhead's parts are
-the copy of the relit pixels into the image (`image_upload`), the Python side of the
-relighter's call, reading the materials' values and the rest of the add-on's relight call,
-and what lies outside that call: Blender's depsgraph evaluation, the handler, and releasing
-the relit array (`depsgraph_handler_and_release`). Nothing is asserted.
+relight (of the medians, and edit by edit: min and median), where the overhead goes, and
+the upload floor: one `Image.pixels.foreach_set` of a float32 buffer of that size alone.
+The overhead's parts are the copy of the relit pixels into the image (`image_upload`), the
+Python side of the relighter's call, reading the materials' values and the rest of the
+add-on's relight call, and what lies outside that call: Blender's depsgraph evaluation, the
+handler, and releasing the relit array (`depsgraph_handler_and_release`). Nothing is
+asserted.
 """
 
 from __future__ import annotations
@@ -63,6 +64,12 @@ def _size(text: str) -> tuple[int, int]:
 
 def _stats(values: list[float]) -> dict:
     return {"median": round(statistics.median(values), 2), "min": round(min(values), 2)}
+
+
+def _ratio_stats(values: list[float], over: list[float]) -> dict:
+    """Edit by edit `values` ÷ `over`: median and min."""
+    ratios = [v / o for v, o in zip(values, over, strict=True)]
+    return {"median": round(statistics.median(ratios), 3), "min": round(min(ratios), 3)}
 
 
 def _minus(values: list[float], *others: list[float]) -> list[float]:
@@ -154,6 +161,9 @@ def bench_cell(addon, width: int, height: int, k: int, edits: int, workdir: str)
         "relight_ms": _stats(relight),
         "overhead_ms": _stats(overhead),
         "overhead_over_relight": round(statistics.median(overhead) / statistics.median(relight), 3),
+        # Edit by edit (the two medians above may come from different edits on a shared
+        # machine): min and median of overhead ÷ relight.
+        "overhead_over_relight_per_edit": _ratio_stats(overhead, relight),
         "overhead_parts_ms": {
             "image_upload": _stats(upload),
             "relight_call_in_python": _stats(_minus(relight_call, relight)),

@@ -23,7 +23,8 @@ IMAGE_NAME = "Relume"
 def _bottom_first(pixels: np.ndarray) -> np.ndarray:
     """`pixels` with its rows reversed (Blender's order), as the contiguous float32 array
     `foreach_set` copies from at memory speed. Written into one buffer kept for the session
-    (`RUNTIME.upload_buffer`), so an edit allocates nothing the size of the frame."""
+    (`RUNTIME.upload_buffer`), so such a write allocates nothing the size of the frame. The
+    live relight does not come here: it asks the relighter for Blender's order directly."""
     buf = RUNTIME.upload_buffer
     if buf is None or buf.shape != pixels.shape:
         buf = RUNTIME.upload_buffer = np.empty(pixels.shape, np.float32)
@@ -31,9 +32,9 @@ def _bottom_first(pixels: np.ndarray) -> np.ndarray:
     return buf
 
 
-def write_image(pixels: np.ndarray) -> bpy.types.Image:
-    """Put an (h, w, 4) top-row-first float image (the relighter's order) into the "Relume"
-    image."""
+def write_image(pixels: np.ndarray, bottom_first: bool = False) -> bpy.types.Image:
+    """Put an (h, w, 4) float image into the "Relume" image: rows top first (the relighter's
+    default order, flipped here), or already bottom first (Blender's order, written as is)."""
     h, w = pixels.shape[0], pixels.shape[1]
     img = bpy.data.images.get(IMAGE_NAME)
     if img is not None and (img.size[0] != w or img.size[1] != h or not img.is_float):
@@ -44,7 +45,8 @@ def write_image(pixels: np.ndarray) -> bpy.types.Image:
         # Older colour-management configs name it "Linear"; float images default to it.
         with contextlib.suppress(TypeError):
             img.colorspace_settings.name = "Linear Rec.709"
-    img.pixels.foreach_set(_bottom_first(pixels).ravel())
+    rows = pixels if bottom_first else _bottom_first(pixels)
+    img.pixels.foreach_set(rows.ravel())
     img.update()
     return img
 
@@ -55,7 +57,8 @@ def relight_now(force: bool = False) -> bool:
 
     t0 = time.perf_counter()
     try:
-        outcome = RUNTIME.live.relight(current_params(), force=force, gains=current_gains())
+        outcome = RUNTIME.live.relight(current_params(), force=force, gains=current_gains(),
+                                       bottom_first=True)
     except relume.RelumeError as e:
         # A value the relighter refuses (an override with Kd + Ks > 1, say) or a failure in
         # the relight: shown in the panel, never raised into Blender's handlers.
@@ -66,7 +69,7 @@ def relight_now(force: bool = False) -> bool:
     if outcome is None:
         return False
     t_upload = time.perf_counter()
-    write_image(outcome.image)
+    write_image(outcome.image, bottom_first=outcome.bottom_first)
     t_end = time.perf_counter()
     RUNTIME.live.last_upload_ms = (t_end - t_upload) * 1e3
     RUNTIME.live.last_latency_ms = (t_end - t0) * 1e3

@@ -19,7 +19,9 @@ class Runtime:
         self.light_names: list[str] = []  # the last export's lights, in scene order
         self.stale_check_pending = False
         self.relight_timer_registered = False
-        #: The relit pixels in Blender's row order, reused by every write of the image.
+        #: The relit pixels in Blender's row order, reused by every write of a top-first
+        #: image into the "Relume" image (`api.render`, `api.relight`; the live relight gets
+        #: its rows in Blender's order from the relighter and needs no copy).
         self.upload_buffer = None
         self.last_status = ""
         self.estimate: dict | None = None  # the last `api.estimate()`: cost before a bake

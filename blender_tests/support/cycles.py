@@ -114,6 +114,16 @@ def render_cycles(scene, path: str | pathlib.Path, samples: int, seed: int,
     return np.asarray(image, dtype=np.float64)[..., :3], seconds
 
 
+def render_cycles_pair(scene, folder: str | pathlib.Path, name: str, samples: int,
+                       bounces: int | None = 1):
+    """Two independent Cycles renders of `samples` / 2 each (seeds 1 and 2): their mean is the
+    reference, their difference its noise (`noise_of_mean`). Returns (first, second, seconds)."""
+    folder = pathlib.Path(folder)
+    c1, t1 = render_cycles(scene, folder / f"{name}_c1.exr", samples // 2, seed=1, bounces=bounces)
+    c2, t2 = render_cycles(scene, folder / f"{name}_c2.exr", samples // 2, seed=2, bounces=bounces)
+    return c1, c2, t1 + t2
+
+
 def block_mean(image: np.ndarray, block: int) -> np.ndarray:
     """Means over `block` × `block` pixel tiles (the image's size must be a multiple)."""
     h, w, c = image.shape

@@ -20,9 +20,10 @@ from .region_params import RegionParams
 
 @dataclass
 class RelightOutcome:
-    image: object  # numpy (h, w, 4) float32, top row first (the relighter's own order)
+    image: object  # numpy (h, w, 4) float32, rows top first unless `bottom_first`
     changed: list
     relight_ms: float
+    bottom_first: bool = False  # rows in Blender's order (the live image's)
 
 
 class LiveState:
@@ -139,9 +140,11 @@ class LiveState:
         return changed
 
     def relight(self, params: dict[str, RegionParams], force: bool = False,
-                gains: dict[str, tuple] | None = None) -> RelightOutcome | None:
+                gains: dict[str, tuple] | None = None,
+                bottom_first: bool = False) -> RelightOutcome | None:
         """Apply `params` (and light group `gains`) and relight; None when nothing changed
-        (and not forced)."""
+        (and not forced). `bottom_first`: the image's rows in Blender's order, for the live
+        image."""
         if not self.ready:
             return None
         changed = self.apply(params, force)
@@ -149,9 +152,10 @@ class LiveState:
         if not changed and not force:
             return None
         t0 = time.perf_counter()
-        # Rows top first: the relighter hands out its image as it holds it, and the one copy
-        # into Blender's bottom-first order is made where the image is written
-        # (`live_image.write_image`), as a block copy of whole rows.
-        image = self.relighter.relight()
+        # The relighter copies its image out either way (its own buffer stays for the next
+        # incremental sum); asking it for Blender's row order makes that copy the flip, so
+        # the live image is written from it directly, with no second frame-sized copy.
+        image = self.relighter.relight(flip_y=bottom_first)
         self.last_relight_ms = (time.perf_counter() - t0) * 1e3
-        return RelightOutcome(image=image, changed=changed, relight_ms=self.last_relight_ms)
+        return RelightOutcome(image=image, changed=changed, relight_ms=self.last_relight_ms,
+                              bottom_first=bottom_first)
