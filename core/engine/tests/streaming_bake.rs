@@ -353,10 +353,14 @@ fn streaming_holds_less_than_the_dense_path_and_as_forecast() {
         streaming_peak < dense_peak,
         "streaming {streaming_peak} B, dense {dense_peak} B"
     );
+    // The forecast is the budget check's upper bound, not a prediction: it must not be
+    // below what the bake holds (a small margin for allocator slack in the measurement),
+    // and its looseness (the region model over-counts entries, docs/scale.md) is bounded
+    // so that a bake is not refused for far more memory than it needs.
     let ratio = forecast.peak_bytes as f64 / streaming_peak.max(1) as f64;
     assert!(
-        (0.75..=1.25).contains(&ratio),
-        "forecast {} B vs measured {streaming_peak} B",
+        (0.95..=10.0).contains(&ratio),
+        "forecast {} B vs measured {streaming_peak} B (ratio {ratio:.2})",
         forecast.peak_bytes
     );
 }
