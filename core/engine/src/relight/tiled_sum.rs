@@ -114,7 +114,13 @@ pub(crate) fn full_with(
     kernels: Kernels,
 ) -> Result<()> {
     check_shapes(stack, weights.len(), out)?;
-    sum(stack, out, true, kernels, &EveryLayer { weights });
+    sum(
+        stack,
+        out,
+        true,
+        kernels,
+        &PerLayerTable { factors: weights },
+    );
     Ok(())
 }
 
@@ -170,7 +176,7 @@ pub(crate) fn incremental_with(
         out,
         false,
         kernels,
-        &LookedUpLayers { deltas: &deltas },
+        &PerLayerTable { factors: &deltas },
     );
     Ok(())
 }
@@ -189,17 +195,19 @@ trait EntrySelection: Sync {
     fn entries<'t>(&'t self, tile: &'t StackTile) -> impl Iterator<Item = (usize, Rgb)> + 't;
 }
 
-/// A full sum: every entry whose layer has a non-zero weight.
-struct EveryLayer<'a> {
-    weights: &'a [Rgb],
+/// Every entry whose layer has a non-zero factor in a per-layer table: the weights for a
+/// full sum, or the weight deltas (0 for an unchanged layer) for an incremental sum of many
+/// layers, where walking the tile's table beats a search per changed layer.
+struct PerLayerTable<'a> {
+    factors: &'a [Rgb],
 }
 
-impl EntrySelection for EveryLayer<'_> {
+impl EntrySelection for PerLayerTable<'_> {
     #[inline(always)]
     fn entries<'t>(&'t self, tile: &'t StackTile) -> impl Iterator<Item = (usize, Rgb)> + 't {
         tile.entries.iter().enumerate().filter_map(|(k, e)| {
-            let w = self.weights[e.layer as usize];
-            (w != Rgb::ZERO).then_some((k, w))
+            let f = self.factors[e.layer as usize];
+            (f != Rgb::ZERO).then_some((k, f))
         })
     }
 }
@@ -216,22 +224,6 @@ impl EntrySelection for SearchedLayers<'_> {
         self.changed.iter().filter_map(|(l, delta)| {
             let k = tile.entries.binary_search_by_key(l, |e| e.layer).ok()?;
             Some((k, *delta))
-        })
-    }
-}
-
-/// An incremental sum of many layers: the tile's table walked, each entry's layer looked up
-/// in `deltas` (per layer id, 0 for an unchanged layer).
-struct LookedUpLayers<'a> {
-    deltas: &'a [Rgb],
-}
-
-impl EntrySelection for LookedUpLayers<'_> {
-    #[inline(always)]
-    fn entries<'t>(&'t self, tile: &'t StackTile) -> impl Iterator<Item = (usize, Rgb)> + 't {
-        tile.entries.iter().enumerate().filter_map(|(k, e)| {
-            let d = self.deltas[e.layer as usize];
-            (d != Rgb::ZERO).then_some((k, d))
         })
     }
 }

@@ -540,7 +540,7 @@ impl<'a> LatticeFitter<'a> {
             .zip(&lattice.layout)
             .map(|(m, seg)| {
                 let mut f = m.clone();
-                cholesky(&mut f, seg.nodes.len());
+                cholesky(&mut f, seg.nodes.len(), 1e-300);
                 f
             })
             .collect();
@@ -671,15 +671,15 @@ fn weak_node_stencils(at: &dyn Fn(i64, i64) -> Option<usize>) -> Vec<Vec<(usize,
 }
 
 /// In-place lower Cholesky factor of the symmetric positive definite `n × n` matrix `m`
-/// (row-major); a pivot that is not positive (rounding on a singular matrix) becomes tiny
-/// and positive so the solve stays finite.
-fn cholesky(m: &mut [f64], n: usize) {
+/// (row-major); a pivot below `pivot_floor` (rounding on a singular matrix) is raised to it
+/// so the solve stays finite.
+pub(super) fn cholesky(m: &mut [f64], n: usize, pivot_floor: f64) {
     for j in 0..n {
         let mut d = m[j * n + j];
         for k in 0..j {
             d -= m[j * n + k] * m[j * n + k];
         }
-        let d = d.max(1e-300).sqrt();
+        let d = d.max(pivot_floor).sqrt();
         m[j * n + j] = d;
         for i in j + 1..n {
             let mut v = m[i * n + j];
@@ -695,7 +695,7 @@ fn cholesky(m: &mut [f64], n: usize) {
 }
 
 /// Solves `L Lᵀ x = b` in place for the factor `l` of [`cholesky`].
-fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
+pub(super) fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
     for i in 0..n {
         let mut v = b[i];
         for k in 0..i {

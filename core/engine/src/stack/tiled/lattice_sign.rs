@@ -23,6 +23,8 @@
 //! Neither changes the relight: what is stored is still linear coefficients, and the
 //! relight is exact with respect to them.
 
+use super::lattice::{cholesky, cholesky_solve};
+
 /// Minimises `½ xᵀ A x − bᵀ x` over `x ≥ 0` (every component), `A` symmetric positive
 /// definite, `n × n` row-major — the least-squares fit of hats to data with non-negative
 /// coefficients, given the fit's normal matrix `A` and right-hand side `b`. The result
@@ -129,35 +131,8 @@ fn solve_on(
     }
     rhs.clear();
     rhs.extend(idx.iter().map(|&i| b[i]));
-    for j in 0..m {
-        let mut d = sub[j * m + j];
-        for k in 0..j {
-            d -= sub[j * m + k] * sub[j * m + k];
-        }
-        let d = d.max(1e-300 * scale).sqrt();
-        sub[j * m + j] = d;
-        for i in j + 1..m {
-            let mut v = sub[i * m + j];
-            for k in 0..j {
-                v -= sub[i * m + k] * sub[j * m + k];
-            }
-            sub[i * m + j] = v / d;
-        }
-    }
-    for i in 0..m {
-        let mut v = rhs[i];
-        for k in 0..i {
-            v -= sub[i * m + k] * rhs[k];
-        }
-        rhs[i] = v / sub[i * m + i];
-    }
-    for i in (0..m).rev() {
-        let mut v = rhs[i];
-        for k in i + 1..m {
-            v -= sub[k * m + i] * rhs[k];
-        }
-        rhs[i] = v / sub[i * m + i];
-    }
+    cholesky(sub, m, 1e-300 * scale);
+    cholesky_solve(sub, m, rhs);
     z[..n].fill(0.0);
     for (k, &i) in idx.iter().enumerate() {
         z[i] = rhs[k];
