@@ -181,3 +181,18 @@ def test_light_group_labels_name_the_blender_light():
     assert light_groups.group_label("world", names) == "world"
     assert light_groups.group_label("default", names).startswith("default (")
     assert light_groups.group_label("Sky", names) == "Sky"
+
+
+def test_bake_summary_names_layers_bytes_and_compression_error():
+    # The keys are the core's BakeReport fields (bake/report.rs), as relume.BakeJob.result()
+    # hands them over under "report".
+    from relume_logic.bake_summary import bake_summary
+
+    line = bake_summary({"seconds": 12.34, "report": {
+        "layers_possible": 6643, "layers_grey": 3500, "layers_rgb": 60,
+        "stored_bytes": 342_800_000, "dense_bytes": 14_764_000_000, "compression_error": 0.00051}})
+    assert line == ("baked in 12.3 s · 3560 of 6643 layers · 343 MB (14764 MB as full frames) · "
+                    "compression error 0.05 %")
+    # A bake without compression or a tiled report (a merge, older bindings) says only what it has.
+    assert bake_summary({"seconds": 1.0, "report": {"compression_error": 0.0}}) == "baked in 1.0 s"
+    assert bake_summary({}) == "baked in 0.0 s"

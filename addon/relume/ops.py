@@ -6,6 +6,7 @@ import bpy
 from bpy.props import StringProperty
 
 from .exporter.scene_export import ExportError
+from .logic.bake_summary import bake_summary
 from .logic.estimate_text import estimate_lines
 from .runtime import RUNTIME
 from .services.bake import bake, cancel_bake, start_bake
@@ -47,8 +48,7 @@ class RELUME_OT_bake(bpy.types.Operator):
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
         _report_warnings(self)
-        self.report({"INFO"}, f"Relume: baked {report.get('layers', '?')} layers in "
-                              f"{report.get('seconds', 0.0):.1f} s")
+        self.report({"INFO"}, f"Relume: {bake_summary(report)}")
         return {"FINISHED"}
 
     def invoke(self, context, event):

@@ -11,6 +11,8 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 
+from .bake_summary import bake_summary
+
 
 def format_eta(seconds: float | None) -> str:
     if seconds is None or seconds != seconds or seconds < 0:
@@ -80,7 +82,7 @@ class BakeSession:
         try:
             self.report = self.job.result()
             self.state = "done"
-            self.message = f"baked in {self.report.get('seconds', 0.0):.1f} s"
+            self.message = bake_summary(self.report)
         except relume.CancelledError:
             self.state = "cancelled"
             kept = "the previous stack is kept" if self._stacks_seen == 0 else \

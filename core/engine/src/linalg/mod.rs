@@ -12,13 +12,17 @@
 //!   numerical rank.
 //! - [`eigen`]: the cyclic Jacobi eigensolver for small symmetric matrices.
 //! - [`pca`]: leading eigenpairs of a large PSD Gram matrix through its low-rank factor.
+//! - [`dense_solve`]: an SPD system solved in place by its Cholesky factor (the stack's
+//!   lattice fits).
 
 pub mod cholesky;
+pub mod dense_solve;
 pub mod eigen;
 pub mod gram;
 pub mod pca;
 
 pub use cholesky::pivoted_cholesky;
+pub use dense_solve::{cholesky_in_place, cholesky_solve};
 pub use eigen::jacobi_eigen;
 pub use gram::{gram_matrix, GramAccumulator};
 pub use pca::{top_eigenpairs, LowRankGram};

@@ -29,6 +29,7 @@
 //! This module knows nothing of the bake: the bake hands it each pixel's surface class.
 
 use super::lattice_sign::solve_nonnegative;
+use crate::linalg::{cholesky_in_place, cholesky_solve};
 
 /// Most segments in one tile (an entry's covered segments are a 32-bit mask).
 pub const MAX_SEGMENTS: usize = 32;
@@ -540,7 +541,7 @@ impl<'a> LatticeFitter<'a> {
             .zip(&lattice.layout)
             .map(|(m, seg)| {
                 let mut f = m.clone();
-                cholesky(&mut f, seg.nodes.len(), 1e-300);
+                cholesky_in_place(&mut f, seg.nodes.len(), 1e-300);
                 f
             })
             .collect();
@@ -668,48 +669,6 @@ fn weak_node_stencils(at: &dyn Fn(i64, i64) -> Option<usize>) -> Vec<Vec<(usize,
         }
     }
     out
-}
-
-/// In-place lower Cholesky factor of the symmetric positive definite `n × n` matrix `m`
-/// (row-major); a pivot below `pivot_floor` (rounding on a singular matrix) is raised to it
-/// so the solve stays finite.
-pub(super) fn cholesky(m: &mut [f64], n: usize, pivot_floor: f64) {
-    for j in 0..n {
-        let mut d = m[j * n + j];
-        for k in 0..j {
-            d -= m[j * n + k] * m[j * n + k];
-        }
-        let d = d.max(pivot_floor).sqrt();
-        m[j * n + j] = d;
-        for i in j + 1..n {
-            let mut v = m[i * n + j];
-            for k in 0..j {
-                v -= m[i * n + k] * m[j * n + k];
-            }
-            m[i * n + j] = v / d;
-        }
-        for i in 0..j {
-            m[i * n + j] = 0.0;
-        }
-    }
-}
-
-/// Solves `L Lᵀ x = b` in place for the factor `l` of [`cholesky`].
-pub(super) fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
-    for i in 0..n {
-        let mut v = b[i];
-        for k in 0..i {
-            v -= l[i * n + k] * b[k];
-        }
-        b[i] = v / l[i * n + i];
-    }
-    for i in (0..n).rev() {
-        let mut v = b[i];
-        for k in i + 1..n {
-            v -= l[k * n + i] * b[k];
-        }
-        b[i] = v / l[i * n + i];
-    }
 }
 
 #[cfg(test)]

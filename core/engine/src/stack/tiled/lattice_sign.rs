@@ -23,7 +23,7 @@
 //! Neither changes the relight: what is stored is still linear coefficients, and the
 //! relight is exact with respect to them.
 
-use super::lattice::{cholesky, cholesky_solve};
+use crate::linalg::{cholesky_in_place, cholesky_solve};
 
 /// Minimises `½ xᵀ A x − bᵀ x` over `x ≥ 0` (every component), `A` symmetric positive
 /// definite, `n × n` row-major — the least-squares fit of hats to data with non-negative
@@ -131,7 +131,7 @@ fn solve_on(
     }
     rhs.clear();
     rhs.extend(idx.iter().map(|&i| b[i]));
-    cholesky(sub, m, 1e-300 * scale);
+    cholesky_in_place(sub, m, 1e-300 * scale);
     cholesky_solve(sub, m, rhs);
     z[..n].fill(0.0);
     for (k, &i) in idx.iter().enumerate() {
