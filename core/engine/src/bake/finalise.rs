@@ -646,10 +646,7 @@ fn keep_layers(stack: TiledStack, keep: &[bool], coloured: &[bool]) -> TiledStac
                 .lattice
                 .filter(|_| entries.iter().any(|e: &TileLayer| e.segments != 0));
             // The finished stack holds no room its growth over-allocated.
-            match &mut values {
-                TileValues::F16(v) => v.shrink_to_fit(),
-                TileValues::F32(v) => v.shrink_to_fit(),
-            }
+            values.shrink_to_fit();
             entries.shrink_to_fit();
             StackTile {
                 entries,

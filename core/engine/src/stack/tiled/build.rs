@@ -482,7 +482,7 @@ impl TiledStackBuilder {
         // The values grew as they came; the stack keeps them for the rest of the bake, so
         // they give back what the growth over-allocated.
         entries.shrink_to_fit();
-        let values = fitted_values(values);
+        values.shrink_to_fit();
         let mut slot = slot.lock().unwrap_or_else(|p| p.into_inner());
         if slot.is_some() {
             return Err(RelumeError::invalid(
@@ -566,15 +566,6 @@ fn expand_lattice_entry(
     let start = e.offset as usize;
     lattice.reconstruct(e.segments, e.channels, |i| tile.values.get(start + i), out);
     Ok(())
-}
-
-/// `values` with no room beyond its length.
-fn fitted_values(mut values: TileValues) -> TileValues {
-    match &mut values {
-        TileValues::F16(v) => v.shrink_to_fit(),
-        TileValues::F32(v) => v.shrink_to_fit(),
-    }
-    values
 }
 
 fn truncate_values(mut values: TileValues, len: usize) -> TileValues {

@@ -613,12 +613,14 @@ impl<'a> LatticeFitter<'a> {
             for ch in 0..c {
                 column.clear();
                 column.extend((0..n).map(|i| rhs[start + i * c + ch]));
-                let b = column.clone();
                 cholesky_solve(&self.factors[s], n, &mut column);
                 if sign == FitSign::KeepNonNegative
                     && nonnegative[s][ch]
                     && column.iter().any(|v| *v < 0.0)
                 {
+                    // The right-hand side again (the solve overwrote it), only in the rare
+                    // case that needs it, rather than a copy per segment and channel.
+                    let b: Vec<f64> = (0..n).map(|i| rhs[start + i * c + ch]).collect();
                     constrained.resize(n, 0.0);
                     solve_nonnegative(&self.normals[s], n, &b, &mut constrained);
                     column.copy_from_slice(&constrained);

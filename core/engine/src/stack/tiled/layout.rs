@@ -112,6 +112,14 @@ impl TileValues {
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
+    /// Gives back the room beyond the values' length: a tile that stays in a stack for the
+    /// rest of a bake should not keep what its growth over-allocated.
+    pub fn shrink_to_fit(&mut self) {
+        match self {
+            TileValues::F16(v) => v.shrink_to_fit(),
+            TileValues::F32(v) => v.shrink_to_fit(),
+        }
+    }
     /// The precision the values are stored in.
     pub fn precision(&self) -> Precision {
         match self {
