@@ -1,7 +1,7 @@
 //! Options shared by the commands that trace paths (bake, reference, bench bake).
 
 use clap::{Args, ValueEnum};
-use relume_engine::bake::presets::Preset;
+use relume_engine::bake::presets::{Preset, COMPRESSION_TOLERANCE};
 use relume_engine::bake::settings::{default_ns_range, DEFAULT_BOUNCES};
 use relume_engine::bake::{BakeSettings, IndirectSampling, LightGrouping};
 use relume_engine::brdf::{BasisConfig, BasisCount};
@@ -148,6 +148,15 @@ pub struct BakeOptions {
     /// it is refused before tracing [default: 80 % of the available memory].
     #[arg(long)]
     pub memory_budget_mb: Option<f64>,
+    /// Bounce-layer compression: pixels between lattice nodes (1 to 16), 0 to store every
+    /// layer per pixel [default: off, or the preset's].
+    #[arg(long)]
+    pub compression_step: Option<u32>,
+    /// Relative L2 error of each tile's bake-time image the bounce-layer compression may
+    /// spend, in [0, 1) [default: the preset's, or the draft and preview presets' when only
+    /// --compression-step is given].
+    #[arg(long)]
+    pub compression_tolerance: Option<f32>,
 }
 
 impl BakeOptions {
@@ -232,6 +241,21 @@ impl BakeOptions {
                 SamplingArg::Guided => IndirectSampling::Guided,
             };
         }
+        if let Some(step) = self.compression_step {
+            if s.compression.tolerance == 0.0 && step > 0 {
+                s.compression.tolerance = COMPRESSION_TOLERANCE;
+            }
+            s.compression.step = step;
+        }
+        if let Some(t) = self.compression_tolerance {
+            if s.compression.step == 0 {
+                return Err(RelumeError::invalid(
+                    "--compression-tolerance",
+                    "the bounce layers are not compressed: give --compression-step or a preset",
+                ));
+            }
+            s.compression.tolerance = t;
+        }
         match (self.tolerance, self.bases) {
             (Some(t), _) => s.basis.count = BasisCount::Tolerance(t),
             (None, Some(n)) => s.basis.count = BasisCount::Fixed(n),
@@ -297,6 +321,7 @@ pub fn parse_resolution(s: &str) -> Result<Resolution, RelumeError> {
 mod tests {
     use super::*;
     use clap::Parser;
+    use relume_engine::bake::settings::BounceCompression;
 
     #[derive(Parser)]
     struct Cli {
@@ -323,6 +348,36 @@ mod tests {
         assert!(matches!(s.basis.count, BasisCount::Fixed(6)));
         assert_eq!(s.resolution, None);
         assert_eq!((s.bounces, s.bounce_budget), (1, 0.0));
+    }
+
+    #[test]
+    fn compression_flags_override_the_preset_and_bad_values_are_refused_by_the_engine() {
+        assert_eq!(settings(&[]).unwrap().compression, BounceCompression::OFF);
+        let preview = Preset::Preview.values().compression;
+        assert_eq!(
+            settings(&["--preset", "preview"]).unwrap().compression,
+            preview
+        );
+        let off = settings(&["--preset", "final", "--compression-step", "0"]).unwrap();
+        assert_eq!(off.compression.step, 0);
+        let c = settings(&["--compression-step", "8"]).unwrap().compression;
+        assert_eq!((c.step, c.tolerance), (8, COMPRESSION_TOLERANCE));
+        let c = settings(&["--preset", "preview", "--compression-tolerance", "0.005"])
+            .unwrap()
+            .compression;
+        assert_eq!((c.step, c.tolerance), (preview.step, 0.005));
+        // Without compression a tolerance means nothing: said, not ignored.
+        let e = settings(&["--compression-tolerance", "0.01"]).unwrap_err();
+        assert!(e.to_string().contains("--compression-step"), "{e}");
+        // The engine's rules (BakeSettings::validate) judge the values.
+        for bad in [
+            &["--compression-step", "17"][..],
+            &["--preset", "draft", "--compression-tolerance", "1.5"][..],
+            &["--preset", "draft", "--compression-tolerance", "NaN"][..],
+        ] {
+            let e = settings(bad).unwrap_err();
+            assert!(e.to_string().contains("compression"), "{bad:?}: {e}");
+        }
     }
 
     #[test]

@@ -9,7 +9,7 @@
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
-use relume_engine::bake::presets::Preset;
+use relume_engine::bake::presets::{Preset, COMPRESSION_TOLERANCE};
 use relume_engine::bake::settings::{DEFAULT_BOUNCES, MAX_BOUNCES, MAX_THREADS};
 use relume_engine::bake::{BakeSettings as Engine, IndirectSampling, LightGrouping};
 use relume_engine::brdf::BasisCount;
@@ -39,6 +39,8 @@ pub const FIELDS: &[&str] = &[
     "denoise_bounce",
     "passes",
     "memory_budget_mb",
+    "compression_step",
+    "compression_tolerance",
 ];
 
 /// Bake settings (all keyword fields, readable and writable; see `to_dict()`).
@@ -210,6 +212,26 @@ impl BakeSettings {
                     e.denoise.bounce_iterations = n as u32;
                 }
             }
+            "compression_step" | "compression_tolerance" => {
+                // The values are judged by the engine's own rules (`BakeSettings::validate`),
+                // as the command line's flags are; a refused value leaves the settings as
+                // they were.
+                let mut c = e.compression;
+                if field == "compression_step" {
+                    let n: i64 = v.extract().map_err(|_| bad(field, "expected an integer"))?;
+                    c.step = u32::try_from(n)
+                        .map_err(|_| bad(field, format!("{n} (pixels, 0 = off)")))?;
+                    if c.step > 0 && c.tolerance == 0.0 {
+                        c.tolerance = COMPRESSION_TOLERANCE;
+                    }
+                } else {
+                    c.tolerance = finite(field, v)? as f32;
+                }
+                let mut trial = e.clone();
+                trial.compression = c;
+                trial.validate().map_err(|err| bad(field, err))?;
+                e.compression = c;
+            }
             "bounce_budget" => {
                 let x = finite(field, v)?;
                 if !(0.0..1.0).contains(&x) {
@@ -312,6 +334,10 @@ impl BakeSettings {
             .into_pyobject(py)?
             .into_any(),
             "passes" => self.passes.into_pyobject(py)?.into_any(),
+            "compression_step" => e.compression.step.into_pyobject(py)?.into_any(),
+            "compression_tolerance" => (e.compression.tolerance as f64)
+                .into_pyobject(py)?
+                .into_any(),
             "memory_budget_mb" => match e.memory_budget {
                 None => py.None().into_bound(py),
                 Some(b) => (b as f64 / (1024.0 * 1024.0)).into_pyobject(py)?.into_any(),

@@ -146,6 +146,22 @@ def test_presets_are_ordered_and_overridable():
         relume.BakeSettings(spp=0)
 
 
+
+def test_compression_is_a_setting_judged_by_the_engines_rules():
+    assert relume.BakeSettings().compression_step == 0
+    f = relume.BakeSettings.preset("final")
+    assert f.compression_step > 0 and 0 < f.compression_tolerance < 0.02
+    off = relume.BakeSettings.preset("final", compression_step=0)
+    assert off.compression_step == 0
+    s = relume.BakeSettings(compression_step=8)
+    assert (s.compression_step, s.compression_tolerance) == (8, pytest.approx(0.02))
+    for field, value in (("compression_step", 17), ("compression_tolerance", 1.5),
+                         ("compression_step", -1)):
+        with pytest.raises(ValueError, match=field):
+            setattr(s, field, value)
+    # A refused value leaves the settings as they were.
+    assert (s.compression_step, s.compression_tolerance) == (8, pytest.approx(0.02))
+
 def test_stubs_declare_exactly_the_module():
     tree = ast.parse(STUBS.read_text())
     declared = set()

@@ -18,7 +18,7 @@ use crate::brdf::BasisCount;
 
 /// Per-entry tolerance of the draft and preview presets' bounce-layer compression
 /// ([`BounceCompression::tolerance`]); chosen by measurement (docs/scale.md).
-const COMPRESSION_TOLERANCE: f32 = 0.02;
+pub const COMPRESSION_TOLERANCE: f32 = 0.02;
 
 /// The final preset's compression tolerance: tighter, so that the error the compression
 /// adds stays small against the final preset's own error against a converged reference

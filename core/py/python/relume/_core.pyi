@@ -91,6 +91,8 @@ class BakeSettings:
     denoise_bounce: int
     passes: int
     memory_budget_mb: float | None
+    compression_step: int
+    compression_tolerance: float
     def __init__(self, **fields: Any) -> None: ...
     @staticmethod
     def preset(name: Literal["draft", "preview", "final"], **overrides: Any) -> BakeSettings: ...
