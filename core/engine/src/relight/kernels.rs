@@ -16,6 +16,9 @@
 //!
 //! A third loop, [`EntryKernels::grey_many`], adds many grey entries into one short row (a
 //! lattice segment's nodes): the AVX2 one keeps the row in registers across the entries.
+//! A fourth, [`EntryKernels::grey_rows`], sums a tile's grey per-pixel entries into its
+//! planar rows from zero: the AVX2 one adds four entries per pass over the rows, so the rows
+//! (too long for registers) go through L1 once per four entries rather than once per entry.
 //!
 //! Entries are short (a lattice segment holds a few dozen values), so the loops are built
 //! for that: the accumulators are padded to whole 8-lane vectors ([`padded`]) and a last,

@@ -7,7 +7,14 @@
 //! RGB entries into an interleaved RGB tile ([`TileAccumulators`]) with the kernels of
 //! [`super::kernels`] (f16 converted in registers or in small chunks, fused multiply-adds),
 //! and the two are added into the image at the end — per pixel the same order of additions
-//! as the dense sum, so both agree to rounding.
+//! as the dense sum, so both agree to rounding. Grey per-pixel entries are gathered and
+//! summed a few per pass over the rows (`EntryKernels::grey_rows`).
+//!
+//! A tile's values are not read front to back (per-pixel entries in groups, lattice entries
+//! segment by segment), which the hardware prefetchers follow poorly, so the loads waited
+//! on memory. A full sum therefore walks the next tile's values with prefetches while it
+//! sums the current tile (`Ahead`); an incremental one, which reads little of each tile,
+//! does not.
 //!
 //! Lattice entries ([`crate::stack::tiled::lattice`]) are summed in the lattice: each adds
 //! weight × its coefficients into per-segment node accumulators (cost ∝ its coefficients,
