@@ -16,6 +16,9 @@
 //!
 //! A third loop, [`EntryKernels::grey_many`], adds many grey entries into one short row (a
 //! lattice segment's nodes): the AVX2 one keeps the row in registers across the entries.
+//! A fourth, [`EntryKernels::grey_rows`], sums a tile's grey per-pixel entries into its
+//! planar rows from zero: the AVX2 one adds four entries per pass over the rows, so the rows
+//! (too long for registers) go through L1 once per four entries rather than once per entry.
 //!
 //! Entries are short (a lattice segment holds a few dozen values), so the loops are built
 //! for that: the accumulators are padded to whole 8-lane vectors ([`padded`]) and a last,
@@ -59,6 +62,16 @@ pub(crate) struct PendingEntry {
     pub cursor: usize,
     /// The segments it covers (bit `s`: segment `s`).
     pub segments: u32,
+    /// Weight × scale.
+    pub weight: [f32; 3],
+}
+
+/// A grey per-pixel entry of a tile, gathered to be summed with the tile's others
+/// ([`EntryKernels::grey_rows`]).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct GreyEntry {
+    /// Where its values start in the tile's values.
+    pub start: usize,
     /// Weight × scale.
     pub weight: [f32; 3],
 }
@@ -183,6 +196,33 @@ pub(crate) trait EntryKernels: Copy + std::fmt::Debug {
             p.cursor += len;
         }
     }
+
+    /// Sets the rows to zero, then [`grey`](Self::grey) for each of `entries` in order:
+    /// `len` values of `values` from its start. The rows' first [`padded`]`(len)` floats
+    /// are overwritten. A vector implementation adds a few entries per pass over the rows,
+    /// so each row vector is loaded and stored once per few entries instead of once per
+    /// entry; per value the additions are the same, in the same order, from the same 0.
+    ///
+    /// # Panics
+    /// As [`grey`](Self::grey), for any entry.
+    #[inline(always)]
+    fn grey_rows<S: Sample>(
+        self,
+        r: &mut [f32],
+        g: &mut [f32],
+        b: &mut [f32],
+        values: &[S],
+        len: usize,
+        entries: &[GreyEntry],
+    ) {
+        let end = padded(len);
+        r[..end].fill(0.0);
+        g[..end].fill(0.0);
+        b[..end].fill(0.0);
+        for e in entries {
+            self.grey(r, g, b, &values[e.start..], len, e.weight);
+        }
+    }
 }
 
 /// The portable loops: exactly `len` values, no padding lanes touched.
@@ -257,7 +297,7 @@ pub(crate) use x86::Avx2;
 
 #[cfg(target_arch = "x86_64")]
 mod x86 {
-    use super::{padded, EntryKernels, PendingEntry, Sample, LANES};
+    use super::{padded, EntryKernels, GreyEntry, PendingEntry, Sample, LANES};
     use std::arch::x86_64::*;
 
     /// The AVX2 + FMA + F16C loops. Only [`Avx2::new`] makes one, after checking that the
@@ -411,6 +451,132 @@ mod x86 {
                 }
             }
         }
+
+        #[inline(always)]
+        fn grey_rows<S: Sample>(
+            self,
+            r: &mut [f32],
+            g: &mut [f32],
+            b: &mut [f32],
+            values: &[S],
+            len: usize,
+            entries: &[GreyEntry],
+        ) {
+            let end = padded(len);
+            if entries.is_empty() {
+                r[..end].fill(0.0);
+                g[..end].fill(0.0);
+                b[..end].fill(0.0);
+                return;
+            }
+            let rows = (r, g, b);
+            let (first, rest) = entries.split_at(entries.len().min(GROUP));
+            grey_group::<S, true>(rows.0, rows.1, rows.2, values, len, first);
+            for group in rest.chunks(GROUP) {
+                grey_group::<S, false>(rows.0, rows.1, rows.2, values, len, group);
+            }
+        }
+    }
+
+    /// Entries [`EntryKernels::grey_rows`] adds per pass over the rows: four value streams,
+    /// twelve weight vectors and three accumulators fit the sixteen registers.
+    const GROUP: usize = 4;
+
+    /// One pass of [`EntryKernels::grey_rows`] over the rows for up to [`GROUP`] entries
+    /// (dispatched to a loop per count, so each loop's weights stay in registers); `SET`:
+    /// the rows start from 0 instead of their contents.
+    #[inline(always)]
+    fn grey_group<S: Sample, const SET: bool>(
+        r: &mut [f32],
+        g: &mut [f32],
+        b: &mut [f32],
+        values: &[S],
+        len: usize,
+        group: &[GreyEntry],
+    ) {
+        match group.len() {
+            1 => grey_pass::<S, 1, SET>(r, g, b, values, len, group),
+            2 => grey_pass::<S, 2, SET>(r, g, b, values, len, group),
+            3 => grey_pass::<S, 3, SET>(r, g, b, values, len, group),
+            _ => grey_pass::<S, 4, SET>(r, g, b, values, len, group),
+        }
+    }
+
+    /// [`grey_group`] for `N` entries: per vector of the rows, one load (none when `SET`),
+    /// per entry one conversion and three fused multiply-adds in entry order, one store.
+    /// When an entry's last vector would read past the tile's values, the group goes
+    /// through [`EntryKernels::grey`] per entry instead (the same additions).
+    ///
+    /// Only called from `Avx2`'s methods, so the CPU has AVX2, FMA and F16C.
+    #[inline(always)]
+    fn grey_pass<S: Sample, const N: usize, const SET: bool>(
+        r: &mut [f32],
+        g: &mut [f32],
+        b: &mut [f32],
+        values: &[S],
+        len: usize,
+        group: &[GreyEntry],
+    ) {
+        let end = padded(len);
+        assert!(
+            group.len() == N && r.len() >= end && g.len() >= end && b.len() >= end,
+            "planar grey: accumulators of whole vectors, {len} values"
+        );
+        if group.iter().any(|e| e.start + end > values.len()) {
+            // Only at the end of a tile's values.
+            let k = Avx2 { _checked: () };
+            if SET {
+                r[..end].fill(0.0);
+                g[..end].fill(0.0);
+                b[..end].fill(0.0);
+            }
+            for e in group {
+                k.grey(r, g, b, &values[e.start..], len, e.weight);
+            }
+            return;
+        }
+        let mut src = [values.as_ptr(); N];
+        for (p, e) in src.iter_mut().zip(group) {
+            // SAFETY: `e.start + end ≤ values.len()` (checked above).
+            *p = unsafe { values.as_ptr().add(e.start) };
+        }
+        let (rp, gp, bp) = (r.as_mut_ptr(), g.as_mut_ptr(), b.as_mut_ptr());
+        // SAFETY: only reached through an `Avx2`, which exists only on a CPU with AVX2,
+        // FMA and F16C; lanes i..i + 8 ≤ end are inside the rows and inside every entry's
+        // values (both checked above).
+        unsafe {
+            let mut w = [[_mm256_setzero_ps(); 3]; N];
+            for (w, e) in w.iter_mut().zip(group) {
+                *w = [
+                    _mm256_set1_ps(e.weight[0]),
+                    _mm256_set1_ps(e.weight[1]),
+                    _mm256_set1_ps(e.weight[2]),
+                ];
+            }
+            let mut i = 0;
+            while i < len {
+                let (mut ar, mut ag, mut ab) = if SET {
+                    let zero = _mm256_setzero_ps();
+                    (zero, zero, zero)
+                } else {
+                    (
+                        _mm256_loadu_ps(rp.add(i)),
+                        _mm256_loadu_ps(gp.add(i)),
+                        _mm256_loadu_ps(bp.add(i)),
+                    )
+                };
+                for e in 0..N {
+                    let x = S::load8(src[e].add(i));
+                    ar = _mm256_fmadd_ps(x, w[e][0], ar);
+                    ag = _mm256_fmadd_ps(x, w[e][1], ag);
+                    ab = _mm256_fmadd_ps(x, w[e][2], ab);
+                }
+                _mm256_storeu_ps(rp.add(i), ar);
+                _mm256_storeu_ps(gp.add(i), ag);
+                _mm256_storeu_ps(bp.add(i), ab);
+                i += LANES;
+            }
+        }
     }
 
     /// [`EntryKernels::grey_many`] for rows of `V` vectors (`padded(len) == V · 8`), held
@@ -433,7 +599,8 @@ mod x86 {
             "planar grey: accumulators of whole vectors, {len} values"
         );
         // SAFETY: only reached through an `Avx2`, which exists only on a CPU with AVX2,
-        // FMA and F16C; loads from `v · 8 < len ≤ src.len()` (checked per entry), stores
+        // FMA and F16C; loads of whole vectors below `end ≤ src.len()`, else through
+        // `load8_at` from `v · 8 < len ≤ src.len()` (checked per entry), stores
         // below `end`, inside the rows (checked above).
         unsafe {
             let zero = _mm256_setzero_ps();
@@ -450,8 +617,15 @@ mod x86 {
                     _mm256_set1_ps(p.weight[1]),
                     _mm256_set1_ps(p.weight[2]),
                 );
+                // Whole vectors read in place except at the end of the tile's values, so
+                // the loop loads straight into registers.
+                let whole = src.len() >= end;
                 for v in 0..V {
-                    let x = load8_at(src, v * LANES);
+                    let x = if whole {
+                        S::load8(src.as_ptr().add(v * LANES))
+                    } else {
+                        load8_at(src, v * LANES)
+                    };
                     ar[v] = _mm256_fmadd_ps(x, wr, ar[v]);
                     ag[v] = _mm256_fmadd_ps(x, wg, ag[v]);
                     ab[v] = _mm256_fmadd_ps(x, wb, ab[v]);
@@ -604,10 +778,54 @@ mod tests {
         }
     }
 
+    /// `grey_rows` against a scalar sum from zero: no entry to several groups and a partial
+    /// one, rows that held something before (overwritten), entries whose last vector ends
+    /// at the end of the values (the per-entry path), partial last vectors.
+    fn check_rows<K: EntryKernels>(k: K) {
+        for len in [1usize, 8, 13, 64, 256] {
+            for count in [0usize, 1, 2, 3, 4, 5, 7, 9] {
+                let end = padded(len);
+                // Entries back to back; the last one ends exactly where the values do.
+                let values: Vec<f16> = pseudo(count * len, (len * 31 + count) as u32)
+                    .iter()
+                    .map(|&v| f16::from_f32(v))
+                    .collect();
+                let entries: Vec<GreyEntry> = (0..count)
+                    .map(|i| GreyEntry {
+                        start: i * len,
+                        weight: [0.5 - i as f32 * 0.1, 1.0 + i as f32, -0.25 * i as f32],
+                    })
+                    .collect();
+                let mut expect = vec![0.0f32; 3 * end];
+                for e in &entries {
+                    for i in 0..len {
+                        for c in 0..3 {
+                            expect[c * end + i] += e.weight[c] * values[e.start + i].to_f32();
+                        }
+                    }
+                }
+                let mut rows = pseudo(3 * end, 3);
+                let (r, gb) = rows.split_at_mut(end);
+                let (g, b) = gb.split_at_mut(end);
+                k.grey_rows(r, g, b, &values, len, &entries);
+                for c in 0..3 {
+                    for i in 0..len {
+                        let (x, y) = (rows[c * end + i], expect[c * end + i]);
+                        assert!(
+                            (x - y).abs() <= 1e-6 * (1.0 + y.abs()),
+                            "{k:?} len {len}, {count} entries: {x} vs {y}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn portable_kernels_match_scalar() {
         check(Portable);
         check_many(Portable);
+        check_rows(Portable);
     }
 
     #[cfg(target_arch = "x86_64")]
@@ -617,6 +835,7 @@ mod tests {
             Some(k) => {
                 check(k);
                 check_many(k);
+                check_rows(k);
             }
             None => eprintln!("no AVX2 + FMA + F16C on this CPU: only the portable loops run"),
         }

@@ -22,7 +22,7 @@
 use crate::stack::tiled::lattice::MAX_SEGMENTS;
 use crate::stack::tiled::{TileLattice, STACK_TILE};
 
-use super::kernels::{padded, PendingEntry};
+use super::kernels::{padded, GreyEntry, PendingEntry};
 
 /// Values per tile and channel.
 pub(super) const TILE_PIXELS: usize = (STACK_TILE * STACK_TILE) as usize;
@@ -36,10 +36,14 @@ pub(super) struct TileAccumulators {
     pub b: [f32; TILE_PIXELS],
     /// RGB entries, per pixel interleaved.
     pub rgb: [f32; 3 * TILE_PIXELS],
+    /// Whether `rgb` holds this tile's sum (else it is stale and all zero for the tile).
+    rgb_used: bool,
     nodes: NodeAccumulators,
     hats: AxisHats,
     /// The tile's grey lattice entries, gathered to be summed segment by segment.
     pub pending: Vec<PendingEntry>,
+    /// The tile's grey per-pixel entries, gathered to be summed a few at a time.
+    pub grey: Vec<GreyEntry>,
 }
 
 impl TileAccumulators {
@@ -50,19 +54,31 @@ impl TileAccumulators {
             g: [0.0; TILE_PIXELS],
             b: [0.0; TILE_PIXELS],
             rgb: [0.0; 3 * TILE_PIXELS],
+            rgb_used: false,
             nodes: NodeAccumulators::default(),
             hats: AxisHats::default(),
             pending: Vec::new(),
+            grey: Vec::new(),
         })
     }
 
-    /// Zeroes the per-pixel accumulators of a tile of `pixels` pixels (with their padding).
-    pub(super) fn clear_pixels(&mut self, pixels: usize) {
-        let n = padded(pixels);
-        self.r[..n].fill(0.0);
-        self.g[..n].fill(0.0);
-        self.b[..n].fill(0.0);
+    /// Zeroes the interleaved RGB accumulator of a tile of `pixels` pixels (with its
+    /// padding) and marks it used until [`forget_rgb`](Self::forget_rgb). (The planar rows
+    /// need no clearing: [`super::kernels::EntryKernels::grey_rows`] sets them.)
+    pub(super) fn clear_rgb(&mut self, pixels: usize) {
         self.rgb[..padded(3 * pixels)].fill(0.0);
+        self.rgb_used = true;
+    }
+
+    /// Marks the RGB accumulator unused (a new tile), so a tile without RGB entries neither
+    /// clears nor reads it.
+    pub(super) fn forget_rgb(&mut self) {
+        self.rgb_used = false;
+    }
+
+    /// Whether the tile added RGB entries into [`rgb`](Self::rgb).
+    pub(super) fn rgb_used(&self) -> bool {
+        self.rgb_used
     }
 
     /// Lays out and zeroes the node accumulators for `lattice`'s segments.

@@ -7,7 +7,14 @@
 //! RGB entries into an interleaved RGB tile ([`TileAccumulators`]) with the kernels of
 //! [`super::kernels`] (f16 converted in registers or in small chunks, fused multiply-adds),
 //! and the two are added into the image at the end — per pixel the same order of additions
-//! as the dense sum, so both agree to rounding.
+//! as the dense sum, so both agree to rounding. Grey per-pixel entries are gathered and
+//! summed a few per pass over the rows (`EntryKernels::grey_rows`).
+//!
+//! A tile's values are not read front to back (per-pixel entries in groups, lattice entries
+//! segment by segment), which the hardware prefetchers follow poorly, so the loads waited
+//! on memory. A full sum therefore walks the next tile's values with prefetches while it
+//! sums the current tile (`Ahead`); an incremental one, which reads little of each tile,
+//! does not.
 //!
 //! Lattice entries ([`crate::stack::tiled::lattice`]) are summed in the lattice: each adds
 //! weight × its coefficients into per-segment node accumulators (cost ∝ its coefficients,
@@ -26,7 +33,7 @@
 
 use rayon::prelude::*;
 
-use super::kernels::{EntryKernels, Kernels, PendingEntry, Portable, Sample};
+use super::kernels::{EntryKernels, GreyEntry, Kernels, PendingEntry, Portable, Sample};
 use super::layer_weight;
 use super::tile_accumulators::TileAccumulators;
 use crate::stack::tiled::{StackTile, TileRect, TileValues, TiledStack, STACK_TILE};
@@ -247,7 +254,13 @@ fn sum<Sel: EntrySelection>(
             let index = ty * tiles_x + tx;
             let tile = &stack.tiles[index];
             let rect = stack.tile_rect(index);
-            let added = add_tile(kernels, tile, rect.pixels(), select, &mut acc);
+            // A full sum reads (nearly) all of the next tile's values: fetch them while this
+            // tile is summed. An incremental one reads few of them, so it fetches nothing.
+            let mut ahead = match stack.tiles.get(index + 1) {
+                Some(next) if reset && tx + 1 < tiles_x => Ahead::over(&next.values),
+                _ => Ahead::default(),
+            };
+            let added = add_tile(kernels, tile, rect.pixels(), select, &mut acc, &mut ahead);
             if added {
                 add_to_image(&acc, rect, width, reset, rows);
             } else if reset {
@@ -265,29 +278,30 @@ fn add_tile<Sel: EntrySelection>(
     pixels: usize,
     select: &Sel,
     acc: &mut TileAccumulators,
+    ahead: &mut Ahead,
 ) -> bool {
     match (kernels, &tile.values) {
         (Kernels::Portable, TileValues::F16(v)) => {
-            add_entries(Portable, tile, v, pixels, select, acc)
+            add_entries(Portable, tile, v, pixels, select, acc, ahead)
         }
         (Kernels::Portable, TileValues::F32(v)) => {
-            add_entries(Portable, tile, v, pixels, select, acc)
+            add_entries(Portable, tile, v, pixels, select, acc, ahead)
         }
         // SAFETY: an `Avx2` exists only where the CPU has AVX2, FMA and F16C.
         #[cfg(target_arch = "x86_64")]
         (Kernels::Avx2(k), TileValues::F16(v)) => unsafe {
-            avx2::add_entries(k, tile, v, pixels, select, acc)
+            avx2::add_entries(k, tile, v, pixels, select, acc, ahead)
         },
         #[cfg(target_arch = "x86_64")]
         (Kernels::Avx2(k), TileValues::F32(v)) => unsafe {
-            avx2::add_entries(k, tile, v, pixels, select, acc)
+            avx2::add_entries(k, tile, v, pixels, select, acc, ahead)
         },
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
-    use super::{EntrySelection, Sample, StackTile, TileAccumulators};
+    use super::{Ahead, EntrySelection, Sample, StackTile, TileAccumulators};
     use crate::relight::kernels::Avx2;
 
     /// [`super::add_entries`] with the AVX2 kernels, compiled with those features so the
@@ -303,14 +317,17 @@ mod avx2 {
         pixels: usize,
         select: &Sel,
         acc: &mut TileAccumulators,
+        ahead: &mut Ahead,
     ) -> bool {
-        super::add_entries(kernels, tile, values, pixels, select, acc)
+        super::add_entries(kernels, tile, values, pixels, select, acc, ahead)
     }
 }
 
 /// The entry loop of one tile: each selected entry times its weight and scale into the
-/// per-pixel or node accumulators, then the nodes expanded to pixels. The per-pixel
-/// accumulators are zeroed at the first entry, so a tile nothing selects costs nothing.
+/// per-pixel or node accumulators, then the nodes expanded to pixels. The planar rows are
+/// set by the grey entries' sum (zeroed when there are none) and the RGB row is zeroed at
+/// the first RGB entry, so a tile nothing selects costs nothing and a tile without RGB
+/// entries never touches the RGB row.
 #[inline(always)]
 fn add_entries<K: EntryKernels, S: Sample, Sel: EntrySelection>(
     kernels: K,
@@ -319,28 +336,33 @@ fn add_entries<K: EntryKernels, S: Sample, Sel: EntrySelection>(
     pixels: usize,
     select: &Sel,
     acc: &mut TileAccumulators,
+    ahead: &mut Ahead,
 ) -> bool {
     let mut added = false;
     let mut lattice_added = false;
-    // Grey lattice entries (most of a compressed stack's entries) are gathered, then summed
-    // per segment with that segment's rows in registers.
+    acc.forget_rgb();
+    // Grey per-pixel entries are gathered, then summed a few per pass over the rows; grey
+    // lattice entries (most of a compressed stack's entries) are gathered, then summed per
+    // segment with that segment's rows in registers.
+    let mut grey = std::mem::take(&mut acc.grey);
+    grey.clear();
     let mut pending = std::mem::take(&mut acc.pending);
     pending.clear();
     let mut pending_segments = 0u32;
     for (k, w) in select.entries(tile) {
-        if !added {
-            acc.clear_pixels(pixels);
-            added = true;
-        }
+        ahead.fetch(AHEAD_LINES_PER_ENTRY);
+        added = true;
         let e = &tile.entries[k];
         let w = (w * e.scale).to_array();
         let start = e.offset as usize;
         if e.segments == 0 {
-            let src = &values[start..];
             if e.channels == 1 {
-                kernels.grey(&mut acc.r, &mut acc.g, &mut acc.b, src, pixels, w);
+                grey.push(GreyEntry { start, weight: w });
             } else {
-                kernels.rgb(&mut acc.rgb, src, 3 * pixels, w);
+                if !acc.rgb_used() {
+                    acc.clear_rgb(pixels);
+                }
+                kernels.rgb(&mut acc.rgb, &values[start..], 3 * pixels, w);
             }
             continue;
         }
@@ -379,12 +401,65 @@ fn add_entries<K: EntryKernels, S: Sample, Sel: EntrySelection>(
         kernels.grey_many(seg.r, seg.g, seg.b, values, seg.nodes, 1 << s, &mut pending);
     }
     acc.pending = pending;
+    if added {
+        kernels.grey_rows(&mut acc.r, &mut acc.g, &mut acc.b, values, pixels, &grey);
+    }
+    acc.grey = grey;
     if lattice_added {
         if let Some(lattice) = &tile.lattice {
             acc.expand_nodes(lattice);
         }
     }
     added
+}
+
+/// Cache lines of the next tile's values [`Ahead::fetch`]ed per entry of a tile: a tile's
+/// values average a few lines per entry (per-pixel entries many, lattice entries one or
+/// two), so this runs ahead of the next tile's values within the current one.
+const AHEAD_LINES_PER_ENTRY: usize = 4;
+
+/// A walk over the next tile's values that asks the cache for a few lines at a time, so the
+/// loads of that tile find them there instead of each waiting on memory (the tile's values
+/// are read in an order the hardware prefetchers do not fully follow: per-pixel entries in
+/// groups, lattice entries segment by segment).
+#[derive(Default)]
+struct Ahead {
+    /// Address of the next line to fetch, and the end of the values (0, 0: nothing).
+    next: usize,
+    end: usize,
+}
+
+impl Ahead {
+    const LINE: usize = 64;
+
+    fn over(values: &TileValues) -> Ahead {
+        let (start, bytes) = match values {
+            TileValues::F16(v) => (v.as_ptr() as usize, std::mem::size_of_val(&v[..])),
+            TileValues::F32(v) => (v.as_ptr() as usize, std::mem::size_of_val(&v[..])),
+        };
+        Ahead {
+            next: start,
+            end: start + bytes,
+        }
+    }
+
+    /// Prefetches up to `lines` further lines of the values.
+    #[inline(always)]
+    fn fetch(&mut self, lines: usize) {
+        for _ in 0..lines {
+            if self.next >= self.end {
+                return;
+            }
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: a prefetch is only a hint: it reads nothing into the program and never
+            // faults, whatever the address (here one inside a live allocation anyway).
+            unsafe {
+                use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T1};
+                _mm_prefetch::<_MM_HINT_T1>(self.next as *const i8);
+            }
+            self.next += Self::LINE;
+        }
+    }
 }
 
 /// Adds a tile's accumulators into its pixels of `rows` (the tile row's image rows).
@@ -404,6 +479,17 @@ fn add_to_image(
             &acc.g[i0..i0 + tw],
             &acc.b[i0..i0 + tw],
         );
+        if !acc.rgb_used() {
+            for (dx, px) in row.chunks_exact_mut(4).enumerate() {
+                if reset {
+                    px.copy_from_slice(&[0.0, 0.0, 0.0, 1.0]);
+                }
+                px[0] += r[dx];
+                px[1] += g[dx];
+                px[2] += b[dx];
+            }
+            continue;
+        }
         let rgb = &acc.rgb[3 * i0..3 * (i0 + tw)];
         for (dx, px) in row.chunks_exact_mut(4).enumerate() {
             if reset {
