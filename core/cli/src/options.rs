@@ -1,7 +1,7 @@
 //! Options shared by the commands that trace paths (bake, reference, bench bake).
 
 use clap::{Args, ValueEnum};
-use relume_engine::bake::presets::{Preset, COMPRESSION_TOLERANCE};
+use relume_engine::bake::presets::Preset;
 use relume_engine::bake::settings::{default_ns_range, DEFAULT_BOUNCES};
 use relume_engine::bake::{BakeSettings, IndirectSampling, LightGrouping};
 use relume_engine::brdf::{BasisConfig, BasisCount};
@@ -242,10 +242,7 @@ impl BakeOptions {
             };
         }
         if let Some(step) = self.compression_step {
-            if s.compression.tolerance == 0.0 && step > 0 {
-                s.compression.tolerance = COMPRESSION_TOLERANCE;
-            }
-            s.compression.step = step;
+            s.compression = s.compression.with_step(step);
         }
         if let Some(t) = self.compression_tolerance {
             if s.compression.step == 0 {
@@ -361,7 +358,10 @@ mod tests {
         let off = settings(&["--preset", "final", "--compression-step", "0"]).unwrap();
         assert_eq!(off.compression.step, 0);
         let c = settings(&["--compression-step", "8"]).unwrap().compression;
-        assert_eq!((c.step, c.tolerance), (8, COMPRESSION_TOLERANCE));
+        assert_eq!(
+            (c.step, c.tolerance),
+            (8, BounceCompression::DEFAULT_TOLERANCE)
+        );
         let c = settings(&["--preset", "preview", "--compression-tolerance", "0.005"])
             .unwrap()
             .compression;

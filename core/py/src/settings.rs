@@ -9,7 +9,7 @@
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
-use relume_engine::bake::presets::{Preset, COMPRESSION_TOLERANCE};
+use relume_engine::bake::presets::Preset;
 use relume_engine::bake::settings::{DEFAULT_BOUNCES, MAX_BOUNCES, MAX_THREADS};
 use relume_engine::bake::{BakeSettings as Engine, IndirectSampling, LightGrouping};
 use relume_engine::brdf::BasisCount;
@@ -219,11 +219,9 @@ impl BakeSettings {
                 let mut c = e.compression;
                 if field == "compression_step" {
                     let n: i64 = v.extract().map_err(|_| bad(field, "expected an integer"))?;
-                    c.step = u32::try_from(n)
+                    let step = u32::try_from(n)
                         .map_err(|_| bad(field, format!("{n} (pixels, 0 = off)")))?;
-                    if c.step > 0 && c.tolerance == 0.0 {
-                        c.tolerance = COMPRESSION_TOLERANCE;
-                    }
+                    c = c.with_step(step);
                 } else {
                     c.tolerance = finite(field, v)? as f32;
                 }

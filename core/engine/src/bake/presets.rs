@@ -17,8 +17,8 @@ use super::settings::{BakeSettings, BounceCompression, Denoise, IndirectSampling
 use crate::brdf::BasisCount;
 
 /// Per-entry tolerance of the draft and preview presets' bounce-layer compression
-/// ([`BounceCompression::tolerance`]); chosen by measurement (docs/scale.md).
-pub const COMPRESSION_TOLERANCE: f32 = 0.02;
+/// ([`BounceCompression::tolerance`]).
+const COMPRESSION_TOLERANCE: f32 = BounceCompression::DEFAULT_TOLERANCE;
 
 /// The final preset's compression tolerance: tighter, so that the error the compression
 /// adds stays small against the final preset's own error against a converged reference

@@ -91,6 +91,22 @@ impl BounceCompression {
         step: 0,
         tolerance: 0.0,
     };
+
+    /// The tolerance of the draft and preview presets, and of a compression turned on by
+    /// its step alone; chosen by measurement (docs/scale.md).
+    pub const DEFAULT_TOLERANCE: f32 = 0.02;
+
+    /// This compression with lattice step `step` (0: off). Turning it on from off also
+    /// gives it [`Self::DEFAULT_TOLERANCE`], so a step alone compresses; the command line
+    /// and the Python settings both set the step through here.
+    pub fn with_step(self, step: u32) -> BounceCompression {
+        let tolerance = if step > 0 && self.tolerance == 0.0 {
+            Self::DEFAULT_TOLERANCE
+        } else {
+            self.tolerance
+        };
+        BounceCompression { step, tolerance }
+    }
 }
 
 impl Default for BounceCompression {

@@ -53,6 +53,15 @@ pub(crate) const fn padded(len: usize) -> usize {
     len.div_ceil(LANES) * LANES
 }
 
+/// Zeroes the planar R, G, B rows for `len` values, padding lanes included.
+#[inline(always)]
+fn zero_rows(r: &mut [f32], g: &mut [f32], b: &mut [f32], len: usize) {
+    let end = padded(len);
+    r[..end].fill(0.0);
+    g[..end].fill(0.0);
+    b[..end].fill(0.0);
+}
+
 /// A grey lattice entry of a tile waiting for its segments to be summed
 /// ([`EntryKernels::grey_many`]).
 #[derive(Clone, Copy, Debug)]
@@ -215,10 +224,7 @@ pub(crate) trait EntryKernels: Copy + std::fmt::Debug {
         len: usize,
         entries: &[GreyEntry],
     ) {
-        let end = padded(len);
-        r[..end].fill(0.0);
-        g[..end].fill(0.0);
-        b[..end].fill(0.0);
+        zero_rows(r, g, b, len);
         for e in entries {
             self.grey(r, g, b, &values[e.start..], len, e.weight);
         }
@@ -297,7 +303,7 @@ pub(crate) use x86::Avx2;
 
 #[cfg(target_arch = "x86_64")]
 mod x86 {
-    use super::{padded, EntryKernels, GreyEntry, PendingEntry, Sample, LANES};
+    use super::{padded, zero_rows, EntryKernels, GreyEntry, PendingEntry, Sample, LANES};
     use std::arch::x86_64::*;
 
     /// The AVX2 + FMA + F16C loops. Only [`Avx2::new`] makes one, after checking that the
@@ -462,18 +468,14 @@ mod x86 {
             len: usize,
             entries: &[GreyEntry],
         ) {
-            let end = padded(len);
             if entries.is_empty() {
-                r[..end].fill(0.0);
-                g[..end].fill(0.0);
-                b[..end].fill(0.0);
+                zero_rows(r, g, b, len);
                 return;
             }
-            let rows = (r, g, b);
             let (first, rest) = entries.split_at(entries.len().min(GROUP));
-            grey_group::<S, true>(rows.0, rows.1, rows.2, values, len, first);
+            grey_group::<S, true>(r, g, b, values, len, first);
             for group in rest.chunks(GROUP) {
-                grey_group::<S, false>(rows.0, rows.1, rows.2, values, len, group);
+                grey_group::<S, false>(r, g, b, values, len, group);
             }
         }
     }
@@ -526,9 +528,7 @@ mod x86 {
             // Only at the end of a tile's values.
             let k = Avx2 { _checked: () };
             if SET {
-                r[..end].fill(0.0);
-                g[..end].fill(0.0);
-                b[..end].fill(0.0);
+                zero_rows(r, g, b, len);
             }
             for e in group {
                 k.grey(r, g, b, &values[e.start..], len, e.weight);
