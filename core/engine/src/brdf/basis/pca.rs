@@ -150,10 +150,19 @@ impl Pca {
 }
 
 /// Lobe scales of [`super::LobeWeighting::Capped`] for `nspec` specular bases.
+///
+/// Lawson reweighting from the unit-norm lobes (the PCA with the lowest average relative
+/// error), raising only the weights of lobes above the cap and stopping as soon as none is.
+/// Started from the lobes as they are, the sharp lobes dominate the first PCA and the search
+/// has to pull every broad lobe towards the cap, so the basis ends with most lobes near the
+/// cap; from unit norm it ends with the same or a smaller count and a lower average
+/// (docs/measurements.md, "BRDF basis").
 pub(super) fn capped_scale(lobes: &Lobes, nspec: usize, cap: f64) -> Vec<f64> {
     let l = lobes.l;
-    let mut omega = vec![1.0f64; l];
-    let mut best = (f64::INFINITY, omega.clone());
+    let unit = lobes.unit_scale();
+    let top = unit.iter().map(|s| s * s).fold(0.0, f64::max);
+    let mut omega: Vec<f64> = unit.iter().map(|s| s * s / top).collect();
+    let mut best = (f64::INFINITY, unit);
     let mut history = vec![];
     for _ in 0..40 {
         let scale: Vec<f64> = omega.iter().map(|w| w.sqrt()).collect();
