@@ -47,9 +47,10 @@ class RelumePreferences(bpy.types.AddonPreferences):
                          description="Bounce cap when not taken from Cycles. 0: direct light "
                                      "only; 1: one bounce, exact under edits; more: later "
                                      "bounces keep their bake-time materials (frozen tail)")
-    basis_tolerance: FloatProperty(name="Basis Tolerance", min=1e-4, max=0.5, default=0.03,
+    basis_tolerance: FloatProperty(name="Basis Tolerance", min=1e-4, max=0.5, default=0.028,
                                    description="Largest relative L2 error of the BRDF basis "
-                                               "(sets the number of basis BRDFs)")
+                                               "(sets the number of basis BRDFs; the default is "
+                                               "the preview preset's)")
     memory_budget_mb: FloatProperty(
         name="Memory Budget (MiB)", min=0.0, default=0.0,
         description="Memory a bake may plan to use at its peak; a bake whose estimate exceeds it is refused "
