@@ -345,7 +345,17 @@ fn sum_tile_with<K: EntryKernels, S: Sample, Sel: EntrySelection>(
     image: TileImage,
 ) {
     let pixels = image.rect.pixels();
-    if add_entries(kernels, tile, values, pixels, select, acc, ahead) {
+    // A tile nothing selects (most tiles of an edit's incremental sum) costs nothing, not
+    // even a look at its lattice.
+    let mut entries = select.entries(tile);
+    let added = match entries.next() {
+        Some(first) => {
+            let entries = std::iter::once(first).chain(entries);
+            add_entries(kernels, tile, values, pixels, entries, acc, ahead)
+        }
+        None => false,
+    };
+    if added {
         add_to_image(acc, image.rect, image.width, image.reset, image.rows);
     } else if image.reset {
         clear_image(image.rect, image.width, image.rows);
@@ -403,23 +413,25 @@ fn tile_bytes(tile: &StackTile) -> usize {
     values + std::mem::size_of_val(&tile.entries[..])
 }
 
-/// The entry loop of one tile: each selected entry times its weight and scale into the
-/// per-pixel or node accumulators, then the nodes expanded to pixels. The planar rows are
-/// set by the grey entries' sum (zeroed when there are none) and the RGB row is zeroed at
-/// the first RGB entry, so a tile nothing selects costs nothing and a tile without RGB
-/// entries never touches the RGB row.
+/// The entry loop of one tile: each of `entries` (`(entry index, weight)`, as
+/// [`EntrySelection::entries`] gives them) times its weight and scale into the per-pixel or
+/// node accumulators, then the nodes expanded to pixels. The planar rows are set by the grey
+/// entries' sum (zeroed when there are none) and the RGB row is zeroed at the first RGB
+/// entry, so a tile without RGB entries never touches the RGB row.
 #[inline(always)]
-fn add_entries<K: EntryKernels, S: Sample, Sel: EntrySelection>(
+fn add_entries<K: EntryKernels, S: Sample>(
     kernels: K,
     tile: &StackTile,
     values: &[S],
     pixels: usize,
-    select: &Sel,
+    entries: impl Iterator<Item = (usize, Rgb)>,
     acc: &mut TileAccumulators,
     mut ahead: Ahead,
 ) -> bool {
     if let Some(lattice) = tile.lattice.as_ref().filter(|l| l.segment_count() == 1) {
-        return add_entries_one_segment(kernels, tile, lattice, values, pixels, select, acc, ahead);
+        return add_entries_one_segment(
+            kernels, tile, lattice, values, pixels, entries, acc, ahead,
+        );
     }
     let mut added = false;
     let mut lattice_added = false;
@@ -432,7 +444,7 @@ fn add_entries<K: EntryKernels, S: Sample, Sel: EntrySelection>(
     let mut pending_segments = 0u32;
     let mut grey_in = Gathered::new(&mut grey, tile.entries.len());
     let mut pending_in = Gathered::new(&mut pending, tile.entries.len());
-    for (k, w) in select.entries(tile) {
+    for (k, w) in entries {
         ahead.read(std::mem::size_of::<TileLayer>());
         added = true;
         let e = &tile.entries[k];

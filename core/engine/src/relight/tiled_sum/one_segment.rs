@@ -8,8 +8,8 @@
 //! [`super::add_entries`] and the image the same, bit for bit.
 
 use super::{
-    Ahead, EntryKernels, EntrySelection, Gathered, GreyEntry, RgbEntry, Sample, StackTile,
-    TileAccumulators, TileLayer,
+    Ahead, EntryKernels, Gathered, GreyEntry, RgbEntry, Sample, StackTile, TileAccumulators,
+    TileLayer,
 };
 use crate::stack::tiled::TileLattice;
 use crate::Rgb;
@@ -17,13 +17,13 @@ use crate::Rgb;
 /// [`super::add_entries`] for a tile whose lattice (`lattice`) has one segment.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-pub(super) fn add_entries_one_segment<K: EntryKernels, S: Sample, Sel: EntrySelection>(
+pub(super) fn add_entries_one_segment<K: EntryKernels, S: Sample>(
     kernels: K,
     tile: &StackTile,
     lattice: &TileLattice,
     values: &[S],
     pixels: usize,
-    select: &Sel,
+    entries: impl Iterator<Item = (usize, Rgb)>,
     acc: &mut TileAccumulators,
     mut ahead: Ahead,
 ) -> bool {
@@ -36,7 +36,7 @@ pub(super) fn add_entries_one_segment<K: EntryKernels, S: Sample, Sel: EntrySele
     let lattice_bytes = nodes * std::mem::size_of::<S>();
     let mut seen = Seen::default();
     let stream = OneSegmentStream {
-        entries: select.entries(tile),
+        entries,
         tile,
         grey: Gathered::new(&mut grey, tile.entries.len()),
         rgb: Gathered::new(&mut rgb, tile.entries.len()),
