@@ -14,8 +14,10 @@
 //!   of an interleaved RGB row, with the weight vector rotated per 8-lane step (the pattern
 //!   repeats every 24 samples).
 //!
-//! A third loop, [`EntryKernels::grey_many`], adds many grey entries into one short row (a
-//! lattice segment's nodes): the AVX2 one keeps the row in registers across the entries.
+//! A third loop, [`EntryKernels::grey_stream`], adds many grey entries into one short row (a
+//! lattice segment's nodes), the entries handed over one by one by an iterator (the loop
+//! over a tile's entries, or [`EntryKernels::grey_many`] over the gathered ones): the AVX2
+//! one keeps the row in registers across the entries.
 //! A fourth, [`EntryKernels::grey_rows`], sums a tile's grey per-pixel entries into its
 //! planar rows from zero: the AVX2 one adds four entries per pass over the rows, so the rows
 //! (too long for registers) go through L1 once per four entries rather than once per entry.
@@ -32,6 +34,9 @@
 //!   builds for baseline x86-64): 8 samples per step, `vcvtph2ps` converts f16 in
 //!   registers, one fused multiply-add per 8 samples and accumulator. Its methods are meant
 //!   to be inlined into a function compiled with those features (`tiled_sum.rs` does so).
+//!   Where the CPU also has AVX-512F and AVX-512VL, the tile loop with these kernels is
+//!   compiled with those features as well ([`Kernels::Avx2Wide`]): the same 256-bit
+//!   instructions, so the same results, with 32 vector registers instead of 16.
 //! - **Portable** ([`Portable`]): converts a chunk of at most [`CHUNK`] samples into a
 //!   stack buffer with `half`'s slice conversion, then plain loops over exactly the entry.
 //!   Used on other CPUs, and by the tests to check the AVX2 path against it.
@@ -39,6 +44,8 @@
 //! The accumulators hold colour only; the image's alpha of 1 is never touched by a sum.
 
 use half::f16;
+
+use super::ahead::Ahead;
 
 /// Pixels converted per step of the portable path (64 px × 3 channels × 4 B = 768 B of
 /// stack: small enough for L1, large enough to amortise the per-call dispatch of `half`).
@@ -83,6 +90,17 @@ pub(crate) struct GreyEntry {
     pub start: usize,
     /// Weight × scale.
     pub weight: [f32; 3],
+}
+
+/// An RGB entry of a tile, gathered to be added after the tile's grey lattice entries.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct RgbEntry {
+    /// Where its values start in the tile's values.
+    pub start: usize,
+    /// Weight × scale.
+    pub weight: [f32; 3],
+    /// Whether it is a lattice entry (its values are node coefficients).
+    pub lattice: bool,
 }
 
 /// A sample type a layer can be stored in.
@@ -136,6 +154,12 @@ pub(crate) enum Kernels {
     Portable,
     #[cfg(target_arch = "x86_64")]
     Avx2(Avx2),
+    /// The AVX2 loops, in a tile loop compiled with AVX-512F and AVX-512VL as well: the same
+    /// 256-bit instructions (so the same results, bit for bit), but 32 vector registers
+    /// instead of 16, so the lattice sums' accumulators, weights and loaded values all fit
+    /// and nothing is spilled to the stack.
+    #[cfg(target_arch = "x86_64")]
+    Avx2Wide(Avx2),
 }
 
 impl Kernels {
@@ -144,10 +168,30 @@ impl Kernels {
         #[cfg(target_arch = "x86_64")]
         {
             if let Some(k) = Avx2::new() {
-                return Kernels::Avx2(k);
+                return if k.wide() {
+                    Kernels::Avx2Wide(k)
+                } else {
+                    Kernels::Avx2(k)
+                };
             }
         }
         Kernels::Portable
+    }
+
+    /// Every implementation this CPU runs, slowest first (the tests compare them).
+    #[cfg(test)]
+    pub(crate) fn available() -> Vec<Kernels> {
+        let mut all = vec![Kernels::Portable];
+        #[cfg(target_arch = "x86_64")]
+        {
+            if let Some(k) = Avx2::new() {
+                all.push(Kernels::Avx2(k));
+                if k.wide() {
+                    all.push(Kernels::Avx2Wide(k));
+                }
+            }
+        }
+        all
     }
 }
 
@@ -178,13 +222,35 @@ pub(crate) trait EntryKernels: Copy + std::fmt::Debug {
     /// If `acc` is shorter than that, `src` shorter than `len`, or `len` not a multiple of 3.
     fn rgb<S: Sample>(self, acc: &mut [f32], src: &[S], len: usize, w: [f32; 3]);
 
-    /// [`grey`](Self::grey) for the entries of `pending` that cover segment bit `segment`
-    /// into the same rows: `len` values of `values` from each one's cursor, in `pending`'s
-    /// order; each such cursor then moves on by `len` (to its next segment's values).
-    /// A vector implementation keeps short rows (a lattice segment's nodes) in registers
-    /// across the entries and stores them once, instead of once per entry: it sums the
-    /// entries first and adds the sum to the rows, which for rows that start at 0 (a
-    /// tile's node rows) are the same additions in the same order as `grey` per entry.
+    /// [`grey`](Self::grey) for each `(start, weight)` of `entries` in order into the same
+    /// rows, `len` values of `values` from its start. A vector implementation keeps short
+    /// rows (a lattice segment's nodes) in registers across the entries and stores them
+    /// once, instead of once per entry: it sums the entries first and adds the sum to the
+    /// rows, which for rows that start at 0 (a tile's node rows) are the same additions in
+    /// the same order as `grey` per entry. `entries` is an iterator so that its caller can
+    /// gather other entries on the way (the loop over a tile's entries drives it).
+    ///
+    /// # Panics
+    /// As [`grey`](Self::grey), for any entry.
+    #[inline(always)]
+    fn grey_stream<S: Sample>(
+        self,
+        r: &mut [f32],
+        g: &mut [f32],
+        b: &mut [f32],
+        values: &[S],
+        len: usize,
+        entries: impl Iterator<Item = Option<(usize, [f32; 3])>>,
+    ) {
+        for (start, weight) in entries.flatten() {
+            self.grey(r, g, b, &values[start..], len, weight);
+        }
+    }
+
+    /// [`grey_stream`](Self::grey_stream) for the entries of `pending` that cover segment
+    /// bit `segment`: `len` values of `values` from each one's cursor, in `pending`'s order;
+    /// each such cursor then moves on by `len` (to its next segment's values), and the
+    /// values read are reported to `ahead`.
     ///
     /// # Panics
     /// As [`grey`](Self::grey), for any entry.
@@ -199,11 +265,20 @@ pub(crate) trait EntryKernels: Copy + std::fmt::Debug {
         len: usize,
         segment: u32,
         pending: &mut [PendingEntry],
+        ahead: &mut Ahead,
     ) {
-        for p in pending.iter_mut().filter(|p| p.segments & segment != 0) {
-            self.grey(r, g, b, &values[p.cursor..], len, p.weight);
+        // An item per pending entry, `None` for one that does not cover the segment (a
+        // filter would nest a loop in the kernel's and have its accumulators spilled).
+        let entries = pending.iter_mut().map(|p| {
+            if p.segments & segment == 0 {
+                return None;
+            }
+            let start = p.cursor;
             p.cursor += len;
-        }
+            ahead.read(len * std::mem::size_of::<S>());
+            Some((start, p.weight))
+        });
+        self.grey_stream(r, g, b, values, len, entries);
     }
 
     /// Sets the rows to zero, then [`grey`](Self::grey) for each of `entries` in order:
@@ -214,6 +289,7 @@ pub(crate) trait EntryKernels: Copy + std::fmt::Debug {
     ///
     /// # Panics
     /// As [`grey`](Self::grey), for any entry.
+    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn grey_rows<S: Sample>(
         self,
@@ -223,10 +299,12 @@ pub(crate) trait EntryKernels: Copy + std::fmt::Debug {
         values: &[S],
         len: usize,
         entries: &[GreyEntry],
+        ahead: &mut Ahead,
     ) {
         zero_rows(r, g, b, len);
         for e in entries {
             self.grey(r, g, b, &values[e.start..], len, e.weight);
+            ahead.read(len * std::mem::size_of::<S>());
         }
     }
 }
@@ -303,7 +381,7 @@ pub(crate) use x86::Avx2;
 
 #[cfg(target_arch = "x86_64")]
 mod x86 {
-    use super::{padded, zero_rows, EntryKernels, GreyEntry, PendingEntry, Sample, LANES};
+    use super::{padded, zero_rows, Ahead, EntryKernels, GreyEntry, Sample, LANES};
     use std::arch::x86_64::*;
 
     /// The AVX2 + FMA + F16C loops. Only [`Avx2::new`] makes one, after checking that the
@@ -315,6 +393,14 @@ mod x86 {
 
     impl Avx2 {
         /// The AVX2 loops, when this CPU has AVX2, FMA and F16C.
+        /// Whether the CPU also has AVX-512F and AVX-512VL: then the tile loop with these
+        /// kernels can be compiled with those features too ([`Kernels::Avx2Wide`]).
+        ///
+        /// [`Kernels::Avx2Wide`]: super::Kernels::Avx2Wide
+        pub(crate) fn wide(&self) -> bool {
+            is_x86_feature_detected!("avx512f") && is_x86_feature_detected!("avx512vl")
+        }
+
         pub(crate) fn new() -> Option<Avx2> {
             (is_x86_feature_detected!("avx2")
                 && is_x86_feature_detected!("fma")
@@ -431,28 +517,26 @@ mod x86 {
         }
 
         #[inline(always)]
-        fn grey_many<S: Sample>(
+        fn grey_stream<S: Sample>(
             self,
             r: &mut [f32],
             g: &mut [f32],
             b: &mut [f32],
             values: &[S],
             len: usize,
-            segment: u32,
-            pending: &mut [PendingEntry],
+            entries: impl Iterator<Item = Option<(usize, [f32; 3])>>,
         ) {
             // Rows of up to four vectors (a lattice segment at the presets' steps) stay in
             // twelve registers; longer ones go through memory per entry.
-            let args = (values, len, segment);
+            let args = (values, len);
             match padded(len) / LANES {
-                1 => grey_in_registers::<S, 1>(r, g, b, args, pending),
-                2 => grey_in_registers::<S, 2>(r, g, b, args, pending),
-                3 => grey_in_registers::<S, 3>(r, g, b, args, pending),
-                4 => grey_in_registers::<S, 4>(r, g, b, args, pending),
+                1 => grey_in_registers::<S, 1>(r, g, b, args, entries),
+                2 => grey_in_registers::<S, 2>(r, g, b, args, entries),
+                3 => grey_in_registers::<S, 3>(r, g, b, args, entries),
+                4 => grey_in_registers::<S, 4>(r, g, b, args, entries),
                 _ => {
-                    for p in pending.iter_mut().filter(|p| p.segments & segment != 0) {
-                        self.grey(r, g, b, &values[p.cursor..], len, p.weight);
-                        p.cursor += len;
+                    for (start, weight) in entries.flatten() {
+                        self.grey(r, g, b, &values[start..], len, weight);
                     }
                 }
             }
@@ -467,15 +551,16 @@ mod x86 {
             values: &[S],
             len: usize,
             entries: &[GreyEntry],
+            ahead: &mut Ahead,
         ) {
             if entries.is_empty() {
                 zero_rows(r, g, b, len);
                 return;
             }
             let (first, rest) = entries.split_at(entries.len().min(GROUP));
-            grey_group::<S, true>(r, g, b, values, len, first);
+            grey_group::<S, true>(r, g, b, (values, len), first, ahead);
             for group in rest.chunks(GROUP) {
-                grey_group::<S, false>(r, g, b, values, len, group);
+                grey_group::<S, false>(r, g, b, (values, len), group, ahead);
             }
         }
     }
@@ -492,15 +577,16 @@ mod x86 {
         r: &mut [f32],
         g: &mut [f32],
         b: &mut [f32],
-        values: &[S],
-        len: usize,
+        (values, len): (&[S], usize),
         group: &[GreyEntry],
+        ahead: &mut Ahead,
     ) {
+        let args = (values, len);
         match group.len() {
-            1 => grey_pass::<S, 1, SET>(r, g, b, values, len, group),
-            2 => grey_pass::<S, 2, SET>(r, g, b, values, len, group),
-            3 => grey_pass::<S, 3, SET>(r, g, b, values, len, group),
-            _ => grey_pass::<S, 4, SET>(r, g, b, values, len, group),
+            1 => grey_pass::<S, 1, SET>(r, g, b, args, group, ahead),
+            2 => grey_pass::<S, 2, SET>(r, g, b, args, group, ahead),
+            3 => grey_pass::<S, 3, SET>(r, g, b, args, group, ahead),
+            _ => grey_pass::<S, 4, SET>(r, g, b, args, group, ahead),
         }
     }
 
@@ -515,9 +601,9 @@ mod x86 {
         r: &mut [f32],
         g: &mut [f32],
         b: &mut [f32],
-        values: &[S],
-        len: usize,
+        (values, len): (&[S], usize),
         group: &[GreyEntry],
+        ahead: &mut Ahead,
     ) {
         let end = padded(len);
         assert!(
@@ -532,6 +618,7 @@ mod x86 {
             }
             for e in group {
                 k.grey(r, g, b, &values[e.start..], len, e.weight);
+                ahead.read(len * std::mem::size_of::<S>());
             }
             return;
         }
@@ -574,15 +661,16 @@ mod x86 {
                 _mm256_storeu_ps(rp.add(i), ar);
                 _mm256_storeu_ps(gp.add(i), ag);
                 _mm256_storeu_ps(bp.add(i), ab);
+                ahead.read(N * LANES * std::mem::size_of::<S>());
                 i += LANES;
             }
         }
     }
 
-    /// [`EntryKernels::grey_many`] for rows of `V` vectors (`padded(len) == V · 8`), held
-    /// in registers: per entry, per vector one load and three fused multiply-adds, and one
-    /// add into the rows at the end. The loop calls nothing, so the accumulators stay in
-    /// registers (every vector register is caller-saved).
+    /// [`EntryKernels::grey_stream`] for rows of `V` vectors (`padded(len) == V · 8`),
+    /// held in registers: per entry, per vector one load and three fused multiply-adds, and
+    /// one add into the rows at the end. The loop calls nothing but the iterator (inlined),
+    /// so the accumulators stay in registers (every vector register is caller-saved).
     ///
     /// Only called from `Avx2`'s methods, so the CPU has AVX2, FMA and F16C.
     #[inline(always)]
@@ -590,8 +678,8 @@ mod x86 {
         r: &mut [f32],
         g: &mut [f32],
         b: &mut [f32],
-        (values, len, segment): (&[S], usize, u32),
-        pending: &mut [PendingEntry],
+        (values, len): (&[S], usize),
+        entries: impl Iterator<Item = Option<(usize, [f32; 3])>>,
     ) {
         let end = V * LANES;
         assert!(
@@ -605,17 +693,18 @@ mod x86 {
         unsafe {
             let zero = _mm256_setzero_ps();
             let (mut ar, mut ag, mut ab) = ([zero; V], [zero; V], [zero; V]);
-            for p in pending.iter_mut() {
-                if p.segments & segment == 0 {
+            // One pass of the loop per item, skipped ones included (a nested loop to skip
+            // them had the compiler spill the accumulators).
+            for item in entries {
+                let Some((start, weight)) = item else {
                     continue;
-                }
-                let src = &values[p.cursor..];
+                };
+                let src = &values[start..];
                 assert!(src.len() >= len, "planar grey: {len} values");
-                p.cursor += len;
                 let (wr, wg, wb) = (
-                    _mm256_set1_ps(p.weight[0]),
-                    _mm256_set1_ps(p.weight[1]),
-                    _mm256_set1_ps(p.weight[2]),
+                    _mm256_set1_ps(weight[0]),
+                    _mm256_set1_ps(weight[1]),
+                    _mm256_set1_ps(weight[2]),
                 );
                 // Whole vectors read in place except at the end of the tile's values, so
                 // the loop loads straight into registers.
@@ -757,7 +846,16 @@ mod tests {
             }
             let (r, gb) = rows.split_at_mut(end);
             let (g, b) = gb.split_at_mut(end);
-            k.grey_many(r, g, b, &values, len, 1, &mut pending);
+            k.grey_many(
+                r,
+                g,
+                b,
+                &values,
+                len,
+                1,
+                &mut pending,
+                &mut Ahead::default(),
+            );
             for c in 0..3 {
                 for i in 0..len {
                     let (x, y) = (rows[c * end + i], expect[c * end + i]);
@@ -807,7 +905,7 @@ mod tests {
                 let mut rows = pseudo(3 * end, 3);
                 let (r, gb) = rows.split_at_mut(end);
                 let (g, b) = gb.split_at_mut(end);
-                k.grey_rows(r, g, b, &values, len, &entries);
+                k.grey_rows(r, g, b, &values, len, &entries, &mut Ahead::default());
                 for c in 0..3 {
                     for i in 0..len {
                         let (x, y) = (rows[c * end + i], expect[c * end + i]);

@@ -17,7 +17,8 @@
 //!   touches, the periodic full re-sum; shared by the CPU and the GPU relighters.
 //! - [`tiled_sum`]: the CPU's sum over a [`crate::stack::tiled::TiledStack`] (per tile, only
 //!   the layers present there); `tile_accumulators`: what one tile sums into (pixels and
-//!   lattice nodes) and the expansion of the nodes; `kernels`: its SIMD inner loops.
+//!   lattice nodes) and the expansion of the nodes; `kernels`: its SIMD inner loops;
+//!   `ahead`: its paced prefetch of the next tile's values.
 //! - `cpu_sum`: that sum as the CPU's [`LayerSum`], with its image.
 //! - `cpu`: [`CpuRelighter`], the bookkeeping over the CPU sum.
 //! - [`bandwidth`]: how fast this machine reads memory, the floor under any relight.
@@ -25,6 +26,7 @@
 //! The sum is memory-bound; how the CPU sum reads each needed sample once is in
 //! `cpu_sum.rs`, and measured figures are in `docs/measurements.md`.
 
+mod ahead;
 pub mod bandwidth;
 mod bookkeeping;
 mod cpu;

@@ -279,11 +279,15 @@ fn tiled_sum_matches_the_reference_on_every_kind_of_entry_and_path() {
             .map(|l| (l, Rgb::new(0.1, 0.2 * (l % 3) as f32, -0.05)))
             .collect();
         let reference = reference_sum(&stack, &weights);
-        for kernels in [Kernels::Portable, Kernels::detect()] {
+        let mut vector_images = Vec::new();
+        for kernels in Kernels::available() {
             let mut image = vec![0.0f32; (w * h * 4) as usize];
             full_with(&stack, &weights, &mut image, kernels).unwrap();
             let err = rel_l2(&image, &reference);
             assert!(err < 1e-6, "{precision:?} {kernels:?}: full {err}");
+            if kernels != Kernels::Portable {
+                vector_images.push(image.clone());
+            }
             let mut current = weights.clone();
             for changed in [&one, &all] {
                 incremental_with(&stack, changed, &mut image, kernels).unwrap();
@@ -299,6 +303,19 @@ fn tiled_sum_matches_the_reference_on_every_kind_of_entry_and_path() {
                 assert!(
                     err < 1e-6,
                     "{precision:?} {kernels:?}: incremental, {what}: {err}"
+                );
+            }
+        }
+        // The vector loops with 16 or 32 registers run the same instructions in the same
+        // order: the same image, bit for bit.
+        if let Some((first, rest)) = vector_images.split_first() {
+            for image in rest {
+                assert!(
+                    image
+                        .iter()
+                        .zip(first)
+                        .all(|(a, b)| a.to_bits() == b.to_bits()),
+                    "{precision:?}: the vector implementations differ"
                 );
             }
         }

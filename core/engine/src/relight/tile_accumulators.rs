@@ -22,7 +22,7 @@
 use crate::stack::tiled::lattice::MAX_SEGMENTS;
 use crate::stack::tiled::{TileLattice, STACK_TILE};
 
-use super::kernels::{padded, GreyEntry, PendingEntry};
+use super::kernels::{padded, GreyEntry, PendingEntry, RgbEntry};
 
 /// Values per tile and channel.
 pub(super) const TILE_PIXELS: usize = (STACK_TILE * STACK_TILE) as usize;
@@ -44,6 +44,9 @@ pub(super) struct TileAccumulators {
     pub pending: Vec<PendingEntry>,
     /// The tile's grey per-pixel entries, gathered to be summed a few at a time.
     pub grey: Vec<GreyEntry>,
+    /// The RGB entries of a tile with one segment, gathered to be added after its grey
+    /// lattice entries.
+    pub rgb_entries: Vec<RgbEntry>,
 }
 
 impl TileAccumulators {
@@ -59,6 +62,7 @@ impl TileAccumulators {
             hats: AxisHats::default(),
             pending: Vec::new(),
             grey: Vec::new(),
+            rgb_entries: Vec::new(),
         })
     }
 
@@ -98,7 +102,9 @@ impl TileAccumulators {
     }
 
     /// Adds the node accumulators, expanded to the pixels of `lattice` (each pixel the hats
-    /// of its own segment), into the planar rows.
+    /// of its own segment), into the planar rows. Inlined, so that it is compiled with the
+    /// features of the tile loop that calls it (AVX2 where that is the loop's).
+    #[inline(always)]
     pub(super) fn expand_nodes(&mut self, lattice: &TileLattice) {
         self.hats.set_lattice(lattice);
         self.nodes
@@ -166,6 +172,7 @@ impl NodeAccumulators {
     }
 
     /// Adds the nodes expanded to pixels into `planes` (R, G, B per pixel, row-major).
+    #[inline(always)]
     fn expand(&mut self, lattice: &TileLattice, hats: &AxisHats, planes: [&mut [f32]; 3]) {
         let (nx, ny) = lattice.nodes();
         let (nx, ny) = (nx as usize, ny as usize);
@@ -218,11 +225,11 @@ impl NodeAccumulators {
                             *o += w0 * a + w1 * b;
                         }
                     } else {
+                        // A select rather than a branch, so the loop vectorises.
                         let ids = &map[y * width..(y + 1) * width];
                         for (((o, a), b), &id) in out.iter_mut().zip(a).zip(b).zip(ids) {
-                            if id as usize == s {
-                                *o += w0 * a + w1 * b;
-                            }
+                            let sum = *o + (w0 * a + w1 * b);
+                            *o = if id as usize == s { sum } else { *o };
                         }
                     }
                 }

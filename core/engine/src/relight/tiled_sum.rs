@@ -13,8 +13,8 @@
 //! A tile's values are not read front to back (per-pixel entries in groups, lattice entries
 //! segment by segment), which the hardware prefetchers follow poorly, so the loads waited
 //! on memory. A full sum therefore walks the next tile's values with prefetches while it
-//! sums the current tile (`Ahead`); an incremental one, which reads little of each tile,
-//! does not.
+//! sums the current tile, paced by what the current tile's loops read (`super::ahead`); an
+//! incremental one, which reads little of each tile, does not.
 //!
 //! Lattice entries ([`crate::stack::tiled::lattice`]) are summed in the lattice: each adds
 //! weight × its coefficients into per-segment node accumulators (cost ∝ its coefficients,
@@ -25,18 +25,31 @@
 //! image. The lattice is linear, so this equals the relight of the same entries expanded
 //! to pixels ([`TiledStack::to_dense`]) to rounding.
 //!
+//! In a tile whose lattice has one segment (most tiles), the grey lattice entries are not
+//! gathered: they are summed as the loop over the entries meets them (`one_segment`), the
+//! same additions in the same order.
+//!
 //! A tile holds hundreds of small entries at many editable materials, so what an entry
-//! costs besides its values matters as much as the values: the loop over a tile's entries
-//! is one function per implementation of the kernels and sample type, the kernels inlined
-//! into it (compiled with AVX2 where that is the implementation), with no dynamic dispatch
-//! or precision match per entry.
+//! costs besides its values matters as much as the values: the sum of a tile (its entries,
+//! then the image add) is one function per implementation of the kernels and sample type,
+//! the kernels inlined into it (compiled with AVX2 where that is the implementation, and
+//! with AVX-512F and VL besides where the CPU has them, for their 32 vector registers),
+//! with no dynamic dispatch or precision match per entry, and nothing called inside the
+//! loops that keep accumulators in registers (a call would have them spilled).
 
 use rayon::prelude::*;
 
-use super::kernels::{EntryKernels, GreyEntry, Kernels, PendingEntry, Portable, Sample};
+mod gathered;
+mod one_segment;
+
+use gathered::Gathered;
+use one_segment::add_entries_one_segment;
+
+use super::ahead::Ahead;
+use super::kernels::{EntryKernels, GreyEntry, Kernels, PendingEntry, Portable, RgbEntry, Sample};
 use super::layer_weight;
 use super::tile_accumulators::TileAccumulators;
-use crate::stack::tiled::{StackTile, TileRect, TileValues, TiledStack, STACK_TILE};
+use crate::stack::tiled::{StackTile, TileLayer, TileRect, TileValues, TiledStack, STACK_TILE};
 use crate::{RelumeError, Result, Rgb};
 
 /// Every layer's weight for `coefs[region][basis]`: [`layer_weight`] times the factor of
@@ -256,52 +269,102 @@ fn sum<Sel: EntrySelection>(
             let rect = stack.tile_rect(index);
             // A full sum reads (nearly) all of the next tile's values: fetch them while this
             // tile is summed. An incremental one reads few of them, so it fetches nothing.
-            let mut ahead = match stack.tiles.get(index + 1) {
-                Some(next) if reset && tx + 1 < tiles_x => Ahead::over(&next.values),
+            // (The next tile is the next tile row's first at the end of a row, which this
+            // worker usually sums next.)
+            let ahead = match stack.tiles.get(index + 1) {
+                Some(next) if reset => Ahead::over(&next.values, tile_bytes(tile)),
                 _ => Ahead::default(),
             };
-            let added = add_tile(kernels, tile, rect.pixels(), select, &mut acc, &mut ahead);
-            if added {
-                add_to_image(&acc, rect, width, reset, rows);
-            } else if reset {
-                clear_image(rect, width, rows);
-            }
+            let image = TileImage {
+                rect,
+                width,
+                reset,
+                rows,
+            };
+            sum_tile(kernels, tile, select, &mut acc, ahead, image);
         }
     });
 }
 
-/// Adds the selected entries of `tile` (of `pixels` pixels) into `acc`, with the loop
-/// compiled for `kernels` and the tile's sample type. Whether any entry was added.
-fn add_tile<Sel: EntrySelection>(
+/// A tile's pixels in the image: `rows` are its tile row's image rows (RGBA, `width`
+/// pixels each); `reset`: they are set to (0, 0, 0, 1) before the tile's sum is added.
+struct TileImage<'a> {
+    rect: TileRect,
+    width: usize,
+    reset: bool,
+    rows: &'a mut [f32],
+}
+
+/// Sums the selected entries of `tile` into `acc` and adds that into its pixels of the
+/// image, with the loops compiled for `kernels` and the tile's sample type.
+fn sum_tile<Sel: EntrySelection>(
     kernels: Kernels,
     tile: &StackTile,
-    pixels: usize,
     select: &Sel,
     acc: &mut TileAccumulators,
-    ahead: &mut Ahead,
-) -> bool {
+    ahead: Ahead,
+    image: TileImage,
+) {
     match (kernels, &tile.values) {
         (Kernels::Portable, TileValues::F16(v)) => {
-            add_entries(Portable, tile, v, pixels, select, acc, ahead)
+            sum_tile_with(Portable, tile, v, select, acc, ahead, image)
         }
         (Kernels::Portable, TileValues::F32(v)) => {
-            add_entries(Portable, tile, v, pixels, select, acc, ahead)
+            sum_tile_with(Portable, tile, v, select, acc, ahead, image)
         }
         // SAFETY: an `Avx2` exists only where the CPU has AVX2, FMA and F16C.
         #[cfg(target_arch = "x86_64")]
         (Kernels::Avx2(k), TileValues::F16(v)) => unsafe {
-            avx2::add_entries(k, tile, v, pixels, select, acc, ahead)
+            avx2::sum_tile(k, tile, v, select, acc, ahead, image)
         },
         #[cfg(target_arch = "x86_64")]
         (Kernels::Avx2(k), TileValues::F32(v)) => unsafe {
-            avx2::add_entries(k, tile, v, pixels, select, acc, ahead)
+            avx2::sum_tile(k, tile, v, select, acc, ahead, image)
         },
+        // SAFETY: an `Avx2Wide` is made only where the CPU also has AVX-512F and VL.
+        #[cfg(target_arch = "x86_64")]
+        (Kernels::Avx2Wide(k), TileValues::F16(v)) => unsafe {
+            avx2::sum_tile_wide(k, tile, v, select, acc, ahead, image)
+        },
+        #[cfg(target_arch = "x86_64")]
+        (Kernels::Avx2Wide(k), TileValues::F32(v)) => unsafe {
+            avx2::sum_tile_wide(k, tile, v, select, acc, ahead, image)
+        },
+    }
+}
+
+/// [`sum_tile`] for one implementation of the kernels and sample type.
+#[inline(always)]
+fn sum_tile_with<K: EntryKernels, S: Sample, Sel: EntrySelection>(
+    kernels: K,
+    tile: &StackTile,
+    values: &[S],
+    select: &Sel,
+    acc: &mut TileAccumulators,
+    ahead: Ahead,
+    image: TileImage,
+) {
+    let pixels = image.rect.pixels();
+    // A tile nothing selects (most tiles of an edit's incremental sum) costs nothing, not
+    // even a look at its lattice.
+    let mut entries = select.entries(tile);
+    let added = match entries.next() {
+        Some(first) => {
+            let entries = std::iter::once(first).chain(entries);
+            add_entries(kernels, tile, values, pixels, entries, acc, ahead)
+        }
+        None => false,
+    };
+    if added {
+        add_to_image(acc, image.rect, image.width, image.reset, image.rows);
+    } else if image.reset {
+        clear_image(image.rect, image.width, image.rows);
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
-    use super::{Ahead, EntrySelection, Sample, StackTile, TileAccumulators};
+    use super::{Ahead, EntrySelection, Sample, StackTile, TileAccumulators, TileImage};
     use crate::relight::kernels::Avx2;
 
     /// [`super::add_entries`] with the AVX2 kernels, compiled with those features so the
@@ -310,34 +373,66 @@ mod avx2 {
     /// # Safety
     /// The CPU has AVX2, FMA and F16C.
     #[target_feature(enable = "avx2,fma,f16c")]
-    pub(super) unsafe fn add_entries<S: Sample, Sel: EntrySelection>(
+    pub(super) unsafe fn sum_tile<S: Sample, Sel: EntrySelection>(
         kernels: Avx2,
         tile: &StackTile,
         values: &[S],
-        pixels: usize,
         select: &Sel,
         acc: &mut TileAccumulators,
-        ahead: &mut Ahead,
-    ) -> bool {
-        super::add_entries(kernels, tile, values, pixels, select, acc, ahead)
+        ahead: Ahead,
+        image: TileImage,
+    ) {
+        super::sum_tile_with(kernels, tile, values, select, acc, ahead, image)
+    }
+
+    /// [`sum_tile`] compiled with AVX-512F and AVX-512VL as well: the same AVX2 kernels,
+    /// with 32 vector registers ([`crate::relight::kernels::Kernels::Avx2Wide`]).
+    ///
+    /// # Safety
+    /// The CPU has AVX2, FMA, F16C, AVX-512F and AVX-512VL.
+    #[target_feature(enable = "avx2,fma,f16c,avx512f,avx512vl")]
+    pub(super) unsafe fn sum_tile_wide<S: Sample, Sel: EntrySelection>(
+        kernels: Avx2,
+        tile: &StackTile,
+        values: &[S],
+        select: &Sel,
+        acc: &mut TileAccumulators,
+        ahead: Ahead,
+        image: TileImage,
+    ) {
+        super::sum_tile_with(kernels, tile, values, select, acc, ahead, image)
     }
 }
 
-/// The entry loop of one tile: each selected entry times its weight and scale into the
-/// per-pixel or node accumulators, then the nodes expanded to pixels. The planar rows are
-/// set by the grey entries' sum (zeroed when there are none) and the RGB row is zeroed at
-/// the first RGB entry, so a tile nothing selects costs nothing and a tile without RGB
-/// entries never touches the RGB row.
+/// Bytes a full sum of `tile` reads: its values and its entry table.
+fn tile_bytes(tile: &StackTile) -> usize {
+    let values = match &tile.values {
+        TileValues::F16(v) => std::mem::size_of_val(&v[..]),
+        TileValues::F32(v) => std::mem::size_of_val(&v[..]),
+    };
+    values + std::mem::size_of_val(&tile.entries[..])
+}
+
+/// The entry loop of one tile: each of `entries` (`(entry index, weight)`, as
+/// [`EntrySelection::entries`] gives them) times its weight and scale into the per-pixel or
+/// node accumulators, then the nodes expanded to pixels. The planar rows are set by the grey
+/// entries' sum (zeroed when there are none) and the RGB row is zeroed at the first RGB
+/// entry, so a tile without RGB entries never touches the RGB row.
 #[inline(always)]
-fn add_entries<K: EntryKernels, S: Sample, Sel: EntrySelection>(
+fn add_entries<K: EntryKernels, S: Sample>(
     kernels: K,
     tile: &StackTile,
     values: &[S],
     pixels: usize,
-    select: &Sel,
+    entries: impl Iterator<Item = (usize, Rgb)>,
     acc: &mut TileAccumulators,
-    ahead: &mut Ahead,
+    mut ahead: Ahead,
 ) -> bool {
+    if let Some(lattice) = tile.lattice.as_ref().filter(|l| l.segment_count() == 1) {
+        return add_entries_one_segment(
+            kernels, tile, lattice, values, pixels, entries, acc, ahead,
+        );
+    }
     let mut added = false;
     let mut lattice_added = false;
     acc.forget_rgb();
@@ -345,19 +440,19 @@ fn add_entries<K: EntryKernels, S: Sample, Sel: EntrySelection>(
     // lattice entries (most of a compressed stack's entries) are gathered, then summed per
     // segment with that segment's rows in registers.
     let mut grey = std::mem::take(&mut acc.grey);
-    grey.clear();
     let mut pending = std::mem::take(&mut acc.pending);
-    pending.clear();
     let mut pending_segments = 0u32;
-    for (k, w) in select.entries(tile) {
-        ahead.fetch(AHEAD_LINES_PER_ENTRY);
+    let mut grey_in = Gathered::new(&mut grey, tile.entries.len());
+    let mut pending_in = Gathered::new(&mut pending, tile.entries.len());
+    for (k, w) in entries {
+        ahead.read(std::mem::size_of::<TileLayer>());
         added = true;
         let e = &tile.entries[k];
         let w = (w * e.scale).to_array();
         let start = e.offset as usize;
         if e.segments == 0 {
             if e.channels == 1 {
-                grey.push(GreyEntry { start, weight: w });
+                grey_in.push(GreyEntry { start, weight: w });
             } else {
                 if !acc.rgb_used() {
                     acc.clear_rgb(pixels);
@@ -375,7 +470,7 @@ fn add_entries<K: EntryKernels, S: Sample, Sel: EntrySelection>(
             lattice_added = true;
         }
         if e.channels == 1 {
-            pending.push(PendingEntry {
+            pending_in.push(PendingEntry {
                 cursor: start,
                 segments: e.segments,
                 weight: w,
@@ -398,11 +493,22 @@ fn add_entries<K: EntryKernels, S: Sample, Sel: EntrySelection>(
         let s = bits.trailing_zeros() as usize;
         bits &= bits - 1;
         let seg = acc.segment(s);
-        kernels.grey_many(seg.r, seg.g, seg.b, values, seg.nodes, 1 << s, &mut pending);
+        kernels.grey_many(
+            seg.r,
+            seg.g,
+            seg.b,
+            values,
+            seg.nodes,
+            1 << s,
+            &mut pending,
+            &mut ahead,
+        );
     }
     acc.pending = pending;
     if added {
-        kernels.grey_rows(&mut acc.r, &mut acc.g, &mut acc.b, values, pixels, &grey);
+        kernels.grey_rows(
+            &mut acc.r, &mut acc.g, &mut acc.b, values, pixels, &grey, &mut ahead,
+        );
     }
     acc.grey = grey;
     if lattice_added {
@@ -413,56 +519,8 @@ fn add_entries<K: EntryKernels, S: Sample, Sel: EntrySelection>(
     added
 }
 
-/// Cache lines of the next tile's values [`Ahead::fetch`]ed per entry of a tile: a tile's
-/// values average a few lines per entry (per-pixel entries many, lattice entries one or
-/// two), so this runs ahead of the next tile's values within the current one.
-const AHEAD_LINES_PER_ENTRY: usize = 4;
-
-/// A walk over the next tile's values that asks the cache for a few lines at a time, so the
-/// loads of that tile find them there instead of each waiting on memory (the tile's values
-/// are read in an order the hardware prefetchers do not fully follow: per-pixel entries in
-/// groups, lattice entries segment by segment).
-#[derive(Default)]
-struct Ahead {
-    /// Address of the next line to fetch, and the end of the values (0, 0: nothing).
-    next: usize,
-    end: usize,
-}
-
-impl Ahead {
-    const LINE: usize = 64;
-
-    fn over(values: &TileValues) -> Ahead {
-        let (start, bytes) = match values {
-            TileValues::F16(v) => (v.as_ptr() as usize, std::mem::size_of_val(&v[..])),
-            TileValues::F32(v) => (v.as_ptr() as usize, std::mem::size_of_val(&v[..])),
-        };
-        Ahead {
-            next: start,
-            end: start + bytes,
-        }
-    }
-
-    /// Prefetches up to `lines` further lines of the values.
-    #[inline(always)]
-    fn fetch(&mut self, lines: usize) {
-        for _ in 0..lines {
-            if self.next >= self.end {
-                return;
-            }
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: a prefetch is only a hint: it reads nothing into the program and never
-            // faults, whatever the address (here one inside a live allocation anyway).
-            unsafe {
-                use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T1};
-                _mm_prefetch::<_MM_HINT_T1>(self.next as *const i8);
-            }
-            self.next += Self::LINE;
-        }
-    }
-}
-
 /// Adds a tile's accumulators into its pixels of `rows` (the tile row's image rows).
+#[inline(always)]
 fn add_to_image(
     acc: &TileAccumulators,
     rect: TileRect,
@@ -503,6 +561,7 @@ fn add_to_image(
 }
 
 /// Sets a tile's pixels of `rows` to (0, 0, 0, 1).
+#[inline(always)]
 fn clear_image(rect: TileRect, width: usize, rows: &mut [f32]) {
     let tw = rect.width as usize;
     for dy in 0..rect.height as usize {
