@@ -394,10 +394,9 @@ fn wide_range_top_exponent() {
             o.vs_projected
         );
         // f16 layers round to 2⁻¹¹ ≈ 4.9e-4 relative each; at ns = 10 000 the PCA layers
-        // ring with opposite signs (25 % negative here) and cancel in the sum, so the image's
-        // rounding error is a small multiple of that (7.9e-4 measured with solid-angle
-        // sampled area lights, 2026-11-23).
-        assert!(o.vs_projected <= 1e-3, "linearity {}", o.vs_projected);
+        // ring with opposite signs and cancel in the sum, so the image's rounding error is a
+        // small multiple of that (figures in docs/measurements.md, "Extremes").
+        assert!(o.vs_projected <= 1.5e-3, "linearity {}", o.vs_projected);
         assert!(
             // The README's known limit: a mirror-like highlight against the true BRDF is not
             // bounded by the lobe tolerance (25.3 % measured, 2026-11-23); this guards

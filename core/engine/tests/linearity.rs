@@ -201,7 +201,8 @@ fn wide_exponent_range_stays_finite_and_linear() {
         .unwrap();
         let d = compare_rgb(&relit, &projected.rgba, 4).unwrap();
         // f16 rounding (2⁻¹¹ per layer value) amplified by the cancelling ringing layers of a
-        // [1, 10 000] basis: 7.9e-4 measured at ns = 10 000 (2026-11-23).
-        assert!(d.rel_l2 <= 1e-3, "ns {}: {}", mats[0].ns, d.rel_l2);
+        // [1, 10 000] basis: a small multiple of the per-value rounding, larger for bases
+        // that fit the broad lobes closer (figures in docs/measurements.md, "Extremes").
+        assert!(d.rel_l2 <= 1.5e-3, "ns {}: {}", mats[0].ns, d.rel_l2);
     }
 }

@@ -151,7 +151,18 @@ fn constant_in_fit_lowers_errors_for_every_weighting() {
         );
         assert!(with.spec_constant() && !without.spec_constant());
         assert!(a.avg_rel_l2 < b.avg_rel_l2, "{w:?}");
-        assert!(a.max_rel_l2 <= b.max_rel_l2 * 1.001, "{w:?}");
+        match w {
+            // Both capped searches end at their cap (to the iteration's accuracy), so only
+            // the average can tell them apart.
+            LobeWeighting::Capped(cap) => {
+                let cap = cap as f64;
+                assert!(
+                    a.max_rel_l2 <= 1.05 * cap && b.max_rel_l2 <= 1.05 * cap,
+                    "{w:?}"
+                );
+            }
+            _ => assert!(a.max_rel_l2 <= b.max_rel_l2 * 1.001, "{w:?}"),
+        }
         // c₀ (the lobe's mean, times π) is used only with the constant.
         let mut c = vec![0.0f32; 6];
         with.spec_coefficients(1.0, &mut c);
