@@ -170,6 +170,8 @@ impl Preset {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::brdf::basis::LobeWeighting;
+    use crate::brdf::{BasisConfig, BrdfBasis};
 
     #[test]
     fn names_round_trip_and_presets_grow_in_cost() {
@@ -204,5 +206,50 @@ mod tests {
         assert_eq!(scale, 0.5);
         assert_eq!((s.seed, s.bounces, s.spp), (77, 0, 4));
         assert!(matches!(s.basis.count, BasisCount::Tolerance(t) if t == 0.045));
+    }
+
+    fn with(f: impl FnOnce(&mut BasisConfig)) -> BasisConfig {
+        let mut c = BasisConfig::default();
+        f(&mut c);
+        c
+    }
+
+    #[test]
+    fn capped_search_keeps_the_unit_weightings_average() {
+        // Over the default roughness range at each preset's tolerance, the capped search must
+        // meet the tolerance without giving up the low average of the unit-weighted PCA at the
+        // same count (the lowest-average weighting tried). Started from the lobes as they are,
+        // the search levelled most lobes towards the cap and its average was 1.3–1.5× the
+        // unit PCA's.
+        let [ns_min, ns_max] = crate::bake::settings::default_ns_range();
+        for preset in Preset::ALL {
+            let tol = preset.values().basis_tolerance;
+            let capped = BrdfBasis::build(&with(|c| {
+                (c.ns_min, c.ns_max) = (ns_min, ns_max);
+                c.count = BasisCount::Tolerance(tol);
+            }))
+            .unwrap();
+            let unit = BrdfBasis::build(&with(|c| {
+                (c.ns_min, c.ns_max) = (ns_min, ns_max);
+                c.weighting = LobeWeighting::Unit;
+                c.count = BasisCount::Fixed(capped.count() as u32);
+            }))
+            .unwrap();
+            let (c, u) = (capped.error_report(), unit.error_report());
+            eprintln!(
+                "{preset:?} (tolerance {tol}): N_b {} capped avg {:.5} max {:.5}, unit avg {:.5} \
+                 max {:.5}",
+                capped.count(),
+                c.avg_rel_l2,
+                c.max_rel_l2,
+                u.avg_rel_l2,
+                u.max_rel_l2
+            );
+            assert!(c.max_rel_l2 <= tol as f64, "{preset:?}: {c:?}");
+            assert!(
+                c.avg_rel_l2 <= 1.05 * u.avg_rel_l2,
+                "{preset:?}: {c:?} vs {u:?}"
+            );
+        }
     }
 }

@@ -46,7 +46,7 @@ use gathered::Gathered;
 use one_segment::add_entries_one_segment;
 
 use super::ahead::Ahead;
-use super::kernels::{EntryKernels, GreyEntry, Kernels, PendingEntry, Portable, RgbEntry, Sample};
+use super::kernels::{EntryKernels, GreyEntry, Kernels, PendingEntry, Portable, Sample};
 use super::layer_weight;
 use super::tile_accumulators::TileAccumulators;
 use crate::stack::tiled::{StackTile, TileLayer, TileRect, TileValues, TiledStack, STACK_TILE};

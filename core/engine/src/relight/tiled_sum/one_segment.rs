@@ -7,11 +7,11 @@
 //! their own, so the order of additions into every accumulator is the one of
 //! [`super::add_entries`] and the image the same, bit for bit.
 
-use super::{
-    Ahead, EntryKernels, Gathered, GreyEntry, RgbEntry, Sample, StackTile, TileAccumulators,
-    TileLayer,
-};
-use crate::stack::tiled::TileLattice;
+use super::gathered::Gathered;
+use crate::relight::ahead::Ahead;
+use crate::relight::kernels::{EntryKernels, GreyEntry, RgbEntry, Sample};
+use crate::relight::tile_accumulators::TileAccumulators;
+use crate::stack::tiled::{StackTile, TileLattice, TileLayer};
 use crate::Rgb;
 
 /// [`super::add_entries`] for a tile whose lattice (`lattice`) has one segment.
