@@ -22,7 +22,8 @@
 use crate::stack::tiled::lattice::MAX_SEGMENTS;
 use crate::stack::tiled::{TileLattice, STACK_TILE};
 
-use super::kernels::{padded, GreyEntry, PendingEntry, RgbEntry};
+use super::ahead::Ahead;
+use super::kernels::{padded, EntryKernels, GreyEntry, PendingEntry, RgbEntry, Sample};
 
 /// Values per tile and channel.
 pub(super) const TILE_PIXELS: usize = (STACK_TILE * STACK_TILE) as usize;
@@ -50,6 +51,33 @@ pub(super) struct TileAccumulators {
 }
 
 impl TileAccumulators {
+    /// Sums the gathered grey per-pixel entries `grey` into the rows when the tile added any
+    /// entry, and keeps the list's allocation for the next tile: the end of every entry
+    /// loop's per-pixel work.
+    #[inline(always)]
+    pub fn finish_grey<K: EntryKernels, S: Sample>(
+        &mut self,
+        kernels: K,
+        values: &[S],
+        pixels: usize,
+        grey: Vec<GreyEntry>,
+        added: bool,
+        ahead: &mut Ahead,
+    ) {
+        if added {
+            kernels.grey_rows(
+                &mut self.r,
+                &mut self.g,
+                &mut self.b,
+                values,
+                pixels,
+                &grey,
+                ahead,
+            );
+        }
+        self.grey = grey;
+    }
+
     /// Zeroed accumulators (boxed: they are a few kilobytes).
     pub(super) fn new() -> Box<TileAccumulators> {
         Box::new(TileAccumulators {

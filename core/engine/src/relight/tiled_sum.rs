@@ -505,12 +505,7 @@ fn add_entries<K: EntryKernels, S: Sample>(
         );
     }
     acc.pending = pending;
-    if added {
-        kernels.grey_rows(
-            &mut acc.r, &mut acc.g, &mut acc.b, values, pixels, &grey, &mut ahead,
-        );
-    }
-    acc.grey = grey;
+    acc.finish_grey(kernels, values, pixels, grey, added, &mut ahead);
     if lattice_added {
         if let Some(lattice) = &tile.lattice {
             acc.expand_nodes(lattice);

@@ -59,12 +59,7 @@ pub(super) fn add_entries_one_segment<K: EntryKernels, S: Sample>(
         kernels.rgb(&mut acc.rgb, &values[e.start..], 3 * pixels, e.weight);
     }
     acc.rgb_entries = rgb;
-    if added {
-        kernels.grey_rows(
-            &mut acc.r, &mut acc.g, &mut acc.b, values, pixels, &grey, &mut ahead,
-        );
-    }
-    acc.grey = grey;
+    acc.finish_grey(kernels, values, pixels, grey, added, &mut ahead);
     if lattice_added {
         acc.expand_nodes(lattice);
     }
