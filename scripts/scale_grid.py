@@ -32,7 +32,7 @@ def preset_flags(preset: str) -> list[str]:
 
 
 def cell(relume: str, tmp: pathlib.Path, res: str, k: int, threads: str = "0", preset: str = "draft",
-         keep: pathlib.Path | None = None) -> dict:
+         keep: pathlib.Path | None = None, bench_relight: bool = True) -> dict:
     scene = tmp / f"cornell8-{res}-k{k}.scene.json"
     subprocess.run([sys.executable, str(ROOT / "scripts" / "make_cornell8.py"), "--editable", str(k),
                     "--resolution", res, "--out", str(scene)], check=True, stdout=subprocess.DEVNULL)
@@ -77,6 +77,8 @@ def cell(relume: str, tmp: pathlib.Path, res: str, k: int, threads: str = "0", p
         "compression_error": r.get("compression_error"),
         "compression_saved_mb": round(r.get("compression_saved_bytes", 0) / 1e6, 1),
     })
+    if not bench_relight:
+        return row
     bench = subprocess.run([relume, "bench", "relight", str(stack), "--device", "cpu", "--repeats", "10", "--json"],
                            capture_output=True, text=True)
     if bench.returncode == 0:
@@ -99,12 +101,17 @@ def main() -> None:
     ap.add_argument("--threads", default="0", help="bake threads (0: all cores)")
     ap.add_argument("--preset", default="draft", choices=["draft", "preview", "final"])
     ap.add_argument("--keep", help="folder to keep each cell's stack in (to re-run the relight bench)")
+    ap.add_argument("--no-bench", action="store_true",
+                    help="bake only: for cells baked side by side, whose relight is benched afterwards alone")
     args = ap.parse_args()
+    if args.keep:
+        pathlib.Path(args.keep).mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         for res in args.resolutions.split(","):
             for k in (int(v) for v in args.editable.split(",")):
                 print(json.dumps(cell(args.relume, pathlib.Path(tmp), res, k, args.threads, args.preset,
-                                      pathlib.Path(args.keep) if args.keep else None)), flush=True)
+                                      pathlib.Path(args.keep) if args.keep else None,
+                                      not args.no_bench)), flush=True)
 
 
 if __name__ == "__main__":
