@@ -46,6 +46,7 @@
 use half::f16;
 
 use super::ahead::Ahead;
+use super::tile_output::TileOutputKernels;
 
 /// Pixels converted per step of the portable path (64 px × 3 channels × 4 B = 768 B of
 /// stack: small enough for L1, large enough to amortise the per-call dispatch of `half`).
@@ -198,7 +199,7 @@ impl Kernels {
 /// The two inner loops of one implementation. `len` values of `src` are added; `src` may
 /// hold more (the tile's later values), which a vector implementation may read into
 /// padding lanes.
-pub(crate) trait EntryKernels: Copy + std::fmt::Debug {
+pub(crate) trait EntryKernels: Copy + std::fmt::Debug + TileOutputKernels {
     /// Planar grey: `r[p] += w[0]·src[p]`, `g[p] += w[1]·src[p]`, `b[p] += w[2]·src[p]`
     /// for `p < len`. Each accumulator holds at least [`padded`]`(len)` floats; those from
     /// `len` on may change (padding).
@@ -313,6 +314,20 @@ pub(crate) trait EntryKernels: Copy + std::fmt::Debug {
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Portable;
 
+/// The scalar per-pixel loops (the trait's defaults).
+impl TileOutputKernels for Portable {}
+
+impl Kernels {
+    /// [`TileOutputKernels::end_of_band`] of the implementation that runs.
+    pub(crate) fn end_of_band(self) {
+        match self {
+            Kernels::Portable => Portable.end_of_band(),
+            #[cfg(target_arch = "x86_64")]
+            Kernels::Avx2(k) | Kernels::Avx2Wide(k) => k.end_of_band(),
+        }
+    }
+}
+
 impl EntryKernels for Portable {
     #[inline]
     fn grey<S: Sample>(
@@ -382,7 +397,27 @@ pub(crate) use x86::Avx2;
 #[cfg(target_arch = "x86_64")]
 mod x86 {
     use super::{padded, zero_rows, Ahead, EntryKernels, GreyEntry, Sample, LANES};
+    use crate::relight::tile_output::{self, ColumnHats, TileOutputKernels};
     use std::arch::x86_64::*;
+
+    impl TileOutputKernels for Avx2 {
+        #[inline(always)]
+        fn along_x(self, row: &[f32], hats: &ColumnHats, out: &mut [f32]) {
+            // SAFETY: an `Avx2` exists only on a CPU with AVX2.
+            unsafe { tile_output::x86::along_x(row, hats, out) }
+        }
+
+        #[inline(always)]
+        fn image_row(self, px: &mut [f32], r: &[f32], g: &[f32], b: &[f32], reset: bool) {
+            // SAFETY: as above.
+            unsafe { tile_output::x86::image_row(px, r, g, b, reset) }
+        }
+
+        #[inline(always)]
+        fn end_of_band(self) {
+            tile_output::x86::end_of_band();
+        }
+    }
 
     /// The AVX2 + FMA + F16C loops. Only [`Avx2::new`] makes one, after checking that the
     /// CPU has those features, which is what makes its safe methods sound.

@@ -17,8 +17,9 @@
 //!   touches, the periodic full re-sum; shared by the CPU and the GPU relighters.
 //! - [`tiled_sum`]: the CPU's sum over a [`crate::stack::tiled::TiledStack`] (per tile, only
 //!   the layers present there); `tile_accumulators`: what one tile sums into (pixels and
-//!   lattice nodes) and the expansion of the nodes; `kernels`: its SIMD inner loops;
-//!   `ahead`: its paced prefetch of the next tile's values.
+//!   lattice nodes) and the expansion of the nodes; `kernels`: its SIMD inner loops over
+//!   the entries; `tile_output`: its per-pixel loops after them (interpolation along x, the
+//!   image add); `ahead`: its paced prefetch of the next tile's values.
 //! - `cpu_sum`: that sum as the CPU's [`LayerSum`], with its image.
 //! - `cpu`: [`CpuRelighter`], the bookkeeping over the CPU sum.
 //! - [`bandwidth`]: how fast this machine reads memory, the floor under any relight.
@@ -35,6 +36,7 @@ pub(crate) mod kernels;
 mod layer_sum;
 mod shape;
 mod tile_accumulators;
+mod tile_output;
 pub mod tiled_sum;
 mod weight;
 
@@ -46,3 +48,5 @@ pub use weight::{group_factors, group_factors_of, layer_weight};
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tile_output_tests;

@@ -24,6 +24,7 @@ use crate::stack::tiled::{TileLattice, STACK_TILE};
 
 use super::ahead::Ahead;
 use super::kernels::{padded, EntryKernels, GreyEntry, PendingEntry, RgbEntry, Sample};
+use super::tile_output::{ColumnHats, TileOutputKernels};
 
 /// Values per tile and channel.
 pub(super) const TILE_PIXELS: usize = (STACK_TILE * STACK_TILE) as usize;
@@ -133,10 +134,30 @@ impl TileAccumulators {
     /// of its own segment), into the planar rows. Inlined, so that it is compiled with the
     /// features of the tile loop that calls it (AVX2 where that is the loop's).
     #[inline(always)]
-    pub(super) fn expand_nodes(&mut self, lattice: &TileLattice) {
+    pub(super) fn expand_nodes<K: TileOutputKernels>(&mut self, kernels: K, lattice: &TileLattice) {
         self.hats.set_lattice(lattice);
-        self.nodes
-            .expand(lattice, &self.hats, [&mut self.r, &mut self.g, &mut self.b]);
+        self.nodes.expand(
+            kernels,
+            lattice,
+            &self.hats,
+            [&mut self.r, &mut self.g, &mut self.b],
+        );
+    }
+
+    /// Adds the interleaved RGB sums into the planar rows (`r[p] += rgb[3p]`, …) for the
+    /// tile's `pixels`, when the tile has them: the image add then reads the planar rows
+    /// alone, with per pixel the same two additions in the same order as adding both.
+    #[inline(always)]
+    pub(super) fn fold_rgb(&mut self, pixels: usize) {
+        if !self.rgb_used {
+            return;
+        }
+        let rgb = &self.rgb[..3 * pixels];
+        for (p, v) in rgb.chunks_exact(3).enumerate() {
+            self.r[p] += v[0];
+            self.g[p] += v[1];
+            self.b[p] += v[2];
+        }
     }
 }
 
@@ -201,7 +222,13 @@ impl NodeAccumulators {
 
     /// Adds the nodes expanded to pixels into `planes` (R, G, B per pixel, row-major).
     #[inline(always)]
-    fn expand(&mut self, lattice: &TileLattice, hats: &AxisHats, planes: [&mut [f32]; 3]) {
+    fn expand<K: TileOutputKernels>(
+        &mut self,
+        kernels: K,
+        lattice: &TileLattice,
+        hats: &AxisHats,
+        planes: [&mut [f32]; 3],
+    ) {
         let (nx, ny) = lattice.nodes();
         let (nx, ny) = (nx as usize, ny as usize);
         let (width, height) = lattice.size();
@@ -234,9 +261,7 @@ impl NodeAccumulators {
                 .chunks_exact(nx)
                 .zip(self.along_x.chunks_exact_mut(width))
             {
-                for (v, &[(i0, w0), (i1, w1)]) in out.iter_mut().zip(&hats.x) {
-                    *v = w0 * row[i0 as usize] + w1 * row[i1 as usize];
-                }
+                kernels.along_x(row, &hats.x, out);
             }
             // Along y, into the segment's pixels.
             for (c, plane) in [&mut *r_plane, &mut *g_plane, &mut *b_plane]
@@ -272,7 +297,7 @@ impl NodeAccumulators {
 #[derive(Default)]
 struct AxisHats {
     shape: Option<(u32, u32, u32)>,
-    x: Vec<[(u32, f32); 2]>,
+    x: ColumnHats,
     y: Vec<[(u32, f32); 2]>,
 }
 
@@ -287,12 +312,17 @@ impl AxisHats {
         // `wx·wy`; on the first row (column) the y (x) weights are 1 and 0, so the hats
         // there are the axis' own.
         let (nx, _) = lattice.nodes();
-        self.x = (0..w)
-            .map(|x| {
-                let h = lattice.hats(x, 0);
-                [(h[0].0 as u32, h[0].1), (h[1].0 as u32, h[1].1)]
-            })
-            .collect();
+        self.x = ColumnHats {
+            width: w as usize,
+            ..ColumnHats::default()
+        };
+        for x in 0..w {
+            // On the first row the y weights are 1 and 0: the first two hats are x's.
+            for (k, &(node, weight)) in lattice.hats(x, 0)[..2].iter().enumerate() {
+                self.x.node[k][x as usize] = node as u32;
+                self.x.weight[k][x as usize] = weight;
+            }
+        }
         self.y = (0..h)
             .map(|y| {
                 let h = lattice.hats(0, y);

@@ -49,6 +49,7 @@ use super::ahead::Ahead;
 use super::kernels::{EntryKernels, GreyEntry, Kernels, PendingEntry, Portable, Sample};
 use super::layer_weight;
 use super::tile_accumulators::TileAccumulators;
+use super::tile_output::TileOutputKernels;
 use crate::stack::tiled::{StackTile, TileLayer, TileRect, TileValues, TiledStack, STACK_TILE};
 use crate::{RelumeError, Result, Rgb};
 
@@ -283,6 +284,7 @@ fn sum<Sel: EntrySelection>(
             };
             sum_tile(kernels, tile, select, &mut acc, ahead, image);
         }
+        kernels.end_of_band();
     });
 }
 
@@ -356,9 +358,17 @@ fn sum_tile_with<K: EntryKernels, S: Sample, Sel: EntrySelection>(
         None => false,
     };
     if added {
-        add_to_image(acc, image.rect, image.width, image.reset, image.rows);
+        acc.fold_rgb(pixels);
+        add_to_image(
+            kernels,
+            acc,
+            image.rect,
+            image.width,
+            image.reset,
+            image.rows,
+        );
     } else if image.reset {
-        clear_image(image.rect, image.width, image.rows);
+        clear_image(kernels, image.rect, image.width, image.rows);
     }
 }
 
@@ -508,15 +518,17 @@ fn add_entries<K: EntryKernels, S: Sample>(
     acc.finish_grey(kernels, values, pixels, grey, added, &mut ahead);
     if lattice_added {
         if let Some(lattice) = &tile.lattice {
-            acc.expand_nodes(lattice);
+            acc.expand_nodes(kernels, lattice);
         }
     }
     added
 }
 
-/// Adds a tile's accumulators into its pixels of `rows` (the tile row's image rows).
+/// Adds a tile's planar sums (with the RGB sums folded in: [`TileAccumulators::fold_rgb`])
+/// into its pixels of `rows` (the tile row's image rows).
 #[inline(always)]
-fn add_to_image(
+fn add_to_image<K: TileOutputKernels>(
+    kernels: K,
     acc: &TileAccumulators,
     rect: TileRect,
     width: usize,
@@ -532,37 +544,17 @@ fn add_to_image(
             &acc.g[i0..i0 + tw],
             &acc.b[i0..i0 + tw],
         );
-        if !acc.rgb_used() {
-            for (dx, px) in row.chunks_exact_mut(4).enumerate() {
-                if reset {
-                    px.copy_from_slice(&[0.0, 0.0, 0.0, 1.0]);
-                }
-                px[0] += r[dx];
-                px[1] += g[dx];
-                px[2] += b[dx];
-            }
-            continue;
-        }
-        let rgb = &acc.rgb[3 * i0..3 * (i0 + tw)];
-        for (dx, px) in row.chunks_exact_mut(4).enumerate() {
-            if reset {
-                px.copy_from_slice(&[0.0, 0.0, 0.0, 1.0]);
-            }
-            px[0] += r[dx] + rgb[3 * dx];
-            px[1] += g[dx] + rgb[3 * dx + 1];
-            px[2] += b[dx] + rgb[3 * dx + 2];
-        }
+        kernels.image_row(row, r, g, b, reset);
     }
 }
 
 /// Sets a tile's pixels of `rows` to (0, 0, 0, 1).
 #[inline(always)]
-fn clear_image(rect: TileRect, width: usize, rows: &mut [f32]) {
+fn clear_image<K: TileOutputKernels>(kernels: K, rect: TileRect, width: usize, rows: &mut [f32]) {
+    const ZERO: [f32; STACK_TILE as usize] = [0.0; STACK_TILE as usize];
     let tw = rect.width as usize;
     for dy in 0..rect.height as usize {
         let row = &mut rows[(dy * width + rect.x0 as usize) * 4..][..tw * 4];
-        for px in row.chunks_exact_mut(4) {
-            px.copy_from_slice(&[0.0, 0.0, 0.0, 1.0]);
-        }
+        kernels.image_row(row, &ZERO[..tw], &ZERO, &ZERO, true);
     }
 }

@@ -61,7 +61,7 @@ pub(super) fn add_entries_one_segment<K: EntryKernels, S: Sample>(
     acc.rgb_entries = rgb;
     acc.finish_grey(kernels, values, pixels, grey, added, &mut ahead);
     if lattice_added {
-        acc.expand_nodes(lattice);
+        acc.expand_nodes(kernels, lattice);
     }
     added
 }
@@ -97,11 +97,19 @@ impl<I: Iterator<Item = (usize, Rgb)>> Iterator for OneSegmentStream<'_, I> {
     #[inline(always)]
     fn next(&mut self) -> Option<Option<(usize, [f32; 3])>> {
         let (k, w) = self.entries.next()?;
-        self.ahead.read(std::mem::size_of::<TileLayer>());
         self.seen.added = true;
         let e = &self.tile.entries[k];
         let weight = (w * e.scale).to_array();
         let start = e.offset as usize;
+        if e.segments != 0 && e.channels == 1 {
+            // A grey lattice entry (most entries): its row in the table and its values
+            // reported read at once.
+            self.seen.lattice_added = true;
+            self.ahead
+                .read(std::mem::size_of::<TileLayer>() + self.lattice_bytes);
+            return Some(Some((start, weight)));
+        }
+        self.ahead.read(std::mem::size_of::<TileLayer>());
         if e.segments == 0 {
             if e.channels == 1 {
                 self.grey.push(GreyEntry { start, weight });
@@ -115,15 +123,11 @@ impl<I: Iterator<Item = (usize, Rgb)>> Iterator for OneSegmentStream<'_, I> {
             return Some(None);
         }
         self.seen.lattice_added = true;
-        if e.channels != 1 {
-            self.rgb.push(RgbEntry {
-                start,
-                weight,
-                lattice: true,
-            });
-            return Some(None);
-        }
-        self.ahead.read(self.lattice_bytes);
-        Some(Some((start, weight)))
+        self.rgb.push(RgbEntry {
+            start,
+            weight,
+            lattice: true,
+        });
+        Some(None)
     }
 }
