@@ -5,11 +5,16 @@
 //! holds it grey (equal R, G and B), else three. Each channel runs the same taps in the
 //! same order on the same weights, so a grey layer filtered on one channel gives, bit for
 //! bit, the first channel of the same layer filtered as RGB (and R, G and B of that are
-//! equal), at a third of the work and of the memory.
+//! equal), at a third of the work and of the memory. Grey layers are filtered eight pixels
+//! of a row at a time where the CPU has AVX2 (`grey_run`), with the same arithmetic per
+//! pixel, so the same bits.
 
 use std::ops::Range;
 
+mod grey_run;
+
 use super::denoise::{footprint_radius, step_rows, EyeFeatures, FilterWeights};
+use grey_run::{GreyRun, LANES};
 
 impl EyeFeatures {
     /// [`Self::filter_one`] of a layer of `scratch.channels()` channels that is zero outside
@@ -73,24 +78,28 @@ impl EyeFeatures {
             let offsets: [isize; 25] = std::array::from_fn(|t| {
                 ((t as isize / 5 - 2) * self.width as isize + (t as isize % 5 - 2)) * step as isize
             });
-            for_each_pixel(&rects, self.width, &rows, |p| {
-                let wp = &w[p];
-                if wp[12] == 0.0 || !self.region[p].is_some_and(|r| live[r as usize]) {
-                    out[p * C..p * C + C].copy_from_slice(&src[p * C..p * C + C]);
-                    return;
-                }
-                let mut acc = [0.0f32; C];
-                for (&wt, &offset) in wp.iter().zip(&offsets) {
-                    if wt == 0.0 {
-                        continue;
+            let computed =
+                |p: usize| w[p][12] != 0.0 && self.region[p].is_some_and(|r| live[r as usize]);
+            // Grey layers (most) eight pixels of a row at a time where the CPU can.
+            let runs = if C == 1 { GreyRun::detect() } else { None };
+            for_each_run(&rects, self.width, &rows, |start, end| {
+                let mut p = start;
+                if let Some(run) = runs {
+                    while p + LANES <= end {
+                        let lanes: [bool; LANES] = std::array::from_fn(|i| computed(p + i));
+                        if !lanes.iter().any(|c| *c) {
+                            out[p..p + LANES].copy_from_slice(&src[p..p + LANES]);
+                        } else if !run.filter8(w, src, out, &offsets, p, lanes) {
+                            for q in p..p + LANES {
+                                filter_pixel::<C>(w, src, out, &offsets, q, computed(q));
+                            }
+                        }
+                        p += LANES;
                     }
-                    // A tap with a weight lies inside the window.
-                    let q = (p as isize + offset) as usize * C;
-                    for (a, v) in acc.iter_mut().zip(&src[q..q + C]) {
-                        *a += wt * v;
-                    }
                 }
-                out[p * C..p * C + C].copy_from_slice(&acc);
+                for q in p..end {
+                    filter_pixel::<C>(w, src, out, &offsets, q, computed(q));
+                }
             });
             scratch.result_in_b = !scratch.result_in_b;
         }
@@ -104,6 +113,51 @@ pub struct PixelRect {
     x1: usize,
     y0: usize,
     y1: usize,
+}
+
+/// One pixel of one step of the filter (`computed`: the filter changes it; else it keeps
+/// its value): from +0, `acc += weight · value` over the taps whose weight is not 0, in
+/// order.
+#[inline(always)]
+fn filter_pixel<const C: usize>(
+    w: &[[f32; 25]],
+    src: &[f32],
+    out: &mut [f32],
+    offsets: &[isize; 25],
+    p: usize,
+    computed: bool,
+) {
+    if !computed {
+        out[p * C..p * C + C].copy_from_slice(&src[p * C..p * C + C]);
+        return;
+    }
+    let mut acc = [0.0f32; C];
+    for (&wt, &offset) in w[p].iter().zip(offsets) {
+        if wt == 0.0 {
+            continue;
+        }
+        // A tap with a weight lies inside the window.
+        let q = (p as isize + offset) as usize * C;
+        for (a, v) in acc.iter_mut().zip(&src[q..q + C]) {
+            *a += wt * v;
+        }
+    }
+    out[p * C..p * C + C].copy_from_slice(&acc);
+}
+
+/// Calls `f(start, end)` with the pixel indices `start..end` of each row of the `rects` on
+/// the pixel rows `rows`.
+fn for_each_run(
+    rects: &[PixelRect],
+    width: usize,
+    rows: &Range<usize>,
+    mut f: impl FnMut(usize, usize),
+) {
+    for r in rects {
+        for y in r.y0.max(rows.start)..r.y1.min(rows.end) {
+            f(y * width + r.x0, y * width + r.x1);
+        }
+    }
 }
 
 /// Calls `f` with every pixel index of the `rects` on the pixel rows `rows`.
