@@ -14,7 +14,7 @@ use std::ops::Range;
 mod grey_run;
 
 use super::denoise::{footprint_radius, step_rows, EyeFeatures, FilterWeights};
-use grey_run::{GreyRun, LANES};
+use grey_run::{GreyRun, Taps, LANES};
 
 impl EyeFeatures {
     /// [`Self::filter_one`] of a layer of `scratch.channels()` channels that is zero outside
@@ -74,10 +74,7 @@ impl EyeFeatures {
                     }
                 }
             });
-            // The taps' offsets in the buffer, in the order the weights list them.
-            let offsets: [isize; 25] = std::array::from_fn(|t| {
-                ((t as isize / 5 - 2) * self.width as isize + (t as isize % 5 - 2)) * step as isize
-            });
+            let taps = Taps::new(self.width, step);
             let computed =
                 |p: usize| w[p][12] != 0.0 && self.region[p].is_some_and(|r| live[r as usize]);
             // Grey layers (most) eight pixels of a row at a time where the CPU can.
@@ -89,16 +86,16 @@ impl EyeFeatures {
                         let lanes: [bool; LANES] = std::array::from_fn(|i| computed(p + i));
                         if !lanes.iter().any(|c| *c) {
                             out[p..p + LANES].copy_from_slice(&src[p..p + LANES]);
-                        } else if !run.filter8(w, src, out, &offsets, p, lanes) {
+                        } else if !run.filter8(w, src, out, &taps, p, lanes) {
                             for q in p..p + LANES {
-                                filter_pixel::<C>(w, src, out, &offsets, q, computed(q));
+                                filter_pixel::<C>(w, src, out, &taps, q, computed(q));
                             }
                         }
                         p += LANES;
                     }
                 }
                 for q in p..end {
-                    filter_pixel::<C>(w, src, out, &offsets, q, computed(q));
+                    filter_pixel::<C>(w, src, out, &taps, q, computed(q));
                 }
             });
             scratch.result_in_b = !scratch.result_in_b;
@@ -123,7 +120,7 @@ fn filter_pixel<const C: usize>(
     w: &[[f32; 25]],
     src: &[f32],
     out: &mut [f32],
-    offsets: &[isize; 25],
+    taps: &Taps,
     p: usize,
     computed: bool,
 ) {
@@ -132,7 +129,7 @@ fn filter_pixel<const C: usize>(
         return;
     }
     let mut acc = [0.0f32; C];
-    for (&wt, &offset) in w[p].iter().zip(offsets) {
+    for (&wt, &offset) in w[p].iter().zip(&taps.offsets) {
         if wt == 0.0 {
             continue;
         }

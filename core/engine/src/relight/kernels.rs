@@ -767,10 +767,11 @@ mod x86 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
 
-    fn pseudo(n: usize, seed: u32) -> Vec<f32> {
+    /// `n` pseudo-random values in [−1, 1] from `seed` (xorshift), for the kernels' tests.
+    pub(crate) fn pseudo(n: usize, seed: u32) -> Vec<f32> {
         let mut x = seed.wrapping_mul(2654435761).max(1);
         (0..n)
             .map(|_| {

@@ -1,20 +1,9 @@
 //! The per-pixel loops of every kernel implementation this CPU runs against the scalar ones
 //! (`tile_output.rs`), bit for bit.
 
+use super::kernels::tests::pseudo;
 use super::kernels::{Kernels, Portable};
 use super::tile_output::{ColumnHats, TileOutputKernels, MAX_COLUMNS};
-
-fn pseudo(n: usize, seed: u32) -> Vec<f32> {
-    let mut s = seed.wrapping_mul(2_654_435_761).max(1);
-    (0..n)
-        .map(|_| {
-            s ^= s << 13;
-            s ^= s >> 17;
-            s ^= s << 5;
-            (s % 20_000) as f32 / 1000.0 - 10.0
-        })
-        .collect()
-}
 
 fn hats(width: usize, nodes: usize, seed: u32) -> ColumnHats {
     let mut h = ColumnHats {

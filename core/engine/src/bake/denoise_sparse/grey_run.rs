@@ -13,6 +13,28 @@
 /// Pixels per step.
 pub(super) const LANES: usize = 8;
 
+/// One filter step's 25 taps as offsets in the window's buffer (pixels, in the order the
+/// weights list them), with their least and greatest, computed once per step.
+pub(super) struct Taps {
+    pub offsets: [isize; 25],
+    lo: isize,
+    hi: isize,
+}
+
+impl Taps {
+    /// The taps of a step `step` pixels apart in a window `width` pixels wide.
+    pub(super) fn new(width: usize, step: usize) -> Taps {
+        let offsets: [isize; 25] = std::array::from_fn(|t| {
+            ((t as isize / 5 - 2) * width as isize + (t as isize % 5 - 2)) * step as isize
+        });
+        Taps {
+            offsets,
+            lo: offsets[0],
+            hi: offsets[24],
+        }
+    }
+}
+
 /// The AVX2 step, where the CPU has AVX2; `None` elsewhere (the scalar filter runs).
 #[derive(Clone, Copy)]
 pub(super) struct GreyRun {
@@ -43,7 +65,7 @@ impl GreyRun {
         weights: &[[f32; 25]],
         src: &[f32],
         out: &mut [f32],
-        offsets: &[isize; 25],
+        taps: &Taps,
         p0: usize,
         computed: [bool; LANES],
     ) -> bool {
@@ -52,21 +74,19 @@ impl GreyRun {
             end <= weights.len() && end <= src.len() && end <= out.len(),
             "a run of eight pixels inside the window"
         );
-        let (lo, hi) = (
-            offsets.iter().copied().min().unwrap_or(0),
-            offsets.iter().copied().max().unwrap_or(0),
-        );
-        if (p0 as isize) + lo < 0 || (end as isize) + hi > src.len() as isize {
+        if (p0 as isize) + taps.lo < 0 || (end as isize) + taps.hi > src.len() as isize {
             return false;
         }
         #[cfg(target_arch = "x86_64")]
         // SAFETY: a `GreyRun` exists only where the CPU has AVX2; every load reads
         // `weights[p0..end]` (checked above; the gather's indices step one pixel's 25
-        // weights) or `src[p0 + offset..end + offset]` (inside `src`, checked above), every
-        // store `out[p0..end]`.
+        // weights) or `src[p0 + offset..end + offset]` (inside `src`: every offset lies
+        // between the taps' least and greatest, checked above), every store `out[p0..end]`.
         unsafe {
-            x86::filter8(weights, src, out, offsets, p0, computed);
+            x86::filter8(weights, src, out, &taps.offsets, p0, computed);
         }
+        #[cfg(not(target_arch = "x86_64"))]
+        unreachable!("a GreyRun is made only on x86-64");
         true
     }
 }
