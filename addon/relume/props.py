@@ -45,7 +45,7 @@ class RelumeMaterialSettings(bpy.types.PropertyGroup):
                             default=(0.04, 0.04, 0.04), description="Specular albedo (Kd + Ks ≤ 1)",
                             update=_relight_on_change)
     ns: FloatProperty(name="ns", min=1e-3, max=1e6, default=30.0, soft_min=1.0, soft_max=1000.0,
-                      description="Blinn–Phong exponent (Principled roughness 0.5 ≈ 30)",
+                      description="Blinn–Phong exponent (Relume maps Principled roughness 0.5 to ≈ 57)",
                       update=_relight_on_change)
     use_roughness_range: BoolProperty(
         name="Roughness Range", default=False, update=_stale_check_on_change,

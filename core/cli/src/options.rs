@@ -116,10 +116,11 @@ pub struct BakeOptions {
     #[arg(long)]
     pub tolerance: Option<f32>,
     /// Blinn–Phong exponent range of editable regions without a range of their own
-    /// [default: Principled roughness 0.1–1, ns ≈ 0.001–20 000, the add-on's].
+    /// [default: Principled roughness 0.1–1, the add-on's: ns ≈ 0.0015–35 000 under the fitted
+    /// Principled mapping].
     #[arg(long)]
     pub ns_min: Option<f32>,
-    /// Upper end of that range [default: ns ≈ 20 000, roughness 0.1].
+    /// Upper end of that range [default: ns ≈ 35 000, the fitted exponent at roughness 0.1].
     #[arg(long)]
     pub ns_max: Option<f32>,
     /// Worker threads (0: all cores); the result does not depend on it.

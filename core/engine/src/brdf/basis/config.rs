@@ -19,7 +19,8 @@ const AUTO_LOG_RATIO: f32 = 256.0;
 pub struct BasisConfig {
     /// Smallest exponent the basis represents (> 0). Principled roughness 1 maps to ~0.
     pub ns_min: f32,
-    /// Largest exponent; Principled roughness 0.32 ↔ 200, 0.1 ↔ 20,000.
+    /// Largest exponent (under the analytic Principled mapping roughness 0.32 ↔ 200 and
+    /// 0.1 ↔ 20,000; the fitted mapping the core uses gives about 1.75× those below 0.5).
     pub ns_max: f32,
     /// Specular lobes sampled for the PCA (the paper's `N_s − 1 = 200`).
     pub lobes: u32,
