@@ -24,6 +24,15 @@ What it measures (docs/principled_basis_study.md has the figures and the decisio
 4. Table cost: the φd dependence of the bases, and the nodes of a trilinear (θh, θd, φd)
    table (θh on the engine's warp of √(1 − cos θh)) that reach an interpolation error below
    1e-3 of the basis RMS.
+5. Other table parametrisations, measured as part 4 (same bases, quantity ρ̃_k·cos θi·cos θo,
+   trilinear, same error columns): (θh, θd, φd) with θd warped (uniform in 1 − cos θd, in
+   1 − √(1 − sin θd), or in a rational warp of cos θd dense at 90°); θd measured from the
+   horizon (the horizon a table face); the "lune" (θh, ψ, η), ωd's position in h's frame, in
+   which both horizons are faces; θh on the engine's warp or blended half-and-half with
+   uniform θh; (θi, θo, φ) on cos-warped axes. Each is checked first (round trip of the
+   quadrature's directions through its coordinates; a table of a product of affine functions
+   of its coordinates, which trilinear must reproduce to rounding). Then a size sweep of the
+   best. `--tables-only` builds the metal basis and runs parts 4 and 5 alone (about 5 min).
 
 The integrals run on a product quadrature in Rusinkiewicz's (θh, θd, φd) with a graded θh
 mesh (the continuum limit of the (θi, θo, φ) grid; a uniform grid of cell centres does not
@@ -766,18 +775,300 @@ def table_part(q, energy, rs, fam_norm, nb, meas, basis_q, master=(513, 129, 33)
     return out
 
 
+# ---------------------------------------------------------------------------------------
+# Part 5: other table parametrisations
+
+
+METAL_FAMS = [("metal", f) for f in METAL_TRAIN]
+
+
+def rwarp(x, k):
+    """The engine's rational warp `x(1+k)/(x+k)` on [0, 1]: its slope at 0 is (1+k)/k, so
+    nodes uniform in the result are dense near x = 0 (spacing ≈ k/n there)."""
+    return x * (1.0 + k) / (x + k)
+
+
+def rwarp_inv(t, k):
+    return k * t / (1.0 + k - t)
+
+
+def rus_angles(ci, co, ch, cd):
+    """(θh, θd, φd) from the four cosines (inverse of `rus_cosines` above the horizon)."""
+    th = np.arccos(np.clip(ch, -1.0, 1.0))
+    td = np.arccos(np.clip(cd, -1.0, 1.0))
+    den = 2.0 * np.sin(th) * np.sin(td)
+    cp = np.where(den > 1e-300, (co - ci) / np.where(den > 1e-300, den, 1.0), 1.0)
+    return th, td, np.arccos(np.clip(cp, -1.0, 1.0))
+
+
+def horizon_td(th, pd):
+    """The θd at which the lower of cos θi, cos θo reaches 0 for given (θh, φd):
+    `π/2 − atan(tan θh |cos φd|)` (min(cos θi, cos θo) = R cos(θd + β), β that atan)."""
+    return HALF_PI - np.arctan2(np.sin(th) * np.abs(np.cos(pd)), np.cos(th))
+
+
+class ThWarp:
+    """θh → [0, 1]: `lam·v + (1 − lam)·θh/(π/2)`, v the engine's warp (`t_of_th`, constant k).
+    lam = 1 is the engine's warp, which puts θh ∈ [60°, 90°] in the last 2.5 % of the nodes
+    (k = 0.067); a blend keeps part of its density at the peak and gives large θh, where the
+    rough lobes live at grazing, nodes of their own. Inverted by bisection."""
+
+    def __init__(self, k, lam=1.0):
+        self.k, self.lam = k, lam
+
+    def fwd(self, th):
+        return self.lam * t_of_th(th, self.k) + (1.0 - self.lam) * th / HALF_PI
+
+    def inv(self, t):
+        if self.lam == 1.0:
+            return th_of_t(t, self.k)
+        lo, hi = np.zeros_like(t), np.full_like(t, HALF_PI)
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            below = self.fwd(mid) < t
+            lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
+        return 0.5 * (lo + hi)
+
+
+class RusTable:
+    """A (θh, θd, φd) table: θh through `thw` (a ThWarp), φd ∈ [0, π]
+    uniform, θd through `td_fwd` / `td_inv` (angle → [0, 1] and back). With `fitted`, the θd
+    coordinate is relative to the horizon: x = 1 − θd/θd_max(θh, φd) (0 at the horizon),
+    then `t = 1 − rwarp(x, k_fit)`, so the horizon is the face t = 1 and nodes crowd there."""
+
+    def __init__(self, name, thw, td_fwd=None, td_inv=None, k_fit=None):
+        self.name, self.thw, self.k_fit = name, thw, k_fit
+        self.td_fwd = td_fwd or (lambda td: td / HALF_PI)
+        self.td_inv = td_inv or (lambda t: t * HALF_PI)
+
+    def dirs(self, t0, t1, t2):
+        th, pd = self.thw.inv(t0), t2 * PI
+        if self.k_fit is not None:
+            return rus_cosines(th, (1.0 - rwarp_inv(1.0 - t1, self.k_fit)) * horizon_td(th, pd), pd)
+        return rus_cosines(th, self.td_inv(t1), pd)
+
+    def coords(self, ci, co, ch, cd):
+        th, td, pd = rus_angles(ci, co, ch, cd)
+        if self.k_fit is None:
+            t1 = self.td_fwd(td)
+        else:
+            tmax = horizon_td(th, pd)
+            x = 1.0 - td / np.maximum(tmax, 1e-300)
+            t1 = 1.0 - rwarp(np.clip(x, 0.0, 1.0), self.k_fit)
+        return self.thw.fwd(th), t1, pd / PI
+
+
+class InOutTable:
+    """A (θi, θo, φ) table: each of cos θi, cos θo through `1 − rwarp(cos, k)` (nodes dense
+    toward grazing), φ ∈ [0, π] (mirror at π) uniform or, with `k_phi`, through
+    `1 − rwarp(1 − φ/π, k_phi)` (dense toward the mirror plane)."""
+
+    def __init__(self, name, k, k_phi=None):
+        self.name, self.k, self.k_phi = name, k, k_phi
+
+    def dirs(self, t0, t1, t2):
+        ci, co = rwarp_inv(1.0 - t0, self.k), rwarp_inv(1.0 - t1, self.k)
+        phi = t2 * PI if self.k_phi is None else (1.0 - rwarp_inv(1.0 - t2, self.k_phi)) * PI
+        si, so = np.sqrt(np.maximum(1 - ci * ci, 0)), np.sqrt(np.maximum(1 - co * co, 0))
+        dot = si * so * np.cos(phi) + ci * co
+        hl = np.sqrt(np.maximum(2.0 + 2.0 * dot, 1e-300))
+        return np.maximum(ci, 1e-6), np.maximum(co, 1e-6), (ci + co) / hl, np.sqrt(np.maximum((1 + dot) / 2, 0))
+
+    def coords(self, ci, co, ch, cd):
+        si, so = np.sqrt(np.maximum(1 - ci * ci, 0)), np.sqrt(np.maximum(1 - co * co, 0))
+        den = si * so
+        cp = np.where(den > 1e-300, (2 * cd * cd - 1 - ci * co) / np.where(den > 1e-300, den, 1.0), 1.0)
+        phi = np.arccos(np.clip(cp, -1.0, 1.0)) / PI
+        t2 = phi if self.k_phi is None else 1.0 - rwarp(1.0 - phi, self.k_phi)
+        return 1.0 - rwarp(ci, self.k), 1.0 - rwarp(co, self.k), t2
+
+
+class LuneTable:
+    """A table over θh and ωd's position in the half-vector frame, in which both horizons are
+    faces. With ωd = (x, y, z) in h's frame (z = cos θd, x along the plane of n and h),
+    cos θi = z cos θh − x sin θh and cos θo = z cos θh + x sin θh, so the directions above
+    both horizons are the lune |x| < z cot θh. Write ωd = (cos η sin ψ, sin η, cos η cos ψ):
+    then cos θi = cos η cos(θh + ψ), cos θo = cos η cos(θh − ψ), cos θd = cos η cos ψ, and the
+    lune is |ψ| < π/2 − θh, η ∈ [0, π/2]. Coordinates: θh through `thw`; s = ψ/(π/2 − θh)
+    ∈ [−1, 1], dense toward both ends through `rwarp(1 − |s|, k_s)` (s = ±1: θi or θo at the
+    horizon); η through `1 − rwarp(cos η, k_eta)` (η = π/2: both at the horizon)."""
+
+    def __init__(self, name, thw, k_s, k_eta):
+        self.name, self.thw, self.k_s, self.k_eta = name, thw, k_s, k_eta
+
+    def dirs(self, t0, t1, t2):
+        th = self.thw.inv(t0)
+        a = 2.0 * t1 - 1.0
+        s = np.sign(a) * (1.0 - rwarp_inv(1.0 - np.abs(a), self.k_s))
+        psi = s * (HALF_PI - th)
+        ce = rwarp_inv(1.0 - t2, self.k_eta)
+        ci = np.maximum(ce * np.cos(th + psi), 1e-6)
+        co = np.maximum(ce * np.cos(th - psi), 1e-6)
+        return ci, co, np.cos(th), ce * np.cos(psi)
+
+    def coords(self, ci, co, ch, cd):
+        th = np.arccos(np.clip(ch, -1.0, 1.0))
+        sh = np.sin(th)
+        x = np.where(sh > 1e-300, (co - ci) / (2.0 * np.where(sh > 1e-300, sh, 1.0)), 0.0)
+        z = cd
+        y = np.sqrt(np.maximum(1.0 - x * x - z * z, 0.0))
+        psi = np.arctan2(x, z)
+        ce = np.cos(np.arctan2(y, np.hypot(x, z)))
+        s = np.clip(psi / np.maximum(HALF_PI - th, 1e-300), -1.0, 1.0)
+        t1 = 0.5 + 0.5 * np.sign(s) * (1.0 - rwarp(1.0 - np.abs(s), self.k_s))
+        return self.thw.fwd(th), t1, 1.0 - rwarp(ce, self.k_eta)
+
+
+def table_params(k):
+    """The parametrisations of part 5 (k: the engine's θh warp constant)."""
+    eng, mix = ThWarp(k), ThWarp(k, 0.5)
+    return {
+        "θd uniform (part 4)": RusTable("θd uniform", eng),
+        "θd: uniform in 1 − cos θd": RusTable(
+            "1-cos", eng, lambda td: 1.0 - np.cos(td), lambda t: np.arccos(np.clip(1.0 - t, -1, 1))),
+        "θd: uniform in 1 − √(1 − sin θd)": RusTable(
+            "sqrt(1-sin)", eng, lambda td: 1.0 - np.sqrt(np.maximum(1.0 - np.sin(td), 0.0)),
+            lambda t: np.arcsin(np.clip(1.0 - (1.0 - t) ** 2, -1, 1))),
+        "θd: 1 − rwarp(cos θd, 0.02)": RusTable(
+            "rwarp cos 0.02", eng, lambda td: 1.0 - rwarp(np.cos(td), 0.02),
+            lambda t: np.arccos(np.clip(rwarp_inv(1.0 - t, 0.02), -1, 1))),
+        "θd to the horizon, rwarp 0.01": RusTable("fitted 0.01", eng, k_fit=0.01),
+        "θd to the horizon, rwarp 0.03": RusTable("fitted 0.03", eng, k_fit=0.03),
+        "θd to the horizon, rwarp 0.1": RusTable("fitted 0.1", eng, k_fit=0.1),
+        "θd to the horizon, rwarp 0.1, θh blend": RusTable("fitted 0.1 mix", mix, k_fit=0.1),
+        "lune, k_s 0.03, k_η 0.03": LuneTable("lune", eng, 0.03, 0.03),
+        "lune, k_s 0.1, k_η 0.1": LuneTable("lune", eng, 0.1, 0.1),
+        "lune, k_s 0.03, k_η 0.03, θh blend": LuneTable("lune mix", mix, 0.03, 0.03),
+        "lune, k_s 0.1, k_η 0.1, θh blend": LuneTable("lune mix", mix, 0.1, 0.1),
+        "(θi, θo, φ), rwarp(cos, 0.02)": InOutTable("io", 0.02),
+        "(θi, θo, φ), rwarp(cos, 0.02), φ rwarp 0.02": InOutTable("io phi", 0.02, 0.02),
+    }
+
+
+def part5_runs(k):
+    """Part 5's tables: every parametrisation on a 1.1 MB-per-basis master and two coarser
+    subsamples, then a size sweep of the best one on a larger master."""
+    p = table_params(k)
+    runs = []
+    for name, param in p.items():
+        if isinstance(param, InOutTable):
+            runs.append((name, param, (129, 129, 65), [(65, 65, 33), (129, 129, 65)]))
+        else:
+            runs.append((name, param, (129, 65, 65), [(65, 33, 33), (129, 65, 33), (129, 65, 65)]))
+    sweep = [(33, 17, 17), (65, 33, 33), (129, 65, 65), (257, 65, 65), (129, 129, 65), (129, 65, 129), (257, 129, 129)]
+    best = "lune, k_s 0.1, k_η 0.1, θh blend"
+    runs.append((f"sweep: {best}", p[best], (257, 129, 129), sweep))
+    return runs
+
+
+def basis_function(energy, rs, fam_norm, coef):
+    """ρ̃_k at arbitrary cosines `(points, N_b)`, from the metal training lobes."""
+    fam, norm = fam_norm
+    nt, mt = norm[fam.train], fam.m[fam.train]
+
+    def f(ci, co, ch, cd):
+        return eval_basis(lobe_columns(energy, rs, METAL_FAMS, ci, co, ch, cd), nt, mt, coef)
+
+    return f
+
+
+def tabulate(param, shape, fn, nb, chunk=40000):
+    """`fn(t0, t1, t2) → (points, nb)` on the node grid `shape` of `param` (t uniform)."""
+    axes = [np.linspace(0.0, 1.0, n) for n in shape]
+    grid = [a.ravel() for a in np.meshgrid(*axes, indexing="ij")]
+    out = np.empty((grid[0].size, nb))
+    for lo in range(0, grid[0].size, chunk):
+        out[lo:lo + chunk] = fn(*(g[lo:lo + chunk] for g in grid))
+    return out.reshape(*shape, nb)
+
+
+def check_param(param, q):
+    """Round trip of the quadrature's directions through the table coordinates (`coords`
+    then `dirs`), and the trilinear interpolation, at the quadrature's table coordinates, of
+    a table of a product of affine functions of the (warped) table coordinates, which
+    trilinear reproduces exactly: both should be at rounding level."""
+    tq = param.coords(*q.args())
+    back = param.dirs(*tq)
+    rt = max(float(np.abs(a - b).max()) for a, b in zip(back, q.args(), strict=True))
+
+    def poly(t0, t1, t2):
+        return ((1.0 + 2.0 * t0) * (3.0 - t1) * (0.5 + t2))[:, None]
+
+    tab = tabulate(param, (9, 7, 5), poly, 1)
+    err = float(np.abs(trilinear(tab, *tq) - poly(*tq)).max())
+    in_range = min(float(t.min()) for t in tq) >= 0.0 and max(float(t.max()) for t in tq) <= 1.0
+    return {"round trip max |Δcos|": rt, "trilinear on affine product max |Δ|": err, "coords in [0,1]": in_range}
+
+
+def table_errors(sub, param_tq, q, w, basis_q, lobes):
+    interp = trilinear(sub, *param_tq) / (q.ci * q.co)[:, None]
+    d = interp - basis_q
+    e = np.sqrt(w @ d**2) / np.sqrt(w @ basis_q**2)
+    e[0] = 0.0  # the constant is not tabulated
+    le = {r: float(np.sqrt(w @ (d @ c) ** 2) / n) for r, (c, n) in lobes.items()}
+    return float(e.max()), e, le
+
+
+def subsample(tab, master, shape):
+    st = [(m - 1) // (n - 1) for m, n in zip(master, shape, strict=True)]
+    return tab[:: st[0], :: st[1], :: st[2]]
+
+
+def param_part(q, energy, rs, fam_norm, nb, meas, basis_q, runs):
+    """Part 5: for each (parametrisation, master shape, sub-shapes), the worst basis' RMS
+    error over its RMS and the r = 0.1 / 0.3 white-metal lobes' relative L2, as part 4."""
+    fam, _ = fam_norm
+    coef = fam.capped(nb - 1)
+    fn = basis_function(energy, rs, fam_norm, coef)
+    w = q.w[meas]
+    lobes = {}
+    for r in (0.1, 0.3):
+        f = lobe_columns(energy, [r], [("metal", 1.0)], *q.args())[:, 0]
+        lobes[r] = (basis_q.T @ (w * f), np.sqrt(w @ f**2))
+    out = {}
+    for name, param, master, shapes in runs:
+        chk = check_param(param, q)
+        t = time.time()
+
+        def quantity(t0, t1, t2, param=param):
+            ci, co, ch, cd = param.dirs(t0, t1, t2)
+            return fn(ci, co, ch, cd) * (ci * co)[:, None]
+
+        mtab = tabulate(param, master, quantity, nb)
+        tq = param.coords(*q.args())
+        rows = {}
+        for shape in shapes:
+            emax, e, le = table_errors(subsample(mtab, master, shape), tq, q, w, basis_q, lobes)
+            rows["x".join(map(str, shape))] = {
+                "nodes": int(np.prod(shape)), "MB per basis f16": np.prod(shape) * 2 / 1e6,
+                "worst basis": emax, "worst basis index": int(np.argmax(e)),
+                "lobe r=0.1": le[0.1], "lobe r=0.3": le[0.3],
+            }
+        out[name] = {"checks": chk, "master": list(master), "rows": rows}
+        log(f"part 5, {name}: master {master} in {time.time() - t:.0f}s, checks {chk}")
+        for key, v in rows.items():
+            log(f"    {key:>14s} {v['MB per basis f16']:7.2f} MB  worst {v['worst basis']:.3g} "
+                f"(#{v['worst basis index']})  r=0.1 {v['lobe r=0.1']:.3g}  r=0.3 {v['lobe r=0.3']:.3g}")
+        del mtab
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--check", action="store_true", help="also run the refined quadrature (convergence)")
     ap.add_argument("--json", help="write the figures to this file")
     ap.add_argument("--roughness", type=int, default=96, help="roughness samples in [0.1, 1], uniform in ln r")
-    ap.add_argument("--skip-tables", action="store_true")
+    ap.add_argument("--skip-tables", action="store_true", help="skip parts 4 and 5")
+    ap.add_argument("--tables-only", action="store_true", help="build the metal basis, then run parts 4 and 5 only")
     args = ap.parse_args()
     out = {}
     nr = args.roughness
     rs = np.exp(np.linspace(np.log(0.1), np.log(1.0), nr))
     energy = Energy(0.1, 1.0, 2 * (nr - 1) + 1)
     log("energy tables")
+    if args.tables_only:
+        tables_only(args, rs, energy, Quad(96, 40, 48))
+        return
     out["cross_checks"] = cross_checks(energy)
     log(f"cross checks {json.dumps(out['cross_checks'])}")
 
@@ -851,11 +1142,46 @@ def main():
     out["f16"] = f16
     log("f16: " + json.dumps(f16, indent=1))
     if not args.skip_tables:
-        out["tables"] = table_part(q, energy, rs, fams[(meas, "metal")], nb_metal, meas, basis_q)
-        log("tables: " + json.dumps(out["tables"], indent=1))
-    if args.json:
-        with open(args.json, "w") as f:
+        tables(out, q, energy, rs, fams[(meas, "metal")], nb_metal, meas, basis_q)
+    write_json(out, args.json)
+
+
+def tables(out, q, energy, rs, fam_norm, nb, meas, basis_q):
+    """Parts 4 and 5."""
+    out["tables"] = table_part(q, energy, rs, fam_norm, nb, meas, basis_q)
+    log("tables: " + json.dumps(out["tables"], indent=1))
+    runs = part5_runs(warp_k(rs[0] ** 2))
+    out["table parametrisations"] = param_part(q, energy, rs, fam_norm, nb, meas, basis_q, runs)
+
+
+def write_json(out, path):
+    if path:
+        with open(path, "w") as f:
             json.dump(out, f, indent=1, default=float)
+
+
+def tables_only(args, rs, energy, q):
+    """`--tables-only`: the cos-measure metal basis exactly as the full run builds it (same
+    columns, Gram and capped PCA), then parts 4 and 5 alone."""
+    nr = len(rs)
+    out = {}
+    cols = lobe_columns(energy, rs, FAMS, *q.args())
+    meas = "cos"
+    g, m, norm = gram_of(cols, q.w[meas])
+    fam = Family(g, m, columns_of(nr, lambda f: f[0] == "metal" and f[1] in METAL_TRAIN))
+    nb = 16
+    for n in COUNTS:
+        e = fam.errors(fam.capped(n - 1), fam.train)
+        if e.mean() <= 0.01 and e.max() <= 0.03:
+            nb = n
+            break
+    coef = fam.capped(nb - 1)
+    basis_q = eval_basis(cols[:, fam.train], norm[fam.train], fam.m[fam.train], coef)
+    del cols
+    out["chosen counts"] = {"metal": nb}
+    log(f"tables only: metal basis N_b {nb}")
+    tables(out, q, energy, rs, (fam, norm), nb, meas, basis_q)
+    write_json(out, args.json)
 
 
 if __name__ == "__main__":
