@@ -229,23 +229,29 @@ pub(crate) trait EntryKernels: Copy + std::fmt::Debug + TileOutputKernels {
     /// once, instead of once per entry: it sums the entries first and adds the sum to the
     /// rows, which for rows that start at 0 (a tile's node rows) are the same additions in
     /// the same order as `grey` per entry. `entries` is an iterator so that its caller can
-    /// gather other entries on the way (the loop over a tile's entries drives it).
+    /// gather other entries on the way (the loop over a tile's entries drives it), and it is
+    /// handed back, run out, so that the caller reads what it gathered from its fields:
+    /// taken by value, its state can live in registers through the loop, where through a
+    /// reference it would be stored and reloaded per entry.
     ///
     /// # Panics
     /// As [`grey`](Self::grey), for any entry.
     #[inline(always)]
-    fn grey_stream<S: Sample>(
+    fn grey_stream<S: Sample, I: Iterator<Item = Option<(usize, [f32; 3])>>>(
         self,
         r: &mut [f32],
         g: &mut [f32],
         b: &mut [f32],
         values: &[S],
         len: usize,
-        entries: impl Iterator<Item = Option<(usize, [f32; 3])>>,
-    ) {
-        for (start, weight) in entries.flatten() {
-            self.grey(r, g, b, &values[start..], len, weight);
+        mut entries: I,
+    ) -> I {
+        while let Some(item) = entries.next() {
+            if let Some((start, weight)) = item {
+                self.grey(r, g, b, &values[start..], len, weight);
+            }
         }
+        entries
     }
 
     /// [`grey_stream`](Self::grey_stream) for the entries of `pending` that cover segment
@@ -279,7 +285,8 @@ pub(crate) trait EntryKernels: Copy + std::fmt::Debug + TileOutputKernels {
             ahead.read(len * std::mem::size_of::<S>());
             Some((start, p.weight))
         });
-        self.grey_stream(r, g, b, values, len, entries);
+        // Run out: nothing to read back from it.
+        let _ = self.grey_stream(r, g, b, values, len, entries);
     }
 
     /// Sets the rows to zero, then [`grey`](Self::grey) for each of `entries` in order:
@@ -552,27 +559,30 @@ mod x86 {
         }
 
         #[inline(always)]
-        fn grey_stream<S: Sample>(
+        fn grey_stream<S: Sample, I: Iterator<Item = Option<(usize, [f32; 3])>>>(
             self,
             r: &mut [f32],
             g: &mut [f32],
             b: &mut [f32],
             values: &[S],
             len: usize,
-            entries: impl Iterator<Item = Option<(usize, [f32; 3])>>,
-        ) {
+            mut entries: I,
+        ) -> I {
             // Rows of up to four vectors (a lattice segment at the presets' steps) stay in
             // twelve registers; longer ones go through memory per entry.
             let args = (values, len);
             match padded(len) / LANES {
-                1 => grey_in_registers::<S, 1>(r, g, b, args, entries),
-                2 => grey_in_registers::<S, 2>(r, g, b, args, entries),
-                3 => grey_in_registers::<S, 3>(r, g, b, args, entries),
-                4 => grey_in_registers::<S, 4>(r, g, b, args, entries),
+                1 => grey_in_registers::<S, 1, I>(r, g, b, args, entries),
+                2 => grey_in_registers::<S, 2, I>(r, g, b, args, entries),
+                3 => grey_in_registers::<S, 3, I>(r, g, b, args, entries),
+                4 => grey_in_registers::<S, 4, I>(r, g, b, args, entries),
                 _ => {
-                    for (start, weight) in entries.flatten() {
-                        self.grey(r, g, b, &values[start..], len, weight);
+                    while let Some(item) = entries.next() {
+                        if let Some((start, weight)) = item {
+                            self.grey(r, g, b, &values[start..], len, weight);
+                        }
                     }
+                    entries
                 }
             }
         }
@@ -709,13 +719,17 @@ mod x86 {
     ///
     /// Only called from `Avx2`'s methods, so the CPU has AVX2, FMA and F16C.
     #[inline(always)]
-    fn grey_in_registers<S: Sample, const V: usize>(
+    fn grey_in_registers<
+        S: Sample,
+        const V: usize,
+        I: Iterator<Item = Option<(usize, [f32; 3])>>,
+    >(
         r: &mut [f32],
         g: &mut [f32],
         b: &mut [f32],
         (values, len): (&[S], usize),
-        entries: impl Iterator<Item = Option<(usize, [f32; 3])>>,
-    ) {
+        mut entries: I,
+    ) -> I {
         let end = V * LANES;
         assert!(
             padded(len) == end && r.len() >= end && g.len() >= end && b.len() >= end,
@@ -730,7 +744,7 @@ mod x86 {
             let (mut ar, mut ag, mut ab) = ([zero; V], [zero; V], [zero; V]);
             // One pass of the loop per item, skipped ones included (a nested loop to skip
             // them had the compiler spill the accumulators).
-            for item in entries {
+            while let Some(item) = entries.next() {
                 let Some((start, weight)) = item else {
                     continue;
                 };
@@ -763,6 +777,7 @@ mod x86 {
                 }
             }
         }
+        entries
     }
 }
 

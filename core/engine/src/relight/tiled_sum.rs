@@ -212,8 +212,17 @@ const DENSE_CHANGE_SHARE: usize = 5;
 /// callback, so the entry loop's body stays in the function compiled for the kernels (a
 /// closure is a function of its own, and not always inlined).
 trait EntrySelection: Sync {
-    /// `(entry index, weight)` of each entry of `tile` to add, in entry order.
-    fn entries<'t>(&'t self, tile: &'t StackTile) -> impl Iterator<Item = (usize, Rgb)> + 't;
+    /// Whether [`entries`](Self::entries) has an item for every entry of the tile (a table
+    /// walk) rather than for a few looked up.
+    const WALKS_EVERY_ENTRY: bool;
+    /// One item per candidate entry of `tile`, in entry order: `Some((entry, weight))` for one
+    /// to add, `None` for one skipped. Skipped entries are items rather than filtered out so
+    /// that the loops over them stay one loop: a filter nests a loop inside the entry loop,
+    /// around which the compiler spills the kernels' register accumulators.
+    fn entries<'t>(
+        &'t self,
+        tile: &'t StackTile,
+    ) -> impl Iterator<Item = Option<(&'t TileLayer, Rgb)>> + 't;
 }
 
 /// Every entry whose layer has a non-zero factor in a per-layer table: the weights for a
@@ -224,11 +233,15 @@ struct PerLayerTable<'a> {
 }
 
 impl EntrySelection for PerLayerTable<'_> {
+    const WALKS_EVERY_ENTRY: bool = true;
     #[inline(always)]
-    fn entries<'t>(&'t self, tile: &'t StackTile) -> impl Iterator<Item = (usize, Rgb)> + 't {
-        tile.entries.iter().enumerate().filter_map(|(k, e)| {
+    fn entries<'t>(
+        &'t self,
+        tile: &'t StackTile,
+    ) -> impl Iterator<Item = Option<(&'t TileLayer, Rgb)>> + 't {
+        tile.entries.iter().map(|e| {
             let f = self.factors[e.layer as usize];
-            (f != Rgb::ZERO).then_some((k, f))
+            (f != Rgb::ZERO).then_some((e, f))
         })
     }
 }
@@ -240,11 +253,15 @@ struct SearchedLayers<'a> {
 }
 
 impl EntrySelection for SearchedLayers<'_> {
+    const WALKS_EVERY_ENTRY: bool = false;
     #[inline(always)]
-    fn entries<'t>(&'t self, tile: &'t StackTile) -> impl Iterator<Item = (usize, Rgb)> + 't {
-        self.changed.iter().filter_map(|(l, delta)| {
+    fn entries<'t>(
+        &'t self,
+        tile: &'t StackTile,
+    ) -> impl Iterator<Item = Option<(&'t TileLayer, Rgb)>> + 't {
+        self.changed.iter().map(|(l, delta)| {
             let k = tile.entries.binary_search_by_key(l, |e| e.layer).ok()?;
-            Some((k, *delta))
+            Some((&tile.entries[k], *delta))
         })
     }
 }
@@ -348,14 +365,28 @@ fn sum_tile_with<K: EntryKernels, S: Sample, Sel: EntrySelection>(
 ) {
     let pixels = image.rect.pixels();
     // A tile nothing selects (most tiles of an edit's incremental sum) costs nothing, not
-    // even a look at its lattice.
-    let mut entries = select.entries(tile);
-    let added = match entries.next() {
-        Some(first) => {
-            let entries = std::iter::once(first).chain(entries);
-            add_entries(kernels, tile, values, pixels, entries, acc, ahead)
+    // even a look at its lattice, unless the selection walks the tile's whole table anyway
+    // (a full sum, or an edit of many layers): then the entry loop walks it once, without a
+    // look for a first entry ahead of it, and a tile where it adds nothing is left as is.
+    let added = if Sel::WALKS_EVERY_ENTRY {
+        add_entries(
+            kernels,
+            tile,
+            values,
+            pixels,
+            select.entries(tile),
+            acc,
+            ahead,
+        )
+    } else {
+        let mut entries = select.entries(tile);
+        match entries.by_ref().flatten().next() {
+            Some(first) => {
+                let entries = std::iter::once(Some(first)).chain(entries);
+                add_entries(kernels, tile, values, pixels, entries, acc, ahead)
+            }
+            None => false,
         }
-        None => false,
     };
     if added {
         acc.fold_rgb(pixels);
@@ -429,12 +460,12 @@ fn tile_bytes(tile: &StackTile) -> usize {
 /// entries' sum (zeroed when there are none) and the RGB row is zeroed at the first RGB
 /// entry, so a tile without RGB entries never touches the RGB row.
 #[inline(always)]
-fn add_entries<K: EntryKernels, S: Sample>(
+fn add_entries<'t, K: EntryKernels, S: Sample>(
     kernels: K,
-    tile: &StackTile,
+    tile: &'t StackTile,
     values: &[S],
     pixels: usize,
-    entries: impl Iterator<Item = (usize, Rgb)>,
+    entries: impl Iterator<Item = Option<(&'t TileLayer, Rgb)>>,
     acc: &mut TileAccumulators,
     mut ahead: Ahead,
 ) -> bool {
@@ -454,10 +485,9 @@ fn add_entries<K: EntryKernels, S: Sample>(
     let mut pending_segments = 0u32;
     let mut grey_in = Gathered::new(&mut grey, tile.entries.len());
     let mut pending_in = Gathered::new(&mut pending, tile.entries.len());
-    for (k, w) in entries {
+    for (e, w) in entries.flatten() {
         ahead.read(std::mem::size_of::<TileLayer>());
         added = true;
-        let e = &tile.entries[k];
         let w = (w * e.scale).to_array();
         let start = e.offset as usize;
         if e.segments == 0 {

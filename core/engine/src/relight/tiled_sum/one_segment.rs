@@ -17,15 +17,15 @@ use crate::Rgb;
 /// [`super::add_entries`] for a tile whose lattice (`lattice`) has one segment.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-pub(super) fn add_entries_one_segment<K: EntryKernels, S: Sample>(
+pub(super) fn add_entries_one_segment<'t, K: EntryKernels, S: Sample>(
     kernels: K,
-    tile: &StackTile,
+    tile: &'t StackTile,
     lattice: &TileLattice,
     values: &[S],
     pixels: usize,
-    entries: impl Iterator<Item = (usize, Rgb)>,
+    entries: impl Iterator<Item = Option<(&'t TileLayer, Rgb)>>,
     acc: &mut TileAccumulators,
-    mut ahead: Ahead,
+    ahead: Ahead,
 ) -> bool {
     acc.forget_rgb();
     let mut grey = std::mem::take(&mut acc.grey);
@@ -34,21 +34,21 @@ pub(super) fn add_entries_one_segment<K: EntryKernels, S: Sample>(
     let seg = acc.segment(0);
     let nodes = seg.nodes;
     let lattice_bytes = nodes * std::mem::size_of::<S>();
-    let mut seen = Seen::default();
     let stream = OneSegmentStream {
         entries,
-        tile,
         grey: Gathered::new(&mut grey, tile.entries.len()),
         rgb: Gathered::new(&mut rgb, tile.entries.len()),
-        ahead: &mut ahead,
+        ahead,
         lattice_bytes,
-        seen: &mut seen,
+        added: false,
+        lattice_added: false,
     };
-    kernels.grey_stream(seg.r, seg.g, seg.b, values, nodes, stream);
-    let Seen {
+    let OneSegmentStream {
+        mut ahead,
         added,
         lattice_added,
-    } = seen;
+        ..
+    } = kernels.grey_stream(seg.r, seg.g, seg.b, values, nodes, stream);
     for e in rgb.iter().filter(|e| e.lattice) {
         kernels.rgb(seg.rgb, &values[e.start..], 3 * nodes, e.weight);
     }
@@ -72,39 +72,33 @@ pub(super) fn add_entries_one_segment<K: EntryKernels, S: Sample>(
 /// kernel's loop (a call there would spill the kernel's register accumulators).
 struct OneSegmentStream<'a, I> {
     entries: I,
-    tile: &'a StackTile,
     grey: Gathered<'a, GreyEntry>,
     rgb: Gathered<'a, RgbEntry>,
-    ahead: &'a mut Ahead,
+    ahead: Ahead,
     /// Bytes of one grey lattice entry's values.
     lattice_bytes: usize,
-    seen: &'a mut Seen,
-}
-
-/// What [`OneSegmentStream`] met.
-#[derive(Default)]
-struct Seen {
-    /// Whether any entry, any lattice entry was selected.
+    /// Whether any entry, any lattice entry was met that is not skipped.
     added: bool,
     lattice_added: bool,
 }
 
-impl<I: Iterator<Item = (usize, Rgb)>> Iterator for OneSegmentStream<'_, I> {
+impl<'t, I: Iterator<Item = Option<(&'t TileLayer, Rgb)>>> Iterator for OneSegmentStream<'_, I> {
     type Item = Option<(usize, [f32; 3])>;
 
-    /// The next selected entry: `Some((start, weight × scale))` for a grey lattice entry,
-    /// `None` for one gathered.
+    /// The next entry: `Some((start, weight × scale))` for a grey lattice entry, `None` for
+    /// one gathered or skipped.
     #[inline(always)]
     fn next(&mut self) -> Option<Option<(usize, [f32; 3])>> {
-        let (k, w) = self.entries.next()?;
-        self.seen.added = true;
-        let e = &self.tile.entries[k];
+        let Some((e, w)) = self.entries.next()? else {
+            return Some(None);
+        };
+        self.added = true;
         let weight = (w * e.scale).to_array();
         let start = e.offset as usize;
         if e.segments != 0 && e.channels == 1 {
             // A grey lattice entry (most entries): its row in the table and its values
             // reported read at once.
-            self.seen.lattice_added = true;
+            self.lattice_added = true;
             self.ahead
                 .read(std::mem::size_of::<TileLayer>() + self.lattice_bytes);
             return Some(Some((start, weight)));
@@ -122,7 +116,7 @@ impl<I: Iterator<Item = (usize, Rgb)>> Iterator for OneSegmentStream<'_, I> {
             }
             return Some(None);
         }
-        self.seen.lattice_added = true;
+        self.lattice_added = true;
         self.rgb.push(RgbEntry {
             start,
             weight,
