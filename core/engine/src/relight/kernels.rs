@@ -246,10 +246,8 @@ pub(crate) trait EntryKernels: Copy + std::fmt::Debug + TileOutputKernels {
         len: usize,
         mut entries: I,
     ) -> I {
-        while let Some(item) = entries.next() {
-            if let Some((start, weight)) = item {
-                self.grey(r, g, b, &values[start..], len, weight);
-            }
+        for (start, weight) in entries.by_ref().flatten() {
+            self.grey(r, g, b, &values[start..], len, weight);
         }
         entries
     }
@@ -577,10 +575,8 @@ mod x86 {
                 3 => grey_in_registers::<S, 3, I>(r, g, b, args, entries),
                 4 => grey_in_registers::<S, 4, I>(r, g, b, args, entries),
                 _ => {
-                    while let Some(item) = entries.next() {
-                        if let Some((start, weight)) = item {
-                            self.grey(r, g, b, &values[start..], len, weight);
-                        }
+                    for (start, weight) in entries.by_ref().flatten() {
+                        self.grey(r, g, b, &values[start..], len, weight);
                     }
                     entries
                 }
@@ -744,7 +740,7 @@ mod x86 {
             let (mut ar, mut ag, mut ab) = ([zero; V], [zero; V], [zero; V]);
             // One pass of the loop per item, skipped ones included (a nested loop to skip
             // them had the compiler spill the accumulators).
-            while let Some(item) = entries.next() {
+            for item in entries.by_ref() {
                 let Some((start, weight)) = item else {
                     continue;
                 };
