@@ -186,6 +186,8 @@ pub fn cpu_relight_figures(
         }
         per_region.push(json!({"region": info, "ms": median(times), "bytes_read": bytes}));
     }
+    // The first edit of a region keeps where its entries are (two bytes per entry).
+    let relight_own_after_edits = relighter.own_bytes();
     // One subsurface slider move per translucent region: Subsurface Scale changes, so the
     // s_k(σ) of three channels are projected again, then the region's layers re-summed.
     let mut subsurface_slider = Vec::new();
@@ -248,6 +250,9 @@ pub fn cpu_relight_figures(
         "relighter_own_bytes": relight_own,
         "relight_memory_bytes": stack_memory + relight_own,
         "relight_memory_over_stack": (stack_memory + relight_own) as f64 / stack_memory.max(1) as f64,
+        "relighter_own_bytes_after_edits": relight_own_after_edits,
+        "relight_memory_over_stack_after_edits":
+            (stack_memory + relight_own_after_edits) as f64 / stack_memory.max(1) as f64,
         "full_ms": full_ms,
         "full_min_ms": full_min_ms,
         "full_bytes_read": full_bytes,

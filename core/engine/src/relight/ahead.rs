@@ -70,6 +70,23 @@ impl Ahead {
     }
 }
 
+/// Asks for the lines of `bytes` bytes from `start` at once (a hint: nothing is read into
+/// the program and it never faults).
+#[inline(always)]
+pub(crate) fn fetch_range(start: usize, bytes: usize) {
+    let mut at = start & !(Ahead::LINE - 1);
+    while at < start + bytes {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: a prefetch is only a hint: it reads nothing into the program and never
+        // faults, whatever the address.
+        unsafe {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T1};
+            _mm_prefetch::<_MM_HINT_T1>(at as *const i8);
+        }
+        at += Ahead::LINE;
+    }
+}
+
 /// Share (in %) of the current tile's reading by which the walk over the next tile is done:
 /// below 100 so that the next tile's first values are in the cache before it starts, with
 /// room for the reports' own unevenness.

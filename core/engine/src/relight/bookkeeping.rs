@@ -197,7 +197,7 @@ impl RelightBookkeeping {
             self.weights[l as usize] = new;
             self.effective[l as usize] = delta * self.scales[l as usize];
         }
-        match sum.incremental(layers, &self.effective) {
+        match sum.incremental_region(region, layers, &self.effective) {
             Ok(stats) => {
                 self.stats = RelightStats {
                     incremental: true,

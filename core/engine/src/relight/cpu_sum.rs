@@ -4,8 +4,11 @@
 //!
 //! The sum is memory-bound: a full relight reads every entry of a non-zero weight once (a
 //! tile row per rayon task, the tile's accumulators in L1), an incremental one only the
-//! changed layers' entries (found per tile by binary search in the tile's sorted table, or,
-//! when many layers changed, by walking the table against a per-layer table of deltas).
+//! changed layers' entries: for an edit of one region, from the list of that region's
+//! entries per tile kept since its first edit ([`RegionEntries`]), asking the memory for the
+//! next tile's listed values and pixels while it sums a tile; otherwise found per tile by
+//! binary search in the tile's sorted table, or, when many layers changed, by walking the
+//! table against a per-layer table of deltas.
 //! In the test profile (debug assertions on) the SIMD intrinsics carry UB checks and the
 //! sum is several times slower: time release builds only. Measured figures are in
 //! `docs/measurements.md`.
@@ -17,6 +20,7 @@ use crate::{Result, Rgb};
 
 use super::kernels::Kernels;
 use super::layer_sum::{LayerSum, RelightStats};
+use super::region_entries::RegionEntries;
 use super::tiled_sum;
 
 /// The tiled stack, the image and the scratch of an incremental sum.
@@ -29,6 +33,9 @@ pub(crate) struct TiledLayerSum {
     image: Vec<f32>,
     /// Scratch: `(layer, delta)` of an incremental sum.
     changed: Vec<(u32, Rgb)>,
+    /// Per editable region edited so far, where its layers' entries are (`None`: not built
+    /// yet, or the stack's tables are too large to index).
+    regions: Vec<Option<RegionEntries>>,
 }
 
 impl TiledLayerSum {
@@ -45,6 +52,7 @@ impl TiledLayerSum {
             kernels,
             image,
             changed: Vec::new(),
+            regions: Vec::new(),
         })
     }
 
@@ -58,6 +66,12 @@ impl TiledLayerSum {
         self.image.capacity() * 4
             + self.layer_bytes.capacity() * std::mem::size_of::<usize>()
             + self.changed.capacity() * std::mem::size_of::<(u32, Rgb)>()
+            + self
+                .regions
+                .iter()
+                .flatten()
+                .map(RegionEntries::heap_bytes)
+                .sum::<usize>()
     }
 
     fn stats(&self, layers: impl Iterator<Item = usize>, effective: &[Rgb]) -> RelightStats {
@@ -87,6 +101,31 @@ impl LayerSum for TiledLayerSum {
                 .map(|&l| (l, effective.get(l as usize).copied().unwrap_or(Rgb::ZERO))),
         );
         tiled_sum::incremental_with(&self.stack, &self.changed, &mut self.image, self.kernels)?;
+        Ok(self.stats(layers.iter().map(|&l| l as usize), effective))
+    }
+
+    fn incremental_region(
+        &mut self,
+        region: usize,
+        layers: &[u32],
+        effective: &[Rgb],
+    ) -> Result<RelightStats> {
+        if self.regions.len() <= region {
+            self.regions.resize_with(region + 1, || None);
+        }
+        if self.regions[region].is_none() {
+            self.regions[region] = RegionEntries::build(&self.stack, layers)?;
+        }
+        let Some(entries) = &self.regions[region] else {
+            return self.incremental(layers, effective);
+        };
+        tiled_sum::incremental_listed(
+            &self.stack,
+            entries,
+            effective,
+            &mut self.image,
+            self.kernels,
+        )?;
         Ok(self.stats(layers.iter().map(|&l| l as usize), effective))
     }
 

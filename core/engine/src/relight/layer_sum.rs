@@ -34,6 +34,19 @@ pub trait LayerSum {
         effective: &[Rgb],
     ) -> Result<RelightStats, Self::Error>;
 
+    /// [`incremental`](Self::incremental) for an edit of editable region `region`, whose
+    /// layers `layers` are (the same list at every edit of the region): a sum may keep, per
+    /// region, where those layers are. By default it does not.
+    fn incremental_region(
+        &mut self,
+        region: usize,
+        layers: &[u32],
+        effective: &[Rgb],
+    ) -> Result<RelightStats, Self::Error> {
+        let _ = region;
+        self.incremental(layers, effective)
+    }
+
     /// The current image.
     fn image(&self) -> &[f32];
 }

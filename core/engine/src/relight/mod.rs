@@ -34,6 +34,7 @@ mod cpu;
 mod cpu_sum;
 pub(crate) mod kernels;
 mod layer_sum;
+mod region_entries;
 mod shape;
 mod tile_accumulators;
 mod tile_output;

@@ -259,6 +259,49 @@ fn rel_l2(image: &[f32], reference: &[f64]) -> f64 {
 /// the SIMD and the portable loops equals the entry-by-entry reference, and incremental
 /// sums of one changed layer (searched per tile) and of every layer (looked up per entry)
 /// equal a full sum at the new weights.
+/// An edit's sum over the entries listed for its layers ([`super::region_entries`]) adds
+/// the same terms in the same order as the sum that walks every table: the same image, bit
+/// for bit, on every kind of entry and both precisions; layers left out of the list are not
+/// added even where their delta is not zero.
+#[test]
+fn listed_edit_sum_equals_the_walked_one() {
+    use super::region_entries::RegionEntries;
+    use super::tiled_sum::{full_with, incremental_listed, incremental_with};
+    let (w, h) = (37u32, 21u32);
+    for precision in [Precision::F16, Precision::F32] {
+        let stack = mixed_tiled_stack(w, h, precision);
+        let n = stack.layers.len();
+        let weights: Vec<Rgb> = (0..n)
+            .map(|l| Rgb::new(0.3 + 0.01 * l as f32, -0.2, 1.0 - 0.02 * l as f32))
+            .collect();
+        // Every other layer edited (enough for the walked sum to walk the tables), one of
+        // them by zero; the deltas of the others are set too, and must be ignored.
+        let edited: Vec<u32> = (0..n as u32).filter(|l| l % 2 == 1).collect();
+        let deltas: Vec<Rgb> = (0..n)
+            .map(|l| match l {
+                1 => Rgb::ZERO,
+                _ => Rgb::new(0.1 * l as f32, -0.3, 0.05 + 0.02 * l as f32),
+            })
+            .collect();
+        let changed: Vec<(u32, Rgb)> = edited.iter().map(|&l| (l, deltas[l as usize])).collect();
+        let listed = RegionEntries::build(&stack, &edited).unwrap().unwrap();
+        for kernels in Kernels::available() {
+            let mut walked = vec![0.0f32; (w * h * 4) as usize];
+            full_with(&stack, &weights, &mut walked, kernels).unwrap();
+            let mut by_list = walked.clone();
+            incremental_with(&stack, &changed, &mut walked, kernels).unwrap();
+            incremental_listed(&stack, &listed, &deltas, &mut by_list, kernels).unwrap();
+            assert!(
+                walked
+                    .iter()
+                    .zip(&by_list)
+                    .all(|(a, b)| a.to_bits() == b.to_bits()),
+                "{precision:?} {kernels:?}: the listed sum differs from the walked one"
+            );
+        }
+    }
+}
+
 #[test]
 fn tiled_sum_matches_the_reference_on_every_kind_of_entry_and_path() {
     use super::tiled_sum::{full_with, incremental_with};

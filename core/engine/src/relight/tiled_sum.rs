@@ -45,9 +45,10 @@ mod one_segment;
 use gathered::Gathered;
 use one_segment::add_entries_one_segment;
 
-use super::ahead::Ahead;
+use super::ahead::{fetch_range, Ahead};
 use super::kernels::{EntryKernels, GreyEntry, Kernels, PendingEntry, Portable, Sample};
 use super::layer_weight;
+use super::region_entries::RegionEntries;
 use super::tile_accumulators::TileAccumulators;
 use super::tile_output::TileOutputKernels;
 use crate::stack::tiled::{StackTile, TileLayer, TileRect, TileValues, TiledStack, STACK_TILE};
@@ -202,6 +203,28 @@ pub(crate) fn incremental_with(
     Ok(())
 }
 
+/// [`incremental`] of an edit of one region: adds `deltas[layer] · layer` for the entries
+/// `entries` lists in each tile (the region's layers' entries; a zero delta is skipped),
+/// without walking the tables. The same additions in the same order as [`incremental`] with
+/// those layers and deltas.
+pub(crate) fn incremental_listed(
+    stack: &TiledStack,
+    entries: &RegionEntries,
+    deltas: &[Rgb],
+    out: &mut [f32],
+    kernels: Kernels,
+) -> Result<()> {
+    check_shapes(stack, deltas.len(), out)?;
+    sum(
+        stack,
+        out,
+        false,
+        kernels,
+        &ListedEntries { entries, deltas },
+    );
+    Ok(())
+}
+
 /// Share of the stack's layers (in %) from which an incremental sum looks each entry's
 /// layer up in a table of deltas instead of searching each changed layer in each tile: the
 /// tile's table is then walked once, as the full sum walks it, rather than searched once per
@@ -212,6 +235,13 @@ const DENSE_CHANGE_SHARE: usize = 5;
 /// callback, so the entry loop's body stays in the function compiled for the kernels (a
 /// closure is a function of its own, and not always inlined).
 trait EntrySelection: Sync {
+    /// Asks the memory for the values that summing tile `index` (`tile`, `pixels` pixels)
+    /// will read, at once, while the tile before it is summed; whether it asked for any. By
+    /// default nothing is asked.
+    #[inline(always)]
+    fn fetch(&self, _index: usize, _tile: &StackTile, _pixels: usize) -> bool {
+        false
+    }
     /// Whether [`entries`](Self::entries) has an item for every entry of the tile (a table
     /// walk) rather than for a few looked up.
     const WALKS_EVERY_ENTRY: bool;
@@ -221,6 +251,7 @@ trait EntrySelection: Sync {
     /// around which the compiler spills the kernels' register accumulators.
     fn entries<'t>(
         &'t self,
+        index: usize,
         tile: &'t StackTile,
     ) -> impl Iterator<Item = Option<(&'t TileLayer, Rgb)>> + 't;
 }
@@ -237,6 +268,7 @@ impl EntrySelection for PerLayerTable<'_> {
     #[inline(always)]
     fn entries<'t>(
         &'t self,
+        _index: usize,
         tile: &'t StackTile,
     ) -> impl Iterator<Item = Option<(&'t TileLayer, Rgb)>> + 't {
         tile.entries.iter().map(|e| {
@@ -257,11 +289,48 @@ impl EntrySelection for SearchedLayers<'_> {
     #[inline(always)]
     fn entries<'t>(
         &'t self,
+        _index: usize,
         tile: &'t StackTile,
     ) -> impl Iterator<Item = Option<(&'t TileLayer, Rgb)>> + 't {
         self.changed.iter().map(|(l, delta)| {
             let k = tile.entries.binary_search_by_key(l, |e| e.layer).ok()?;
             Some((&tile.entries[k], *delta))
+        })
+    }
+}
+
+/// An edit of one region: the entries its layers have in each tile, listed once per region
+/// ([`RegionEntries`]), with the per-layer weight changes.
+struct ListedEntries<'a> {
+    entries: &'a RegionEntries,
+    deltas: &'a [Rgb],
+}
+
+impl EntrySelection for ListedEntries<'_> {
+    const WALKS_EVERY_ENTRY: bool = false;
+    fn fetch(&self, index: usize, tile: &StackTile, pixels: usize) -> bool {
+        let (base, size) = match &tile.values {
+            TileValues::F16(v) => (v.as_ptr() as usize, 2),
+            TileValues::F32(v) => (v.as_ptr() as usize, 4),
+        };
+        let listed = self.entries.of_tile(index);
+        for &k in listed {
+            let e = &tile.entries[usize::from(k)];
+            let n = tile.value_count(e, pixels);
+            fetch_range(base + e.offset as usize * size, n * size);
+        }
+        !listed.is_empty()
+    }
+    #[inline(always)]
+    fn entries<'t>(
+        &'t self,
+        index: usize,
+        tile: &'t StackTile,
+    ) -> impl Iterator<Item = Option<(&'t TileLayer, Rgb)>> + 't {
+        self.entries.of_tile(index).iter().map(|&k| {
+            let e = &tile.entries[usize::from(k)];
+            let d = self.deltas[e.layer as usize];
+            (d != Rgb::ZERO).then_some((e, d))
         })
     }
 }
@@ -286,14 +355,28 @@ fn sum<Sel: EntrySelection>(
             let tile = &stack.tiles[index];
             let rect = stack.tile_rect(index);
             // A full sum reads (nearly) all of the next tile's values: fetch them while this
-            // tile is summed. An incremental one reads few of them, so it fetches nothing.
-            // (The next tile is the next tile row's first at the end of a row, which this
-            // worker usually sums next.)
+            // tile is summed, paced. An edit's sum reads a few of them, scattered: the
+            // selection asks for those it knows without a search (a region's listed
+            // entries), at once, and then for the next tile's pixels it adds to. (The next
+            // tile is the next tile row's first at the end of a row, which this worker
+            // usually sums next.)
             let ahead = match stack.tiles.get(index + 1) {
                 Some(next) if reset => Ahead::over(&next.values, tile_bytes(tile)),
+                Some(next) => {
+                    let next_rect = stack.tile_rect(index + 1);
+                    if select.fetch(index + 1, next, next_rect.pixels()) && tx + 1 < tiles_x {
+                        for dy in 0..next_rect.height as usize {
+                            let at = &rows[(dy * width + next_rect.x0 as usize) * 4..];
+                            let row_bytes = next_rect.width as usize * 16;
+                            fetch_range(at.as_ptr() as usize, row_bytes);
+                        }
+                    }
+                    Ahead::default()
+                }
                 _ => Ahead::default(),
             };
             let image = TileImage {
+                index,
                 rect,
                 width,
                 reset,
@@ -308,6 +391,8 @@ fn sum<Sel: EntrySelection>(
 /// A tile's pixels in the image: `rows` are its tile row's image rows (RGBA, `width`
 /// pixels each); `reset`: they are set to (0, 0, 0, 1) before the tile's sum is added.
 struct TileImage<'a> {
+    /// The tile's index in the stack.
+    index: usize,
     rect: TileRect,
     width: usize,
     reset: bool,
@@ -374,12 +459,12 @@ fn sum_tile_with<K: EntryKernels, S: Sample, Sel: EntrySelection>(
             tile,
             values,
             pixels,
-            select.entries(tile),
+            select.entries(image.index, tile),
             acc,
             ahead,
         )
     } else {
-        let mut entries = select.entries(tile);
+        let mut entries = select.entries(image.index, tile);
         match entries.by_ref().flatten().next() {
             Some(first) => {
                 let entries = std::iter::once(Some(first)).chain(entries);
