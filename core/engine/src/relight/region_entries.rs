@@ -6,6 +6,8 @@
 //! first edit and kept, so a relighter's memory grows by two bytes per entry of each region
 //! edited.
 
+use rayon::prelude::*;
+
 use crate::stack::tiled::TiledStack;
 use crate::Result;
 
@@ -29,13 +31,28 @@ impl RegionEntries {
             }
         }
         let is_wanted = |layer: u32| wanted.get(layer as usize).copied().unwrap_or(false);
-        let mut count = 0usize;
-        for tile in &stack.tiles {
-            if tile.entries.len() > usize::from(u16::MAX) + 1 {
-                return Ok(None);
-            }
-            count += tile.entries.iter().filter(|e| is_wanted(e.layer)).count();
+        if stack
+            .tiles
+            .iter()
+            .any(|t| t.entries.len() > usize::from(u16::MAX) + 1)
+        {
+            return Ok(None);
         }
+        // One pass over the tables, tiles in parallel (it is what a region's first edit
+        // waits for), then the lists laid end to end.
+        let per_tile: Vec<Vec<u16>> = stack
+            .tiles
+            .par_iter()
+            .map(|tile| {
+                let wanted_here = tile
+                    .entries
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, e)| is_wanted(e.layer));
+                wanted_here.map(|(k, _)| k as u16).collect()
+            })
+            .collect();
+        let count: usize = per_tile.iter().map(Vec::len).sum();
         if u32::try_from(count).is_err() {
             return Ok(None);
         }
@@ -43,13 +60,8 @@ impl RegionEntries {
             crate::memory::try_with_capacity(stack.tiles.len() + 1, "region entry list")?;
         let mut indices: Vec<u16> = crate::memory::try_with_capacity(count, "region entry list")?;
         starts.push(0);
-        for tile in &stack.tiles {
-            let wanted_here = tile
-                .entries
-                .iter()
-                .enumerate()
-                .filter(|(_, e)| is_wanted(e.layer));
-            indices.extend(wanted_here.map(|(k, _)| k as u16));
+        for list in &per_tile {
+            indices.extend_from_slice(list);
             starts.push(indices.len() as u32);
         }
         Ok(Some(RegionEntries { starts, indices }))
