@@ -58,13 +58,7 @@ impl Ahead {
                 self.owed = 0;
                 return;
             }
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: a prefetch is only a hint: it reads nothing into the program and never
-            // faults, whatever the address (here one inside a live allocation anyway).
-            unsafe {
-                use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T1};
-                _mm_prefetch::<_MM_HINT_T1>(self.next as *const i8);
-            }
+            fetch_line(self.next);
             self.next += Self::LINE;
         }
     }
@@ -76,15 +70,24 @@ impl Ahead {
 pub(crate) fn fetch_range(start: usize, bytes: usize) {
     let mut at = start & !(Ahead::LINE - 1);
     while at < start + bytes {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: a prefetch is only a hint: it reads nothing into the program and never
-        // faults, whatever the address.
-        unsafe {
-            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T1};
-            _mm_prefetch::<_MM_HINT_T1>(at as *const i8);
-        }
+        fetch_line(at);
         at += Ahead::LINE;
     }
+}
+
+/// Asks for the cache line at `address` into the L2 cache (on other CPUs than x86-64,
+/// nothing).
+#[inline(always)]
+fn fetch_line(address: usize) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: a prefetch is only a hint: it reads nothing into the program and never
+    // faults, whatever the address.
+    unsafe {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T1};
+        _mm_prefetch::<_MM_HINT_T1>(address as *const i8);
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = address;
 }
 
 /// Share (in %) of the current tile's reading by which the walk over the next tile is done:
