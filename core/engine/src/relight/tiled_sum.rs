@@ -13,8 +13,10 @@
 //! A tile's values are not read front to back (per-pixel entries in groups, lattice entries
 //! segment by segment), which the hardware prefetchers follow poorly, so the loads waited
 //! on memory. A full sum therefore walks the next tile's values with prefetches while it
-//! sums the current tile, paced by what the current tile's loops read (`super::ahead`); an
-//! incremental one, which reads little of each tile, does not.
+//! sums the current tile, paced by what the current tile's loops read (`super::ahead`). An
+//! incremental one reads little of each tile: an edit of one region, whose entries are
+//! listed per tile ([`RegionEntries`]), asks at once for the next tile's listed values and
+//! pixels; the other incremental sums fetch nothing ahead.
 //!
 //! Lattice entries ([`crate::stack::tiled::lattice`]) are summed in the lattice: each adds
 //! weight × its coefficients into per-segment node accumulators (cost ∝ its coefficients,
