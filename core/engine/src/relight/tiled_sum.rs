@@ -15,7 +15,7 @@
 //! on memory. A full sum therefore walks the next tile's values with prefetches while it
 //! sums the current tile, paced by what the current tile's loops read (`super::ahead`). An
 //! incremental one reads little of each tile: an edit of one region, whose entries are
-//! listed per tile ([`RegionEntries`]), asks at once for the next tile's listed values and
+//! listed per tile (`super::region_entries`), asks at once for the next tile's listed values and
 //! pixels; the other incremental sums fetch nothing ahead.
 //!
 //! Lattice entries ([`crate::stack::tiled::lattice`]) are summed in the lattice: each adds
