@@ -33,10 +33,7 @@ impl Ahead {
     /// A walk over `next`, paced so that it ends once about [`FINISH_SHARE`] % of
     /// `current_bytes` (what the current tile's sum reads) has been reported read.
     pub(crate) fn over(next: &TileValues, current_bytes: usize) -> Ahead {
-        let (start, bytes) = match next {
-            TileValues::F16(v) => (v.as_ptr() as usize, std::mem::size_of_val(&v[..])),
-            TileValues::F32(v) => (v.as_ptr() as usize, std::mem::size_of_val(&v[..])),
-        };
+        let (start, bytes) = (next.address(), next.bytes());
         let lines = bytes.div_ceil(Self::LINE) as u64;
         let paced = (current_bytes as u64 * FINISH_SHARE / 100).max(1);
         Ahead {

@@ -33,9 +33,9 @@ pub(crate) struct TiledLayerSum {
     image: Vec<f32>,
     /// Scratch: `(layer, delta)` of an incremental sum.
     changed: Vec<(u32, Rgb)>,
-    /// Per editable region edited so far, where its layers' entries are (`None`: not built
-    /// yet, or the stack's tables are too large to index).
-    regions: Vec<Option<RegionEntries>>,
+    /// Per editable region, where its layers' entries are: `None` until its first edit, then
+    /// `Some(None)` when the stack's tables are too large to list (its edits walk them).
+    regions: Vec<Option<Option<RegionEntries>>>,
 }
 
 impl TiledLayerSum {
@@ -69,6 +69,7 @@ impl TiledLayerSum {
             + self
                 .regions
                 .iter()
+                .flatten()
                 .flatten()
                 .map(RegionEntries::heap_bytes)
                 .sum::<usize>()
@@ -114,9 +115,10 @@ impl LayerSum for TiledLayerSum {
             self.regions.resize_with(region + 1, || None);
         }
         if self.regions[region].is_none() {
-            self.regions[region] = RegionEntries::build(&self.stack, layers)?;
+            // Built once, or found unlistable once: not tried again at every edit.
+            self.regions[region] = Some(RegionEntries::build(&self.stack, layers)?);
         }
-        let Some(entries) = &self.regions[region] else {
+        let Some(Some(entries)) = &self.regions[region] else {
             return self.incremental(layers, effective);
         };
         tiled_sum::incremental_listed(

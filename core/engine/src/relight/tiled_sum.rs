@@ -311,10 +311,7 @@ struct ListedEntries<'a> {
 impl EntrySelection for ListedEntries<'_> {
     const WALKS_EVERY_ENTRY: bool = false;
     fn fetch(&self, index: usize, tile: &StackTile, pixels: usize) -> bool {
-        let (base, size) = match &tile.values {
-            TileValues::F16(v) => (v.as_ptr() as usize, 2),
-            TileValues::F32(v) => (v.as_ptr() as usize, 4),
-        };
+        let (base, size) = (tile.values.address(), tile.values.sample_bytes());
         let listed = self.entries.of_tile(index);
         for &k in listed {
             let e = &tile.entries[usize::from(k)];
@@ -534,11 +531,7 @@ mod avx2 {
 
 /// Bytes a full sum of `tile` reads: its values and its entry table.
 fn tile_bytes(tile: &StackTile) -> usize {
-    let values = match &tile.values {
-        TileValues::F16(v) => std::mem::size_of_val(&v[..]),
-        TileValues::F32(v) => std::mem::size_of_val(&v[..]),
-    };
-    values + std::mem::size_of_val(&tile.entries[..])
+    tile.values.bytes() + std::mem::size_of_val(&tile.entries[..])
 }
 
 /// The entry loop of one tile: each of `entries` (`(entry index, weight)`, as

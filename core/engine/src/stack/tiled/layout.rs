@@ -129,9 +129,20 @@ impl TileValues {
     }
     /// Bytes of value storage.
     pub fn bytes(&self) -> usize {
+        self.len() * self.sample_bytes()
+    }
+    /// Bytes of one value.
+    pub fn sample_bytes(&self) -> usize {
         match self {
-            TileValues::F16(v) => v.len() * 2,
-            TileValues::F32(v) => v.len() * 4,
+            TileValues::F16(_) => 2,
+            TileValues::F32(_) => 4,
+        }
+    }
+    /// Address of the first value (for cache prefetches).
+    pub fn address(&self) -> usize {
+        match self {
+            TileValues::F16(v) => v.as_ptr() as usize,
+            TileValues::F32(v) => v.as_ptr() as usize,
         }
     }
     /// Value `i` as f32 (before the entry's scale).
