@@ -12,6 +12,13 @@ cd "$(dirname "$0")/.."
 export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-/tmp/relume-runtime-$(id -u)}"
 mkdir -p -m 700 "$XDG_RUNTIME_DIR"
 command -v cargo >/dev/null || { echo "test: needs the Rust toolchain (cargo) on PATH" >&2; exit 1; }
+# A test run writes its build folders beside the sources (the README gives their size);
+# a full disk shows up as a linker or rustc I/O error far into the run, so say it at the start.
+# Incremental artefacts only help repeated local builds, so the run does without them.
+export CARGO_INCREMENTAL="${CARGO_INCREMENTAL:-0}"
+free_gib=$(df -Pk . | awk 'NR==2 { printf "%d", $4 / 1048576 }')
+echo "== disk: ${free_gib} GiB free here; a full run from a clean clone needs about ${RELUME_TEST_DISK_GIB:=6} GiB"
+[ "$free_gib" -ge "$RELUME_TEST_DISK_GIB" ] || echo "test: warning: less disk free than a full run needs; expect 'No space left on device' from the build" >&2
 echo "== asset scenes"
 python3 assets/build_scenes.py --out assets && git diff --exit-code --stat -- assets/*.scene.json || { echo "assets: committed scene files differ from what build_scenes.py makes" >&2; exit 1; }
 echo "== Vulkan software driver (lavapipe) for the GPU relight tests"
