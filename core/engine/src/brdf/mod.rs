@@ -7,6 +7,7 @@ pub mod blinn_phong;
 pub mod cycles_principled;
 pub mod material;
 pub mod principled;
+pub mod principled_basis;
 pub mod principled_fit;
 
 pub use crate::bssrdf::mapping::Subsurface;

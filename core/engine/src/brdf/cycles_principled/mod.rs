@@ -40,7 +40,7 @@ pub const ROUGHNESS_MIN: f64 = 0.05;
 
 /// Values of a function of `cos θo` on a uniform grid, interpolated linearly.
 #[derive(Clone, Debug)]
-struct MuTable(Vec<f64>);
+pub(crate) struct MuTable(Vec<f64>);
 
 const MU_NODES: usize = 48;
 
@@ -48,14 +48,14 @@ impl MuTable {
     fn build(f: impl FnMut(f64) -> f64) -> MuTable {
         MuTable((0..MU_NODES).map(mu_node).map(f).collect())
     }
-    fn at(&self, mu: f64) -> f64 {
+    pub(crate) fn at(&self, mu: f64) -> f64 {
         let x = (mu.clamp(0.0, 1.0) * MU_NODES as f64 - 0.5).clamp(0.0, (MU_NODES - 1) as f64);
         let i = (x.floor() as usize).min(MU_NODES - 2);
         let t = x - i as f64;
         self.0[i] * (1.0 - t) + self.0[i + 1] * t
     }
     /// `∫ 2μ f(μ) dμ` by the midpoint rule on the nodes.
-    fn cosine_mean(&self) -> f64 {
+    pub(crate) fn cosine_mean(&self) -> f64 {
         self.0
             .iter()
             .enumerate()
@@ -66,6 +66,19 @@ impl MuTable {
 
 fn mu_node(k: usize) -> f64 {
     (k as f64 + 0.5) / MU_NODES as f64
+}
+
+/// `E(μo)`: the single-scattering albedo of GGX at `alpha` with Fresnel 1, per view cosine;
+/// its [`MuTable::cosine_mean`] is `Eavg`. The multiple-scattering factor of every
+/// Principled lobe is built from these two.
+pub(crate) fn single_scatter_albedo(alpha: f64) -> MuTable {
+    MuTable::build(|mu| {
+        let mut e = 0.0;
+        incident_nodes(mu, alpha, Resolution::FINE, |n| {
+            e += ggx_single(alpha, n.cos_i, mu, n.cos_h) * n.cos_i * n.d_omega_i;
+        });
+        e.clamp(1e-6, 1.0)
+    })
 }
 
 /// Cycles' Principled reflection for one set of inputs, ready to evaluate.
@@ -125,13 +138,7 @@ impl CyclesPrincipled {
         let base = p.base_color.map(|b| finite_or(b, 0.8, 0.0, 1.0));
         let metallic = finite_or(p.metallic, 0.0, 0.0, 1.0);
         let (spec_f0, eta) = dielectric_spec(p.ior, p.specular_ior_level);
-        let energy = MuTable::build(|mu| {
-            let mut e = 0.0;
-            incident_nodes(mu, alpha, Resolution::FINE, |n| {
-                e += ggx_single(alpha, n.cos_i, mu, n.cos_h) * n.cos_i * n.d_omega_i;
-            });
-            e.clamp(1e-6, 1.0)
-        });
+        let energy = single_scatter_albedo(alpha);
         let e_avg = energy.cosine_mean();
         let f0_real = f0_from_ior(eta);
         let layer_s = MuTable::build(|mu| {

@@ -1,0 +1,269 @@
+//! Checks of the Principled basis at a small size (tests run unoptimised); the full-size
+//! figures come from `cargo run --release --example principled_basis`.
+
+use std::f64::consts::PI;
+use std::sync::OnceLock;
+
+use super::lune::{LuneCoords, LuneTable};
+use super::*;
+
+fn small_config() -> PrincipledBasisConfig {
+    PrincipledBasisConfig {
+        roughness_min: 0.1,
+        roughness_nodes: 12,
+        bases: 10,
+        quadrature: QuadratureSize {
+            theta_h: 64,
+            theta_d: 16,
+            phi_d: 24,
+        },
+        table: TableSize {
+            theta_h: 33,
+            s: 17,
+            eta: 17,
+        },
+    }
+}
+
+fn small() -> &'static PrincipledBasis {
+    static BASIS: OnceLock<PrincipledBasis> = OnceLock::new();
+    BASIS.get_or_init(|| PrincipledBasis::build(&small_config()).expect("small basis builds"))
+}
+
+/// `Σ_q w_q f(q)` over the small basis' nodes.
+fn mean_of(f: impl Fn(Cosines) -> f64) -> f64 {
+    small().nodes.iter().map(|n| n.weight * f(n.c)).sum()
+}
+
+#[test]
+fn quadrature_integrates_the_cosine_pair_and_a_white_furnace() {
+    let b = small();
+    let total = b.report().quadrature_total;
+    assert!(
+        (total / (PI * PI) - 1.0).abs() < 5e-3,
+        "∫∫ cos cos = {total}, π² = {}",
+        PI * PI
+    );
+    // A white metal (F0 = 1) with multiple scattering reflects everything at every view:
+    // ∫∫ f cos θi cos θo dωi dωo = π, i.e. the mean is 1/π.
+    for r in [0.3, 0.6, 1.0] {
+        let lobe = PrincipledBasis::lobe(Family::Metal { f0: 1.0 }, r);
+        let albedo = PI * mean_of(&lobe);
+        assert!(
+            (albedo - 1.0).abs() < 0.02,
+            "white metal at roughness {r}: {albedo}"
+        );
+    }
+}
+
+#[test]
+fn bases_are_orthonormal_and_orthogonal_to_the_constant() {
+    let b = small();
+    let ns = b.nspec;
+    assert_eq!(b.count(), small_config().bases);
+    let mut gram = vec![0.0; ns * ns];
+    let mut means = vec![0.0; ns];
+    for (n, phi) in b.nodes.iter().zip(b.at_nodes.chunks(ns)) {
+        for k in 0..ns {
+            means[k] += n.weight * phi[k];
+            for l in 0..ns {
+                gram[k * ns + l] += n.weight * phi[k] * phi[l];
+            }
+        }
+    }
+    for k in 0..ns {
+        assert!(means[k].abs() < 1e-8, "basis {k} has mean {}", means[k]);
+        for l in 0..ns {
+            let want = if k == l { 1.0 } else { 0.0 };
+            assert!(
+                (gram[k * ns + l] - want).abs() < 1e-8,
+                "⟨φ{k}, φ{l}⟩ = {}",
+                gram[k * ns + l]
+            );
+        }
+    }
+}
+
+#[test]
+fn projecting_a_training_lobe_gives_the_pcas_own_error() {
+    let b = small();
+    let families = default_families();
+    let rs = b.roughness();
+    for (a, b_) in [(0, 0), (3, 4), (7, 5), (11, 7)] {
+        let (coef, error) = b.project(PrincipledBasis::lobe(families[b_], rs[a]));
+        let want = b.lobe_errors[a * families.len() + b_];
+        assert!(
+            (error - want).abs() < 1e-6,
+            "lobe ({a}, {b_}): {error} against {want}"
+        );
+        assert_eq!(coef.len(), b.count());
+    }
+}
+
+#[test]
+fn rebuilt_lobes_match_the_lobe_by_their_error() {
+    // f ≈ Σ c_k ρ_k with the exact bases: the residual's norm is the projection error.
+    let b = small();
+    let lobe = PrincipledBasis::lobe(Family::Metal { f0: 0.6 }, 0.37);
+    let (coef, error) = b.project(&lobe);
+    let mut v = vec![0.0; b.count()];
+    let (mut num, mut den) = (0.0, 0.0);
+    for n in &b.nodes {
+        b.eval_exact(n.c, &mut v);
+        let rebuilt: f64 = v.iter().zip(&coef).map(|(a, c)| a * c).sum();
+        let f = lobe(n.c);
+        num += n.weight * (rebuilt - f).powi(2);
+        den += n.weight * f * f;
+    }
+    let direct = (num / den).sqrt();
+    assert!(
+        (direct - error).abs() < 1e-6 * (1.0 + error),
+        "{direct} against {error}"
+    );
+}
+
+#[test]
+fn lobes_between_the_training_ones_are_represented_as_well() {
+    // F0 0.1 / 0.9 are not trained on, nor roughness between the nodes, nor IOR 1.4.
+    let b = small();
+    let worst = b.report().lobe_worst;
+    let rs = b.roughness();
+    for family in [
+        Family::Metal { f0: 0.1 },
+        Family::Metal { f0: 0.9 },
+        Family::Dielectric { ior: 1.4 },
+    ] {
+        for a in [0, 5, 10] {
+            let r = (rs[a] * rs[a + 1]).sqrt();
+            let (_, error) = b.project(PrincipledBasis::lobe(family, r));
+            assert!(
+                error < 1.5 * worst,
+                "{family:?} at {r}: {error} (trained worst {worst})"
+            );
+        }
+    }
+}
+
+#[test]
+fn lune_coordinates_round_trip_and_stay_in_the_box() {
+    let coords = LuneCoords::new(0.01);
+    for n in small().nodes.iter().step_by(37) {
+        let t = coords.coords(n.c);
+        assert!(t.iter().all(|x| (0.0..=1.0).contains(x)), "{t:?}");
+        let back = coords.cosines(t);
+        for (a, b) in [
+            (back.cos_i, n.c.cos_i),
+            (back.cos_o, n.c.cos_o),
+            (back.cos_h, n.c.cos_h),
+            (back.cos_d, n.c.cos_d),
+        ] {
+            assert!((a - b).abs() < 1e-9, "{:?} came back as {back:?}", n.c);
+        }
+    }
+}
+
+#[test]
+fn trilinear_tables_reproduce_a_product_of_affine_functions() {
+    let coords = LuneCoords::new(0.01);
+    let poly = |t: [f64; 3]| (1.0 + 2.0 * t[0]) * (3.0 - t[1]) * (0.5 + t[2]);
+    let size = TableSize {
+        theta_h: 9,
+        s: 7,
+        eta: 5,
+    };
+    let table = LuneTable::fill(size, coords, 1, |c, out| out[0] = poly(coords.coords(c)));
+    let mut v = [0.0];
+    // The lune's s coordinate is degenerate at θh = 0 (every s gives θi = θo = θd), at
+    // θh = 90° and at η = 90° (both directions on the horizon), so a function of s cannot
+    // be tabulated there (a BRDF times cos θi cos θo can: it does not depend on s at those
+    // faces); the cells beside those three faces are left out.
+    let (h, e) = (1.0 / (size.theta_h - 1) as f64, 1.0 / (size.eta - 1) as f64);
+    let inside = small().nodes.iter().filter(|n| {
+        let t = coords.coords(n.c);
+        t[0] > h && t[0] < 1.0 - h && t[2] < 1.0 - e
+    });
+    for n in inside.step_by(11) {
+        table.eval(n.c, &mut v);
+        let got = v[0] * n.c.cos_i * n.c.cos_o;
+        let want = poly(coords.coords(n.c));
+        assert!(
+            (got - want).abs() < 1e-5 * want,
+            "{got} against {want} at {:?}",
+            n.c
+        );
+    }
+}
+
+#[test]
+fn tables_rebuild_lobes_close_to_the_exact_bases() {
+    // Bounds a little above what this small size measures (0.014 and 0.075: the coarse
+    // θh axis is what the rough lobe's grazing tails feel); the full size's figures come
+    // from the example.
+    let b = small();
+    let r = b.report();
+    assert!(
+        r.table_worst_basis < 0.5,
+        "worst basis table error {}",
+        r.table_worst_basis
+    );
+    for (roughness, bound) in [(0.3, 0.03), (0.7, 0.1)] {
+        let lobe = PrincipledBasis::lobe(Family::Metal { f0: 1.0 }, roughness);
+        let e = b.rebuild_errors(&lobe);
+        eprintln!(
+            "roughness {roughness}: {e:?}, worst basis {}",
+            r.table_worst_basis
+        );
+        assert!(e.tables_alone < bound, "roughness {roughness}: {e:?}");
+        // The two errors add in quadrature at most (triangle inequality).
+        assert!(
+            e.with_tables <= e.projection + e.tables_alone + 1e-12,
+            "{e:?}"
+        );
+    }
+}
+
+#[test]
+fn bad_configurations_are_refused() {
+    let mut c = small_config();
+    c.roughness_min = 0.01;
+    assert!(PrincipledBasis::build(&c).is_err());
+    let mut c = small_config();
+    c.bases = 1;
+    assert!(PrincipledBasis::build(&c).is_err());
+    let mut c = small_config();
+    c.table.eta = 1;
+    let e = PrincipledBasis::build(&c)
+        .err()
+        .expect("refused")
+        .to_string();
+    assert!(e.contains("principled basis"), "{e}");
+}
+
+#[test]
+fn metal_curves_give_the_direct_projection() {
+    let b = small();
+    for roughness in [0.1, 0.23, 0.55, 1.0] {
+        let f0 = [1.0, 0.5, 0.1];
+        let (curves, clamped) = b.metal_coefficients(f0, roughness);
+        assert!(!clamped, "roughness {roughness} is in the range");
+        for (ch, &f) in f0.iter().enumerate() {
+            let (direct, _) = b.project(PrincipledBasis::lobe(Family::Metal { f0: f }, roughness));
+            let norm = direct.iter().map(|c| c * c).sum::<f64>().sqrt();
+            let diff = curves
+                .iter()
+                .zip(&direct)
+                .map(|(c, d)| (c[ch] - d).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            assert!(
+                diff < 2e-3 * norm,
+                "roughness {roughness}, F0 {f}: {diff} of {norm}"
+            );
+        }
+    }
+    let (_, clamped) = b.metal_coefficients([0.5; 3], 0.05);
+    assert!(
+        clamped,
+        "roughness 0.05 is below the range and must be reported"
+    );
+}
