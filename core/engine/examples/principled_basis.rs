@@ -5,9 +5,11 @@
 //!
 //! `cargo run --release -p relume-engine --example principled_basis [-- --small]`
 
+use relume_engine::brdf::cycles_principled::CyclesPrincipled;
 use relume_engine::brdf::principled_basis::{
     Family, PrincipledBasis, PrincipledBasisConfig, QuadratureSize, TableSize,
 };
+use relume_engine::brdf::Principled;
 
 fn main() {
     let small = std::env::args().any(|a| a == "--small");
@@ -61,6 +63,118 @@ fn main() {
         "config": basis.config(),
         "report": basis.report(),
         "lobes": lobes,
+        "diffuse_under_dielectric": diffuse_weights(),
+        "diffuse_weight_pca": diffuse_weight_pca(),
     });
     println!("{}", serde_json::to_string_pretty(&out).expect("JSON"));
+}
+
+/// Cycles weights a dielectric's diffuse base by `1 − albedo(μo)` of its specular layer, a
+/// function of the view alone that a constant diffuse slot cannot follow. Per roughness and
+/// IOR: the weight at normal and grazing view, the best constant under the cos measure
+/// (for a function of μo alone that measure is `μo dμo`), and the relative L2 error of that
+/// constant (what keeping `Kd/π` with the averaged weight would cost the diffuse part).
+fn diffuse_weights() -> Vec<serde_json::Value> {
+    const NODES: usize = 2000;
+    let mut out = vec![];
+    for ior in [1.33f32, 1.5, 1.8] {
+        for roughness in [0.1f32, 0.3, 0.5, 0.8, 1.0] {
+            let m = CyclesPrincipled::new(&Principled {
+                base_color: [0.8; 3],
+                metallic: 0.0,
+                roughness,
+                ior,
+                specular_ior_level: 0.5,
+            });
+            let mus: Vec<f64> = (0..NODES)
+                .map(|i| (i as f64 + 0.5) / NODES as f64)
+                .collect();
+            let g: Vec<f64> = mus.iter().map(|&mu| m.diffuse_weight(mu)).collect();
+            let w_sum: f64 = mus.iter().sum();
+            let c = mus.iter().zip(&g).map(|(mu, g)| mu * g).sum::<f64>() / w_sum;
+            let err2: f64 = mus.iter().zip(&g).map(|(mu, g)| mu * (g - c).powi(2)).sum();
+            let norm2: f64 = mus.iter().zip(&g).map(|(mu, g)| mu * g * g).sum();
+            out.push(serde_json::json!({
+                "ior": ior,
+                "roughness": roughness,
+                "weight_at_normal_view": m.diffuse_weight(1.0),
+                "weight_at_grazing_view_0_05": m.diffuse_weight(0.05),
+                "best_constant": c,
+                "constant_rel_l2": (err2 / norm2).sqrt(),
+            }));
+        }
+    }
+    out
+}
+
+/// How many functions of μo the diffuse weights `1 − albedo(μo)` of every dielectric of the
+/// range need: a PCA (the constant in the fit, as the bases') of the weights at roughness
+/// 0.1–1 (24 values uniform in ln r) and IOR 1.1–2.5 (8 values), under `μo dμo`; per count
+/// of extra functions, the mean and worst relative L2 of the weights.
+fn diffuse_weight_pca() -> Vec<serde_json::Value> {
+    use relume_engine::linalg::top_eigenpairs;
+    const NODES: usize = 400;
+    let mus: Vec<f64> = (0..NODES)
+        .map(|i| (i as f64 + 0.5) / NODES as f64)
+        .collect();
+    let w_sum: f64 = mus.iter().sum();
+    let mut fns: Vec<Vec<f64>> = vec![];
+    for a in 0..24 {
+        let roughness = (0.1f64.ln() * (1.0 - a as f64 / 23.0)).exp() as f32;
+        for b in 0..8 {
+            let ior = (1.1 + 1.4 * b as f64 / 7.0) as f32;
+            let m = CyclesPrincipled::new(&Principled {
+                base_color: [0.8; 3],
+                metallic: 0.0,
+                roughness,
+                ior,
+                specular_ior_level: 0.5,
+            });
+            fns.push(mus.iter().map(|&mu| m.diffuse_weight(mu)).collect());
+        }
+    }
+    let l = fns.len();
+    let dot = |f: &[f64], g: &[f64]| -> f64 {
+        mus.iter()
+            .zip(f.iter().zip(g))
+            .map(|(mu, (a, b))| mu * a * b)
+            .sum::<f64>()
+            / w_sum
+    };
+    // Residuals from the constant (unit norm under the normalised measure).
+    let res: Vec<Vec<f64>> = fns
+        .iter()
+        .map(|f| {
+            let m = dot(f, &vec![1.0; NODES]);
+            f.iter().map(|v| v - m).collect()
+        })
+        .collect();
+    let mut gram = vec![0.0; l * l];
+    for i in 0..l {
+        for j in 0..l {
+            gram[i * l + j] = dot(&res[i], &res[j]);
+        }
+    }
+    let (lam, v) = top_eigenpairs(&gram, l);
+    let rank = lam.len();
+    let mut out = vec![];
+    for extra in 0..=3usize.min(rank) {
+        // Error of function i: ‖r_i‖² − Σ_k (G v_k)_i² / λ_k.
+        let errs: Vec<f64> = (0..l)
+            .map(|i| {
+                let mut e2 = gram[i * l + i];
+                for k in 0..extra {
+                    let p: f64 = (0..l).map(|j| gram[i * l + j] * v[j * rank + k]).sum();
+                    e2 -= p * p / lam[k].max(1e-300);
+                }
+                (e2.max(0.0) / dot(&fns[i], &fns[i])).sqrt()
+            })
+            .collect();
+        out.push(serde_json::json!({
+            "extra_functions": extra,
+            "mean_rel_l2": errs.iter().sum::<f64>() / l as f64,
+            "worst_rel_l2": errs.iter().cloned().fold(0.0, f64::max),
+        }));
+    }
+    out
 }

@@ -11,7 +11,8 @@ use crate::bake::guide::GuideField;
 use crate::bake::mixture::DirectionMixture;
 use crate::bake::settings::BakeSettings;
 use crate::bake::subsurface::{self, TranslucentRegion};
-use crate::brdf::{BasisConfig, BlinnPhong, BrdfBasis};
+use crate::bake::surface_brdf::SurfaceBrdf;
+use crate::brdf::{BasisConfig, BrdfBasis};
 use crate::bssrdf::{SssBasis, SubsurfaceInfo};
 use crate::geometry::{bvh::SceneGeometry, camera::CameraRays, lights::LightSet, texture::Texture};
 use crate::layer_key::PathVertex;
@@ -25,7 +26,7 @@ pub enum RegionModel {
     /// Editable region number `index`, in the basis `basis`.
     Editable { index: u16, basis: Arc<BrdfBasis> },
     /// Part of the fixed region R̂ with this BRDF.
-    Fixed { material: BlinnPhong },
+    Fixed { material: SurfaceBrdf },
 }
 
 /// A region ready for the integrator.
@@ -42,8 +43,9 @@ pub struct PreparedRegion {
     /// uniform sampling; always used beyond the first bounce).
     pub mixture: DirectionMixture,
     /// Its bake-time material: what the bake evaluates at path vertices beyond the first
-    /// bounce (the "frozen tail", see [`crate::bake::integrator`]), editable regions included.
-    pub frozen: BlinnPhong,
+    /// bounce (the "frozen tail", see [`crate::bake::integrator`]), editable regions included
+    /// (theirs as the mapped Blinn–Phong, see [`SurfaceBrdf`]).
+    pub frozen: SurfaceBrdf,
 }
 
 /// Everything fixed for a bake.
@@ -179,18 +181,23 @@ impl BakeContext {
                     first_slot,
                     slot_count: count as u32,
                     mixture: DirectionMixture::editable(&material, lo, hi),
-                    frozen: material,
+                    frozen: SurfaceBrdf::BlinnPhong(material),
                 });
                 editable_index += 1;
             } else {
+                // Sampled by its Blinn–Phong mapping's lobe (a valid pdf for any BRDF),
+                // evaluated exactly.
+                let surface = SurfaceBrdf::exact(&region.material);
                 regions.push(PreparedRegion {
                     name: region.name.clone(),
-                    model: RegionModel::Fixed { material },
+                    model: RegionModel::Fixed {
+                        material: surface.clone(),
+                    },
                     texture,
                     first_slot: u32::MAX,
                     slot_count: 1,
                     mixture: DirectionMixture::fixed(&material),
-                    frozen: material,
+                    frozen: surface,
                 });
             }
         }

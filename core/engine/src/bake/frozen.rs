@@ -38,5 +38,5 @@ pub fn blinn_phong_value(m: &BlinnPhong, albedo: Rgb, cos_delta: f32) -> Rgb {
 #[inline]
 pub fn frozen_value(ctx: &BakeContext, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3) -> Rgb {
     let r = &ctx.regions[region as usize];
-    blinn_phong_value(&r.frozen, albedo_at(r, uv), cos_half_angle(n, wi, wo))
+    r.frozen.value(albedo_at(r, uv), n, wi, wo)
 }

@@ -45,6 +45,7 @@ pub mod signature;
 pub mod stream;
 pub mod subsurface;
 pub mod subsurface_light;
+pub mod surface_brdf;
 pub mod tiles;
 pub mod to_file;
 pub mod trace;

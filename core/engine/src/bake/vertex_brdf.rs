@@ -58,7 +58,7 @@ impl VertexBrdf for BasisBrdf<'_> {
                 (r.first_slot, r.slot_count as usize)
             }
             RegionModel::Fixed { material } => {
-                out[0] = blinn_phong_value(material, albedo_at(r, uv), cos_delta);
+                out[0] = material.value(albedo_at(r, uv), n, wi, wo);
                 (r.first_slot, 1)
             }
         }
@@ -107,11 +107,14 @@ impl VertexBrdf for MaterialBrdf<'_> {
     #[inline]
     fn tail(&self, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3) -> Rgb {
         let r = &self.ctx.regions[region as usize];
-        let material = match &r.model {
-            RegionModel::Fixed { material } => material,
-            RegionModel::Editable { index, .. } => &self.materials[*index as usize],
-        };
-        blinn_phong_value(material, albedo_at(r, uv), cos_half_angle(n, wi, wo))
+        match &r.model {
+            RegionModel::Fixed { material } => material.value(albedo_at(r, uv), n, wi, wo),
+            RegionModel::Editable { index, .. } => blinn_phong_value(
+                &self.materials[*index as usize],
+                albedo_at(r, uv),
+                cos_half_angle(n, wi, wo),
+            ),
+        }
     }
 
     #[inline]
@@ -127,9 +130,7 @@ impl VertexBrdf for MaterialBrdf<'_> {
         let r = &self.ctx.regions[region as usize];
         let cos_delta = cos_half_angle(n, wi, wo);
         out[0] = match &r.model {
-            RegionModel::Fixed { material } => {
-                blinn_phong_value(material, albedo_at(r, uv), cos_delta)
-            }
+            RegionModel::Fixed { material } => material.value(albedo_at(r, uv), n, wi, wo),
             RegionModel::Editable { index, basis } => {
                 let e = *index as usize;
                 match &self.coefficients {

@@ -201,8 +201,23 @@ impl CyclesPrincipled {
     /// BRDF value (no cosine factor) per RGB channel for light from `cos θi`, view `cos θo`,
     /// half vector at `cos θh` from the normal and `cos θd = ωo·h`. Zero below the surface.
     pub fn eval_cosines(&self, cos_i: f64, cos_o: f64, cos_h: f64, cos_d: f64) -> [f64; 3] {
+        let (glossy, diffuse) = self.eval_parts(cos_i, cos_o, cos_h, cos_d);
+        std::array::from_fn(|c| glossy[c] + diffuse[c])
+    }
+
+    /// [`Self::eval_cosines`] as two parts whose sum it is: the GGX layers (metal and
+    /// dielectric specular), and the diffuse base (`base colour/π` times its view-dependent
+    /// weight and `1 − metallic`), kept apart so that an albedo texture can scale the diffuse
+    /// base alone, as it scales a Blinn–Phong `Kd`.
+    pub fn eval_parts(
+        &self,
+        cos_i: f64,
+        cos_o: f64,
+        cos_h: f64,
+        cos_d: f64,
+    ) -> ([f64; 3], [f64; 3]) {
         if !(cos_i > 0.0) || !(cos_o > 0.0) {
-            return [0.0; 3];
+            return ([0.0; 3], [0.0; 3]);
         }
         let single = ggx_single(self.alpha, cos_i, cos_o, cos_h);
         let e = self.energy.at(cos_o);
@@ -213,13 +228,13 @@ impl CyclesPrincipled {
         } else {
             0.0
         };
-        let diffuse_w = self.diffuse_weight(cos_o);
-        std::array::from_fn(|c| {
+        let diffuse_w = (1.0 - m) * self.diffuse_weight(cos_o) / PI;
+        let glossy = std::array::from_fn(|c| {
             let metal =
                 single * fresnel_schlick(cos_d, self.base[c]) * (1.0 + self.fms_metal[c] * miss);
-            let diffuse = self.base[c] / PI * diffuse_w;
-            m * metal + (1.0 - m) * (diel_spec + diffuse)
-        })
+            m * metal + (1.0 - m) * diel_spec
+        });
+        (glossy, self.base.map(|b| b * diffuse_w))
     }
 
     /// Directional albedo `∫ f cos θi dωi` per channel at view `cos θo`.
