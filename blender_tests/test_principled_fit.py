@@ -1,7 +1,10 @@
-"""Per material against Cycles: the Blinn–Phong fitted to Cycles' Principled BSDF
-(core/engine/src/brdf/principled_fit, docs/principled_fit.md) and the analytic mapping it
-replaced, on a row of Principled spheres — metals at roughness 0.1–0.8, dielectrics — with
-the same one-bounce transport on both sides (support/cycles.py says what "the same" means).
+"""Per material against Cycles: fixed Principled materials, which Relume evaluates as Cycles
+does (GGX, Fresnel, multiple scattering and the diffuse base's view-dependent weight:
+core/engine/src/bake/surface_brdf.rs, since session 30), and the analytic Blinn–Phong
+mapping they were rendered with before the fit (core/engine/src/brdf/principled_fit,
+docs/principled_fit.md), on a row of Principled spheres — metals at roughness 0.1–0.8,
+dielectrics — with the same one-bounce transport on both sides (support/cycles.py says what
+"the same" means). The spheres are fixed regions; the floor is the scene's editable region.
 
 Which pixel belongs to which material comes from a material-ID image rendered by Cycles: each
 object's material swapped for an Emission of a unique value (black world, box filter), so a
@@ -11,12 +14,13 @@ pixel samples differ, are left out).
 
 Per material the mean brightness (RGB summed over its pixels) of Relume over Cycles is the
 figure, for two placements of one area light (in front, above the camera; to the side). The
-issue's goal — metals within 5 %, dielectrics within 3 % — is not reached by any Blinn–Phong
-under Relume's lobe normalisation and Kd + Ks ≤ 1 (the ratio depends on where the light is:
-docs/principled_fit.md), so the test asserts the measured gap per material (MEASURED_BOUND)
-and that, over the metals, the fit is closer to Cycles than the analytic mapping; the goal,
-whether each material meets it, and both mappings' ratios go to `principled_fit.json` in
-pytest's basetemp.
+issue's goal — metals within 5 %, dielectrics within 3 % — is asserted for every sphere but
+the smoothest metal (roughness 0.1), which measured 0.95–1.02 in front (bake seeds 0–2: the
+seed alone moves it by 4 %) and 1.11–1.15 to the side (a bias not yet explained:
+docs/principled_fit.md); it gets a bound on that measured gap instead. Over the metals the
+exact evaluation must beat the analytic mapping. Every figure goes to `principled_fit.json`
+in pytest's basetemp. (Editable Principled materials still go through the Blinn–Phong basis
+and the fitted mapping; their per-material figures are in docs/principled_fit.md.)
 """
 
 from __future__ import annotations
@@ -43,15 +47,12 @@ SPHERES = (
     ("Dielectric r0.3", (0.2, 0.35, 0.7), 0.0, 0.3),
     ("Dielectric r0.6", (0.8, 0.8, 0.8), 0.0, 0.6),
 )
-#: The issue's goals (metals within 5 % of Cycles' mean brightness, dielectrics within 3 %),
-#: recorded beside the figures; the fit does not reach them (docs/principled_fit.md).
+#: The issue's goals: metals within 5 % of Cycles' mean brightness, dielectrics within 3 %.
 GOAL = {"metal": 0.05, "dielectric": 0.03}
-#: What is asserted instead: per material, |Relume/Cycles − 1| with the fit at most the
-#: largest measured over both light placements when this test was written (2026-11-24, bpy
-#: 5.0.1) plus 0.03 for noise (Cycles' per-material noise is ≈ 0.3 %, Relume's similar) —
-#: a bound on the measured gap, not the goal.
-MEASURED_BOUND = {"Metal r0.1": 0.27, "Metal r0.3": 0.14, "Metal r0.5": 0.30, "Metal r0.8": 0.22,
-                  "Dielectric r0.3": 0.135, "Dielectric r0.6": 0.05}
+#: Materials held to a measured gap instead of the goal: |Relume/Cycles − 1| measured at most
+#: 0.153 over bake seeds 0–2 and both light placements (2026-11-27, bpy 5.0.1), plus Cycles'
+#: per-material noise (≈ 0.3 %) and a margin.
+MEASURED_BOUND = {"Metal r0.1": 0.17}
 
 _RESULTS: dict[str, dict] = {}
 
@@ -211,7 +212,7 @@ def per_material(image: np.ndarray, ids: np.ndarray, names: list[str]) -> dict[s
 
 
 @pytest.mark.parametrize("light_at", sorted(LIGHTS))
-def test_fitted_mapping_per_material_against_cycles(addon, prefs, blend_dir, results_file, light_at):
+def test_fixed_principled_per_material_against_cycles(addon, prefs, blend_dir, results_file, light_at):
     scene = build_scene(light_at)
     ids, names = material_ids(scene, blend_dir / "ids.exr")
     counts = {name: int((ids == k).sum()) for k, name in enumerate(names)}
@@ -220,43 +221,43 @@ def test_fitted_mapping_per_material_against_cycles(addon, prefs, blend_dir, res
     c1, _ = cy.render_cycles(scene, blend_dir / "c1.exr", CYCLES_SPP // 2, seed=1, bounces=1)
     c2, _ = cy.render_cycles(scene, blend_dir / "c2.exr", CYCLES_SPP // 2, seed=2, bounces=1)
     reference = 0.5 * (c1 + c2)
-    fit = relume_image(addon, blend_dir, analytic=False)
+    exact = relume_image(addon, blend_dir, analytic=False)
     old = relume_image(addon, blend_dir, analytic=True)
-    assert fit.shape == reference.shape == old.shape
-    assert np.isfinite(fit).all() and np.isfinite(old).all()
+    assert exact.shape == reference.shape == old.shape
+    assert np.isfinite(exact).all() and np.isfinite(old).all()
     ref_m = per_material(reference, ids, names)
     m1, m2 = per_material(c1, ids, names), per_material(c2, ids, names)
     noise = {n: abs(m1[n] - m2[n]) / (m1[n] + m2[n]) for n in m1}
-    fit_m, old_m = per_material(fit, ids, names), per_material(old, ids, names)
+    exact_m, old_m = per_material(exact, ids, names), per_material(old, ids, names)
     figures = {}
     for name, colour, metallic, roughness in SPHERES:
         figures[name] = {
             "metallic": metallic, "roughness": roughness, "base_color": list(colour),
             "pixels": counts[name],
-            "ratio_fit": fit_m[name] / ref_m[name],
+            "ratio_exact": exact_m[name] / ref_m[name],
             "ratio_analytic": old_m[name] / ref_m[name],
             "cycles_noise_of_mean": noise[name],
         }
     for name in ("Floor", "Wall"):
-        figures[name] = {"pixels": counts.get(name, 0), "ratio_fit": fit_m[name] / ref_m[name],
+        figures[name] = {"pixels": counts.get(name, 0), "ratio_exact": exact_m[name] / ref_m[name],
                          "ratio_analytic": old_m[name] / ref_m[name]}
     _RESULTS[light_at] = figures
     _RESULTS["settings"] = {"resolution": RES, "cycles_spp": CYCLES_SPP, "bounces": 1,
                             "relume_preset": "final, denoiser off, seed 0"}
-    print(f"\n[principled fit] light {light_at}: Relume/Cycles per material (fit | analytic):")
+    print(f"\n[principled fit] light {light_at}: Relume/Cycles per material (exact | analytic):")
     for name, f in figures.items():
-        print(f"  {name:16s} {f['ratio_fit']:.3f} | {f['ratio_analytic']:.3f}  ({f['pixels']} px)")
+        print(f"  {name:16s} {f['ratio_exact']:.3f} | {f['ratio_analytic']:.3f}  ({f['pixels']} px)")
     for name, _colour, metallic, _r in SPHERES:
         f = figures[name]
         f["goal"] = GOAL["metal" if metallic else "dielectric"]
-        f["meets_goal"] = abs(f["ratio_fit"] - 1.0) <= f["goal"]
-        assert abs(f["ratio_fit"] - 1.0) <= MEASURED_BOUND[name], (name, f)
-    # Metals: the fit is closer to Cycles than the analytic mapping, on average over them.
+        f["meets_goal"] = abs(f["ratio_exact"] - 1.0) <= f["goal"]
+        assert abs(f["ratio_exact"] - 1.0) <= MEASURED_BOUND.get(name, f["goal"]), (name, f)
+    # Metals: the exact evaluation is closer to Cycles than the analytic mapping, on average over them.
     metals = [figures[n] for n, _c, m, _r in SPHERES if m > 0.0]
-    fit_err = sum(abs(f["ratio_fit"] - 1.0) for f in metals) / len(metals)
+    exact_err = sum(abs(f["ratio_exact"] - 1.0) for f in metals) / len(metals)
     old_err = sum(abs(f["ratio_analytic"] - 1.0) for f in metals) / len(metals)
-    _RESULTS[light_at + "_metal_mean_abs_error"] = {"fit": fit_err, "analytic": old_err}
-    assert fit_err < old_err, (fit_err, old_err)
+    _RESULTS[light_at + "_metal_mean_abs_error"] = {"exact": exact_err, "analytic": old_err}
+    assert exact_err < old_err, (exact_err, old_err)
     # Diffuse surfaces must agree (the mapping does not touch them): the comparison's teeth.
     for name in ("Floor", "Wall"):
-        assert abs(figures[name]["ratio_fit"] - 1.0) <= 0.03, (name, figures[name])
+        assert abs(figures[name]["ratio_exact"] - 1.0) <= 0.03, (name, figures[name])
