@@ -6,11 +6,13 @@ repository).
 
 Each scene: export (every warning must be one this test explains), bake with the final
 preset at a small resolution, relight, compare with a Cycles render made here at the file's
-own light paths (one bounce), over 8×8 tiles. The figures are printed and recorded; the
-assertions are loose bounds on the gap measured when this test was written (README's
-Cycles-agreement section, docs/fidelity.md), not the issue's 3–5 % goal, which the glossy
-mapping does not reach yet. The `_asis` variant's emissive quad must light the box and be
-seen: its pixels show the emission's radiance as Cycles shows it.
+own light paths (one bounce), over 8×8 tiles. The figures are printed and recorded. These
+scenes' materials are fixed, so Relume evaluates their Principled BSDFs as Cycles does
+(core/engine/src/bake/surface_brdf.rs): the two opaque scenes must agree within 3 % on tiles
+and 2 % on the mean (measured 1.1–1.4 % and 0.997–1.003, 2026-11-27); the `_asis` variant,
+whose sphere has a transmission Relume renders opaque, within its measured gap (6.4 %,
+mean 1.025) plus a margin. Its emissive quad must light the box and be seen: its pixels
+show the emission's radiance as Cycles shows it.
 """
 
 from __future__ import annotations
@@ -35,6 +37,13 @@ EXPLAINED = {
     "Specular Tint": "OBJ importer materials tint the specular; Relume's mapping is untinted",
     "Transmission Weight": "the OBJ importer turns the .mtl's transparency into transmission; Relume "
                            "renders the sphere opaque (part of the measured gap)",
+}
+
+#: Per scene: (largest 8×8-tile relative L2, largest |mean ratio − 1|) asserted.
+BOUNDS = {
+    "cornell_glossy.blend": (0.03, 0.02),
+    "cornell_glossy_asis.blend": (0.09, 0.05),
+    "bunny.blend": (0.03, 0.02),
 }
 
 _RESULTS: dict[str, dict] = {}
@@ -108,8 +117,8 @@ def test_third_party_scene_agrees_with_cycles(addon, prefs, tmp_path, results_fi
     print(f"\n[third-party] {name}: " + ", ".join(
         f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in figures.items()))
     assert image.max() > 0
-    # Loose bounds on the measured gap (module docs): the glossy mapping, not the transport.
-    assert 0.75 <= figures["mean_ratio_relume_over_cycles"] <= 1.25, figures
-    assert figures["block8_rel_l2"] <= 0.35, figures
+    tiles, mean = BOUNDS[name]
+    assert abs(figures["mean_ratio_relume_over_cycles"] - 1.0) <= mean, figures
+    assert figures["block8_rel_l2"] <= tiles, figures
     if "emitter_ratio_relume_over_cycles" in figures:
         assert 0.8 <= figures["emitter_ratio_relume_over_cycles"] <= 1.2, figures
