@@ -4,6 +4,7 @@ use clap::{Args, ValueEnum};
 use relume_engine::bake::presets::Preset;
 use relume_engine::bake::settings::{default_ns_range, DEFAULT_BOUNCES};
 use relume_engine::bake::{BakeSettings, IndirectSampling, LightGrouping};
+use relume_engine::brdf::principled_basis::PrincipledBasisConfig;
 use relume_engine::brdf::{BasisConfig, BasisCount};
 use relume_engine::scene::Resolution;
 use relume_engine::stack::Precision;
@@ -25,6 +26,13 @@ pub enum LightGroupsArg {
     PerLight,
     /// The scene file's light groups (Blender's light groups).
     Scene,
+}
+
+/// `--lobe`: the basis editable regions are baked in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum LobeArg {
+    BlinnPhong,
+    Principled,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -123,6 +131,12 @@ pub struct BakeOptions {
     /// Upper end of that range [default: ns ≈ 35 000, the fitted exponent at roughness 0.1].
     #[arg(long)]
     pub ns_max: Option<f32>,
+    /// The lobes editable regions are baked in: the paper's Blinn–Phong basis, or
+    /// (experimental) a basis of Cycles' Principled lobes for editable regions with an
+    /// opaque, untextured Principled material (21 slots, roughness 0.1–1; others keep
+    /// Blinn–Phong, with a warning).
+    #[arg(long, value_enum, default_value = "blinn-phong")]
+    pub lobe: LobeArg,
     /// Worker threads (0: all cores); the result does not depend on it.
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
@@ -187,6 +201,10 @@ impl BakeOptions {
                 ns_max: self.ns_max.unwrap_or(default_ns_range()[1]),
                 count: BasisCount::Fixed(DEFAULT_BASES),
                 ..BasisConfig::default()
+            },
+            principled_basis: match self.lobe {
+                LobeArg::BlinnPhong => None,
+                LobeArg::Principled => Some(PrincipledBasisConfig::default()),
             },
             threads: self.threads,
             drop_budget: self.drop_budget,

@@ -12,6 +12,7 @@ use pyo3::types::{PyDict, PyTuple};
 use relume_engine::bake::presets::Preset;
 use relume_engine::bake::settings::{DEFAULT_BOUNCES, MAX_BOUNCES, MAX_THREADS};
 use relume_engine::bake::{BakeSettings as Engine, IndirectSampling, LightGrouping};
+use relume_engine::brdf::principled_basis::PrincipledBasisConfig;
 use relume_engine::brdf::BasisCount;
 use relume_engine::scene::Resolution;
 use relume_engine::stack::Precision;
@@ -32,6 +33,7 @@ pub const FIELDS: &[&str] = &[
     "bases",
     "ns_min",
     "ns_max",
+    "lobe",
     "threads",
     "drop_budget",
     "light_grouping",
@@ -191,6 +193,21 @@ impl BakeSettings {
                     e.basis.ns_max = x as f32;
                 }
             }
+            "lobe" => {
+                let name: String = v
+                    .extract()
+                    .map_err(|_| bad(field, "expected \"blinn-phong\" or \"principled\""))?;
+                e.principled_basis = match name.as_str() {
+                    "blinn-phong" => None,
+                    "principled" => Some(PrincipledBasisConfig::default()),
+                    other => {
+                        return Err(bad(
+                            field,
+                            format!("{other:?} (expected \"blinn-phong\" or \"principled\")"),
+                        ))
+                    }
+                };
+            }
             "threads" => {
                 let n: i64 = v.extract().map_err(|_| bad(field, "expected an integer"))?;
                 if !(0..=MAX_THREADS as i64).contains(&n) {
@@ -319,6 +336,12 @@ impl BakeSettings {
             },
             "ns_min" => (e.basis.ns_min as f64).into_pyobject(py)?.into_any(),
             "ns_max" => (e.basis.ns_max as f64).into_pyobject(py)?.into_any(),
+            "lobe" => match e.principled_basis {
+                None => "blinn-phong",
+                Some(_) => "principled",
+            }
+            .into_pyobject(py)?
+            .into_any(),
             "threads" => e.threads.into_pyobject(py)?.into_any(),
             "drop_budget" => (e.drop_budget as f64).into_pyobject(py)?.into_any(),
             "bounce_budget" => (e.bounce_budget as f64).into_pyobject(py)?.into_any(),

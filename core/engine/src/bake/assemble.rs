@@ -6,7 +6,7 @@ use rayon::prelude::*;
 use std::sync::Mutex;
 use std::time::Instant;
 
-use super::context::{basis_config_for, BakeContext};
+use super::context::{basis_config_for, BakeContext, RegionModel};
 use super::denoise::EyeFeatures;
 use super::drop::RawLayer;
 use super::finalise::{
@@ -16,6 +16,7 @@ use super::finalise::{
 use super::layout::layer_key;
 use super::report::BakeReport;
 use super::settings::BakeSettings;
+use crate::brdf::RegionBasis;
 use crate::layer_key::LayerKey;
 use crate::options::LightGrouping;
 use crate::progress::{Progress, Stage};
@@ -55,7 +56,7 @@ pub(crate) fn assemble(
     let denoise_seconds = denoise_start.elapsed().as_secs_f64();
     progress.set_stage(Stage::Finishing);
     let builder = builder_for(ctx, stack_header(ctx, scene, settings, spp))?;
-    let weights = layer_weights(ctx, scene);
+    let weights = layer_weights(ctx, scene)?;
     let pixels = res.width as usize * res.height as usize;
     let mut tally = StackTally::new(
         store.len(),
@@ -231,13 +232,24 @@ pub(crate) fn stack_header(
             .regions
             .iter()
             .zip(&ctx.translucent)
-            .map(|(r, t)| RegionInfo {
-                subsurface: t.as_ref().map(|t| t.info.clone()),
-                ..RegionInfo::from_region(
-                    r,
-                    r.editable
-                        .then(|| basis_config_for(&settings.basis, r.ns_range)),
-                )
+            .zip(&ctx.regions)
+            .map(|((r, t), prepared)| {
+                let principled = match &prepared.model {
+                    RegionModel::Editable {
+                        basis: RegionBasis::Principled(b),
+                        ..
+                    } => Some(b.config().clone()),
+                    _ => None,
+                };
+                RegionInfo {
+                    subsurface: t.as_ref().map(|t| t.info.clone()),
+                    ..RegionInfo::from_region(
+                        r,
+                        (r.editable && principled.is_none())
+                            .then(|| basis_config_for(&settings.basis, r.ns_range)),
+                    )
+                }
+                .with_principled_basis(principled)
             })
             .collect(),
         lights: scene.lights.clone(),

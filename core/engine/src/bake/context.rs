@@ -12,7 +12,8 @@ use crate::bake::mixture::DirectionMixture;
 use crate::bake::settings::BakeSettings;
 use crate::bake::subsurface::{self, TranslucentRegion};
 use crate::bake::surface_brdf::SurfaceBrdf;
-use crate::brdf::{BasisConfig, BrdfBasis};
+use crate::brdf::principled_basis::PrincipledBasis;
+use crate::brdf::{BasisConfig, BrdfBasis, MaterialSpec, RegionBasis};
 use crate::bssrdf::{SssBasis, SubsurfaceInfo};
 use crate::geometry::{bvh::SceneGeometry, camera::CameraRays, lights::LightSet, texture::Texture};
 use crate::layer_key::PathVertex;
@@ -24,7 +25,7 @@ use crate::{RelumeError, Result};
 #[derive(Clone)]
 pub enum RegionModel {
     /// Editable region number `index`, in the basis `basis`.
-    Editable { index: u16, basis: Arc<BrdfBasis> },
+    Editable { index: u16, basis: RegionBasis },
     /// Part of the fixed region R̂ with this BRDF.
     Fixed { material: SurfaceBrdf },
 }
@@ -100,13 +101,22 @@ impl BakeContext {
             let material = region.material.to_blinn_phong();
             if region.editable {
                 let cfg = basis_config_for(&settings.basis, region.ns_range);
-                let key = serde_json::to_string(&cfg).unwrap_or_default();
-                let basis = match bases.get(&key) {
-                    Some(b) => b.clone(),
-                    None => {
-                        let b = Arc::new(BrdfBasis::build(&cfg)?);
-                        bases.insert(key, b.clone());
-                        b
+                let basis = match principled_basis_for(settings, region, texture.is_some()) {
+                    Ok(Some(pcfg)) => RegionBasis::Principled(PrincipledBasis::shared(pcfg)?),
+                    Ok(None) | Err(_) => {
+                        if let Err(why) = principled_basis_for(settings, region, texture.is_some())
+                        {
+                            report.warnings.push(why);
+                        }
+                        let key = serde_json::to_string(&cfg).unwrap_or_default();
+                        RegionBasis::BlinnPhong(match bases.get(&key) {
+                            Some(b) => b.clone(),
+                            None => {
+                                let b = Arc::new(BrdfBasis::build(&cfg)?);
+                                bases.insert(key, b.clone());
+                                b
+                            }
+                        })
                     }
                 };
                 // A textured region keeps the specular fit's constant apart from the textured
@@ -170,7 +180,10 @@ impl BakeContext {
                         tree: Default::default(),
                     });
                 }
-                let (lo, hi) = (cfg.ns_min, cfg.ns_max);
+                let (lo, hi) = match &basis {
+                    RegionBasis::BlinnPhong(_) => (cfg.ns_min, cfg.ns_max),
+                    RegionBasis::Principled(b) => b.config().fitted_ns_range(),
+                };
                 regions.push(PreparedRegion {
                     name: region.name.clone(),
                     model: RegionModel::Editable {
@@ -277,7 +290,7 @@ impl BakeContext {
     }
 
     /// Editable regions' bases, in editable order.
-    pub fn editable_bases(&self) -> Vec<Arc<BrdfBasis>> {
+    pub fn editable_bases(&self) -> Vec<RegionBasis> {
         self.regions
             .iter()
             .filter_map(|r| match &r.model {
@@ -286,6 +299,33 @@ impl BakeContext {
             })
             .collect()
     }
+}
+
+/// The Principled basis configuration an editable region is baked with: the settings' when
+/// they ask for one and the region is an opaque, untextured Principled material (`Ok(None)`
+/// when they do not ask); `Err` says why a region the settings would give it keeps the
+/// Blinn–Phong basis (a warning for the bake's report).
+fn principled_basis_for<'a>(
+    settings: &'a BakeSettings,
+    region: &crate::scene::Region,
+    textured: bool,
+) -> std::result::Result<Option<&'a crate::brdf::principled_basis::PrincipledBasisConfig>, String> {
+    let Some(cfg) = settings.principled_basis.as_ref() else {
+        return Ok(None);
+    };
+    let why = if !matches!(region.material, MaterialSpec::Principled(_)) {
+        "its material is Blinn–Phong values, not a Principled BSDF"
+    } else if textured {
+        "it is textured (not supported by the Principled basis yet)"
+    } else if region.is_translucent() {
+        "it is translucent (not supported by the Principled basis yet)"
+    } else {
+        return Ok(Some(cfg));
+    };
+    Err(format!(
+        "region \"{}\": baked with the Blinn–Phong basis, not the Principled one: {why}",
+        region.name
+    ))
 }
 
 /// The basis configuration for a region: the bake default, with the region's own ns range

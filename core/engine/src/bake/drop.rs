@@ -15,10 +15,11 @@
 use serde::Serialize;
 
 use crate::bake::context::{BakeContext, RegionModel};
+use crate::brdf::RegionBasis;
 use crate::bssrdf::region_slot_coefficients;
 use crate::layer_key::{LayerKey, PathVertex};
 use crate::scene::Scene;
-use crate::Rgb;
+use crate::{Result, Rgb};
 
 /// A baked layer before storage: f32 radiance, 1 or 3 interleaved channels.
 pub struct RawLayer {
@@ -53,11 +54,20 @@ pub struct DropReport {
     pub regions: Vec<RegionLayers>,
 }
 
+/// A coefficient bound that keeps a layer whatever the budget.
+const UNBOUNDED: f32 = 1e15;
+
 /// Largest |coefficient| each slot of each editable region can take (editable order).
 fn max_coefficients(ctx: &BakeContext) -> Vec<Vec<f32>> {
     let mut out = Vec::new();
     for (ri, region) in ctx.regions.iter().enumerate() {
         let RegionModel::Editable { basis, .. } = &region.model else {
+            continue;
+        };
+        let RegionBasis::BlinnPhong(basis) = basis else {
+            // No bound is derived for a Principled basis' coefficients yet: a bound this
+            // large keeps every layer of the region (a product of two stays finite in f32).
+            out.push(vec![UNBOUNDED; region.slot_count as usize]);
             continue;
         };
         let n = basis.count();
@@ -108,9 +118,8 @@ fn key_tint(ctx: &BakeContext, key: &LayerKey) -> Rgb {
 }
 
 /// Slot coefficients of the editable regions' bake-time materials.
-fn bake_time_coefficients(ctx: &BakeContext, scene: &Scene) -> Vec<Vec<Rgb>> {
-    let coefs = ctx
-        .regions
+fn bake_time_coefficients(ctx: &BakeContext, scene: &Scene) -> Result<Vec<Vec<Rgb>>> {
+    ctx.regions
         .iter()
         .zip(&scene.regions)
         .zip(&ctx.translucent)
@@ -123,17 +132,17 @@ fn bake_time_coefficients(ctx: &BakeContext, scene: &Scene) -> Vec<Vec<Rgb>> {
             )),
             RegionModel::Fixed { .. } => None,
         })
-        .collect();
-    coefs
+        .collect()
 }
 
 /// Per layer of `keys`, its weight in the image at the scene's bake-time materials (the
 /// product of its slots' coefficients, times its light group's tint).
-pub fn bake_time_weights(ctx: &BakeContext, scene: &Scene, keys: &[LayerKey]) -> Vec<Rgb> {
-    let coefs = bake_time_coefficients(ctx, scene);
-    keys.iter()
+pub fn bake_time_weights(ctx: &BakeContext, scene: &Scene, keys: &[LayerKey]) -> Result<Vec<Rgb>> {
+    let coefs = bake_time_coefficients(ctx, scene)?;
+    Ok(keys
+        .iter()
         .map(|key| path_product(key, &coefs, Rgb::ONE, |a, b| a * b) * key_tint(ctx, key))
-        .collect()
+        .collect())
 }
 
 /// A reached layer as the dropping sees it: its key, its channels as a whole (1: grey) and

@@ -517,7 +517,10 @@ fn estimate_path(
             .regions
             .iter()
             .filter_map(|r| match &r.model {
-                super::context::RegionModel::Editable { basis, .. } => {
+                super::context::RegionModel::Editable {
+                    basis: crate::brdf::RegionBasis::BlinnPhong(basis),
+                    ..
+                } => {
                     let cfg = basis.config();
                     let rep = basis.error_report();
                     Some(RegionBasisCost {
@@ -530,6 +533,21 @@ fn estimate_path(
                         bases: basis.count() as u32,
                         slots: r.slot_count,
                         max_rel_l2: rep.max_rel_l2,
+                    })
+                }
+                super::context::RegionModel::Editable {
+                    basis: crate::brdf::RegionBasis::Principled(basis),
+                    ..
+                } => {
+                    let r_min = basis.config().roughness_min;
+                    let (lo, hi) = basis.config().fitted_ns_range();
+                    Some(RegionBasisCost {
+                        region: r.name.clone(),
+                        ns_range: [lo, hi],
+                        roughness_range: [r_min as f32, 1.0],
+                        bases: basis.count() as u32,
+                        slots: r.slot_count,
+                        max_rel_l2: basis.report().lobe_worst,
                     })
                 }
                 _ => None,

@@ -740,7 +740,7 @@ pub(crate) fn builder_for(
 }
 
 /// Per layer id, its weight at the scene's bake-time materials.
-pub(crate) fn layer_weights(ctx: &BakeContext, scene: &Scene) -> Vec<Rgb> {
+pub(crate) fn layer_weights(ctx: &BakeContext, scene: &Scene) -> Result<Vec<Rgb>> {
     let keys: Vec<LayerKey> = (0..ctx.layer_count())
         .map(|i| super::layout::layer_key(ctx, i))
         .collect();

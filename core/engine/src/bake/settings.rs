@@ -33,6 +33,11 @@ pub struct BakeSettings {
     pub precision: Precision,
     /// Basis of editable regions that declare no ns range of their own.
     pub basis: BasisConfig,
+    /// When set, editable regions with an opaque, untextured Principled material are baked
+    /// in a basis of Cycles' Principled lobes instead ([`crate::brdf::principled_basis`];
+    /// experimental, off by default).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub principled_basis: Option<crate::brdf::principled_basis::PrincipledBasisConfig>,
     /// Worker threads (0: all cores). The result does not depend on it.
     pub threads: usize,
     /// Relative L2 error a relit image may lose to leaving out negligible layers (see
@@ -159,6 +164,7 @@ impl Default for BakeSettings {
                     ..BasisConfig::default()
                 }
             },
+            principled_basis: None,
             threads: 0,
             drop_budget: 0.0,
             light_grouping: LightGrouping::All,

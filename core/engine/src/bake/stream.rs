@@ -70,7 +70,7 @@ pub(crate) fn bake_streaming(
     let apron = apron_rows(&settings.denoise);
     let band = band_rows.max(1);
     let builder = builder_for(ctx, stack_header(ctx, scene, settings, spp))?;
-    let weights = layer_weights(ctx, scene);
+    let weights = layer_weights(ctx, scene)?;
     let layer_count = ctx.layer_count();
     let mut tally = StackTally::new(
         layer_count,

@@ -7,7 +7,7 @@ use crate::bake::context::{BakeContext, RegionModel};
 use crate::bake::frozen::{albedo_at, cos_half_angle};
 pub use crate::bake::frozen::{blinn_phong_value, frozen_value};
 use crate::bake::integrator::VertexBrdf;
-use crate::brdf::BlinnPhong;
+use crate::brdf::{BlinnPhong, RegionBasis};
 use crate::options::MAX_BASES;
 use crate::{RelumeError, Result, Rgb};
 
@@ -39,12 +39,11 @@ impl VertexBrdf for BasisBrdf<'_> {
         out: &mut [Rgb; MAX_BASES],
     ) -> (u32, usize) {
         let r = &self.ctx.regions[region as usize];
-        let cos_delta = cos_half_angle(n, wi, wo);
         match &r.model {
             RegionModel::Editable { basis, .. } => {
                 let count = basis.count();
                 let mut scratch = [0.0f32; MAX_BASES];
-                basis.eval(cos_delta, &mut scratch[..count]);
+                basis.eval(n, wi, wo, &mut scratch[..count]);
                 for (o, s) in out.iter_mut().zip(scratch.iter()).take(count) {
                     *o = Rgb::splat(*s);
                 }
@@ -86,13 +85,24 @@ impl<'a> MaterialBrdf<'a> {
                 bases.len()
             )));
         }
-        let coefficients = projected.then(|| {
-            bases
+        let coefficients = if projected {
+            let split = bases
                 .iter()
                 .zip(&materials)
-                .map(|(b, m)| b.split_coefficients(m))
-                .collect()
-        });
+                .map(|(b, m)| match b {
+                    RegionBasis::BlinnPhong(b) => Ok(b.split_coefficients(m)),
+                    RegionBasis::Principled(_) => Err(RelumeError::Materials(
+                        "the projected reference reconstructs Blinn–Phong materials in the \
+                         Blinn–Phong basis; this scene has a region baked with the Principled \
+                         basis"
+                            .into(),
+                    )),
+                })
+                .collect::<Result<Vec<_>>>()?;
+            Some(split)
+        } else {
+            None
+        };
         Ok(MaterialBrdf {
             ctx,
             materials,
@@ -138,7 +148,7 @@ impl VertexBrdf for MaterialBrdf<'_> {
                     Some(coefs) => {
                         let count = basis.count();
                         let mut scratch = [0.0f32; MAX_BASES];
-                        basis.eval(cos_delta, &mut scratch[..count]);
+                        basis.eval(n, wi, wo, &mut scratch[..count]);
                         let (kd, ks_c0, rest) = &coefs[e];
                         let mut v = (*kd * albedo_at(r, uv) + *ks_c0) * scratch[0];
                         for i in 1..count {

@@ -9,6 +9,7 @@ pub mod material;
 pub mod principled;
 pub mod principled_basis;
 pub mod principled_fit;
+pub mod region_basis;
 
 pub use crate::bssrdf::mapping::Subsurface;
 pub use basis::{BasisConfig, BasisCount, BrdfBasis};
@@ -16,3 +17,4 @@ pub use blinn_phong::BlinnPhong;
 pub use material::{MaterialSpec, PrincipledMaterial, ENERGY_SLACK};
 pub use principled::Principled;
 pub use principled_fit::principled_to_blinn_phong;
+pub use region_basis::{RegionBasis, RegionCoefficients};

@@ -23,9 +23,9 @@ use super::basis::{SssBasis, SssBasisConfig};
 use super::dipole::mean_transmittance;
 use super::mapping::eta_of_ior;
 use crate::brdf::basis::coefficients::slot_coefficients;
-use crate::brdf::basis::BrdfBasis;
 use crate::brdf::material::MaterialSpec;
-use crate::Rgb;
+use crate::brdf::RegionBasis;
+use crate::{RelumeError, Result, Rgb};
 
 /// What a stack records of a translucent region (in its [`crate::stack::RegionInfo`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -46,14 +46,19 @@ pub struct SubsurfaceInfo {
 /// ([`slot_coefficients`]) and, for a translucent region, the eye-diffuse and subsurface
 /// slots (module docs).
 pub fn region_slot_coefficients(
-    basis: &BrdfBasis,
+    basis: &RegionBasis,
     textured: bool,
     subsurface: Option<(&SssBasis, &SubsurfaceInfo)>,
     m: &MaterialSpec,
-) -> Vec<Rgb> {
-    let mut c = slot_coefficients(basis, textured, &m.to_blinn_phong());
+) -> Result<Vec<Rgb>> {
+    let mut c = basis.slot_coefficients(textured, m)?.slots;
     let Some((sss, info)) = subsurface else {
-        return c;
+        return Ok(c);
+    };
+    let Some(basis) = basis.blinn_phong() else {
+        return Err(RelumeError::Materials(
+            "a translucent region cannot use the Principled basis".into(),
+        ));
     };
     let eye = slot_coefficients(basis, textured, &m.eye_blinn_phong())[0];
     let first = info.first_slot as usize;
@@ -76,5 +81,5 @@ pub fn region_slot_coefficients(
             }
         }
     }
-    c
+    Ok(c)
 }

@@ -116,6 +116,7 @@ mod tests {
             basis: None,
             textured: false,
             subsurface: None,
+            principled_basis: None,
         }
     }
     #[test]

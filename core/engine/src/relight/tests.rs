@@ -28,6 +28,7 @@ fn header(width: u32, height: u32) -> StackHeader {
         basis: None,
         textured: false,
         subsurface: None,
+        principled_basis: None,
     };
     StackHeader {
         format_version: STACK_FORMAT_VERSION,

@@ -4,7 +4,8 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use crate::brdf::{BrdfBasis, MaterialSpec};
+use crate::brdf::principled_basis::PrincipledBasis;
+use crate::brdf::{BrdfBasis, MaterialSpec, RegionBasis};
 use crate::bssrdf::{region_slot_coefficients, SssBasis, SubsurfaceInfo};
 use crate::stack::StackHeader;
 use crate::{RelumeError, Result, Rgb};
@@ -15,7 +16,7 @@ pub use crate::brdf::basis::coefficients::slot_coefficients;
 
 /// One basis per editable region, in editable order (shared when configurations are equal).
 pub struct StackBases {
-    pub bases: Vec<Arc<BrdfBasis>>,
+    pub bases: Vec<RegionBasis>,
     /// Whether each editable region is textured (its last slot is the untextured constant).
     pub textured: Vec<bool>,
     /// Each editable region's subsurface basis and slot layout (translucent regions).
@@ -31,22 +32,26 @@ impl StackBases {
         let mut subsurface = Vec::new();
         let mut sss_cache: HashMap<String, Arc<SssBasis>> = HashMap::new();
         for region in header.regions.iter().filter(|r| r.editable) {
-            let cfg = region.basis.as_ref().ok_or_else(|| {
-                RelumeError::Basis(format!(
-                    "editable region \"{}\" has no basis in the stack header",
-                    region.name
-                ))
-            })?;
-            let key = serde_json::to_string(cfg).unwrap_or_default();
-            let basis = match cache.get(&key) {
-                Some(b) => b.clone(),
-                None => {
-                    let b = Arc::new(BrdfBasis::build(cfg)?);
-                    cache.insert(key, b.clone());
-                    b
-                }
-            };
-            bases.push(basis);
+            if let Some(cfg) = &region.principled_basis {
+                bases.push(RegionBasis::Principled(PrincipledBasis::shared(cfg)?));
+            } else {
+                let cfg = region.basis.as_ref().ok_or_else(|| {
+                    RelumeError::Basis(format!(
+                        "editable region \"{}\" has no basis in the stack header",
+                        region.name
+                    ))
+                })?;
+                let key = serde_json::to_string(cfg).unwrap_or_default();
+                let basis = match cache.get(&key) {
+                    Some(b) => b.clone(),
+                    None => {
+                        let b = Arc::new(BrdfBasis::build(cfg)?);
+                        cache.insert(key, b.clone());
+                        b
+                    }
+                };
+                bases.push(RegionBasis::BlinnPhong(basis));
+            }
             textured.push(region.textured);
             subsurface.push(match &region.subsurface {
                 None => None,
@@ -94,14 +99,14 @@ impl StackBases {
                 self.bases.len()
             ))
         })?;
-        Ok(region_slot_coefficients(
+        region_slot_coefficients(
             basis,
             self.textured[region],
             self.subsurface[region]
                 .as_ref()
                 .map(|(b, info)| (&**b, info)),
             material,
-        ))
+        )
     }
 }
 
@@ -155,6 +160,31 @@ pub fn ns_to_roughness(ns: f32) -> f32 {
     crate::brdf::principled_fit::roughness_for_fitted_ns(ns)
 }
 
+/// A Principled material smoother than a Principled basis' range, in the terms of
+/// [`NsOutOfRange`] (exponents of the fitted mapping), for the same warnings.
+fn principled_out_of_range(
+    region: usize,
+    basis: &PrincipledBasis,
+    material: &MaterialSpec,
+) -> Option<NsOutOfRange> {
+    let MaterialSpec::Principled(p) = material else {
+        return None;
+    };
+    let r_min = basis.config().roughness_min as f32;
+    if !(p.bsdf.roughness < r_min * (1.0 - NS_RANGE_SLACK)) {
+        return None;
+    }
+    let ns = crate::brdf::principled_fit::fitted_ns(p.bsdf.roughness);
+    let (lo, hi) = basis.config().fitted_ns_range();
+    Some(NsOutOfRange {
+        region,
+        ns,
+        ns_range: [lo, hi],
+        rendered_ns: hi,
+        roughness_range: [r_min, 1.0],
+    })
+}
+
 /// Relative slack before an exponent counts as outside (the range itself is stored as f32
 /// and mapped through `f32` logs).
 const NS_RANGE_SLACK: f32 = 1e-4;
@@ -164,7 +194,10 @@ impl StackBases {
     /// `region`'s basis and the material reflects specularly at all (`Ks > 0`); a material
     /// without specular reflection renders the same whatever its exponent.
     pub fn ns_out_of_range(&self, region: usize, material: &MaterialSpec) -> Option<NsOutOfRange> {
-        let basis = self.bases.get(region)?;
+        let basis = match self.bases.get(region)? {
+            RegionBasis::BlinnPhong(b) => b,
+            RegionBasis::Principled(b) => return principled_out_of_range(region, b, material),
+        };
         let cfg = basis.config();
         let m = material.to_blinn_phong();
         if m.ks.iter().all(|&k| k <= 0.0) || !m.ns.is_finite() {
@@ -215,7 +248,9 @@ mod tests {
             ..BasisConfig::default()
         };
         StackBases {
-            bases: vec![Arc::new(BrdfBasis::build(&cfg).unwrap())],
+            bases: vec![RegionBasis::BlinnPhong(Arc::new(
+                BrdfBasis::build(&cfg).unwrap(),
+            ))],
             textured: vec![false],
             subsurface: vec![None],
         }

@@ -93,9 +93,22 @@ pub struct RegionInfo {
     /// and in stacks from before translucency).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub subsurface: Option<crate::bssrdf::SubsurfaceInfo>,
+    /// The Principled basis of an editable region baked in one (then `basis` is `None`, so
+    /// a build that does not know this field refuses the region rather than misreading it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub principled_basis: Option<crate::brdf::principled_basis::PrincipledBasisConfig>,
 }
 
 impl RegionInfo {
+    /// This record with the Principled basis it was baked in (`None`: none).
+    pub fn with_principled_basis(
+        mut self,
+        cfg: Option<crate::brdf::principled_basis::PrincipledBasisConfig>,
+    ) -> RegionInfo {
+        self.principled_basis = cfg;
+        self
+    }
+
     /// What a stack records of scene region `region` baked with basis `basis` (editable
     /// regions; `None` for fixed ones).
     pub fn from_region(region: &crate::scene::Region, basis: Option<BasisConfig>) -> RegionInfo {
@@ -106,6 +119,7 @@ impl RegionInfo {
             basis,
             textured: region.editable && region.albedo_texture.is_some(),
             subsurface: None,
+            principled_basis: None,
         }
     }
 }

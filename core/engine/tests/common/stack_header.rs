@@ -47,5 +47,6 @@ pub fn blinn_phong_region(
         basis: None,
         textured: false,
         subsurface: None,
+        principled_basis: None,
     }
 }

@@ -84,6 +84,7 @@ class BakeSettings:
     bases: int | None
     ns_min: float
     ns_max: float
+    lobe: Literal["blinn-phong", "principled"]  # "principled": experimental Principled-lobe basis
     threads: int
     drop_budget: float
     light_grouping: Literal["all", "per-light", "scene"]

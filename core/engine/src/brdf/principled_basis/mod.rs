@@ -38,9 +38,11 @@
 mod curves;
 mod lobes;
 mod lune;
+pub mod material;
 mod pca;
 mod quadrature;
 
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use rayon::prelude::*;
@@ -57,6 +59,13 @@ use quadrature::Node;
 
 use crate::error::RelumeError;
 use crate::Result;
+
+/// Quadrature nodes per parallel task of a sum over the nodes.
+const NODES_PER_CHUNK: usize = 4096;
+/// Most functions [`PrincipledBasis::project_many`] projects at once.
+const MAX_PARTS: usize = 8;
+/// Most slots a basis may have (the constant included).
+pub const MAX_SLOTS: usize = 64;
 
 /// How a Principled basis is built.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -94,6 +103,14 @@ impl Default for PrincipledBasisConfig {
 }
 
 impl PrincipledBasisConfig {
+    /// The Blinn–Phong exponents the fitted mapping gives roughness 1 and `roughness_min`:
+    /// where a region in this basis spreads its sampling lobes, and how its range is named in
+    /// the exponent terms of range warnings and estimates.
+    pub fn fitted_ns_range(&self) -> (f32, f32) {
+        let ns = crate::brdf::principled_fit::fitted_ns;
+        (ns(1.0), ns(self.roughness_min as f32))
+    }
+
     fn check(&self) -> Result<()> {
         let bad = |message: &str| {
             Err(RelumeError::InvalidValue {
@@ -107,8 +124,8 @@ impl PrincipledBasisConfig {
         if self.roughness_nodes < 2 {
             return bad("roughness_nodes must be at least 2");
         }
-        if self.bases < 2 {
-            return bad("bases must be at least 2 (the constant and one specular basis)");
+        if !(2..=MAX_SLOTS).contains(&self.bases) {
+            return bad("bases must be between 2 (the constant and one specular basis) and 64");
         }
         let q = self.quadrature;
         if q.theta_h < 8 || q.theta_d < 4 || q.phi_d < 4 {
@@ -242,6 +259,20 @@ impl PrincipledBasis {
         Ok(basis)
     }
 
+    /// The basis of `config`, built once per process and shared: a build takes seconds, and
+    /// every bake and every stack load of the same configuration needs the same basis (the
+    /// build is deterministic).
+    pub fn shared(config: &PrincipledBasisConfig) -> Result<Arc<PrincipledBasis>> {
+        static BUILT: Mutex<Vec<Arc<PrincipledBasis>>> = Mutex::new(Vec::new());
+        let mut built = BUILT.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(b) = built.iter().find(|b| &b.config == config) {
+            return Ok(b.clone());
+        }
+        let b = Arc::new(PrincipledBasis::build(config)?);
+        built.push(b.clone());
+        Ok(b)
+    }
+
     pub fn config(&self) -> &PrincipledBasisConfig {
         &self.config
     }
@@ -317,36 +348,22 @@ impl PrincipledBasis {
         parts: usize,
         f: impl Fn(Cosines, &mut [f64]) + Sync,
     ) -> Vec<f64> {
-        let (ns, slots) = (self.nspec, self.count());
-        let mut dots = self
-            .nodes
-            .par_iter()
-            .zip(self.at_nodes.par_chunks(ns.max(1)))
-            .fold(
-                || (vec![0.0; parts * slots], vec![0.0; parts]),
-                |(mut d, mut v), (node, phi)| {
-                    f(node.c, &mut v);
-                    for (p, fv) in v.iter().enumerate() {
-                        if *fv != 0.0 {
-                            let wf = node.weight * fv;
-                            let row = &mut d[p * slots..(p + 1) * slots];
-                            row[0] += wf;
-                            for (dk, b) in row[1..].iter_mut().zip(phi) {
-                                *dk += wf * b;
-                            }
-                        }
+        let slots = self.count();
+        let mut dots = self.sum_over_nodes(parts * slots, |node, phi, d| {
+            let mut v = [0.0f64; MAX_PARTS];
+            let v = &mut v[..parts];
+            f(node.c, v);
+            for (p, fv) in v.iter().enumerate() {
+                if *fv != 0.0 {
+                    let wf = node.weight * fv;
+                    let row = &mut d[p * slots..(p + 1) * slots];
+                    row[0] += wf;
+                    for (dk, b) in row[1..].iter_mut().zip(phi) {
+                        *dk += wf * b;
                     }
-                    (d, v)
-                },
-            )
-            .map(|(d, _)| d)
-            .reduce(
-                || vec![0.0; parts * slots],
-                |mut a, b| {
-                    a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
-                    a
-                },
-            );
+                }
+            }
+        });
         // The constant basis has value 1 under the measure; slot 0 holds 1/π.
         for p in 0..parts {
             dots[p * slots] /= DIFFUSE;
@@ -376,29 +393,24 @@ impl PrincipledBasis {
     pub fn rebuild_errors(&self, lobe: impl Fn(Cosines) -> f64 + Sync) -> RebuildErrors {
         let (coef, projection) = self.project(&lobe);
         let n = self.count();
-        let (with_tables, tables_alone, norm2) = self
-            .nodes
-            .par_iter()
-            .zip(self.at_nodes.par_chunks(self.nspec.max(1)))
-            .map(|(node, exact)| {
-                let mut v = vec![0.0; n];
-                self.eval(node.c, &mut v);
-                let tabled: f64 = v.iter().zip(&coef).map(|(a, b)| a * b).sum();
-                let exact: f64 = coef[0] * DIFFUSE
-                    + exact
-                        .iter()
-                        .zip(&coef[1..])
-                        .map(|(a, b)| a * b)
-                        .sum::<f64>();
-                let f = lobe(node.c);
-                let w = node.weight;
-                (
-                    w * (tabled - f).powi(2),
-                    w * (tabled - exact).powi(2),
-                    w * f * f,
-                )
-            })
-            .reduce(|| (0.0, 0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
+        let sums = self.sum_over_nodes(3, |node, exact, acc| {
+            let mut v = [0.0f64; MAX_SLOTS];
+            let v = &mut v[..n];
+            self.eval(node.c, v);
+            let tabled: f64 = v.iter().zip(&coef).map(|(a, b)| a * b).sum();
+            let exact: f64 = coef[0] * DIFFUSE
+                + exact
+                    .iter()
+                    .zip(&coef[1..])
+                    .map(|(a, b)| a * b)
+                    .sum::<f64>();
+            let f = lobe(node.c);
+            let w = node.weight;
+            acc[0] += w * (tabled - f).powi(2);
+            acc[1] += w * (tabled - exact).powi(2);
+            acc[2] += w * f * f;
+        });
+        let (with_tables, tables_alone, norm2) = (sums[0], sums[1], sums[2]);
         let rel = |x: f64| if norm2 > 0.0 { (x / norm2).sqrt() } else { 0.0 };
         RebuildErrors {
             projection,
@@ -407,31 +419,45 @@ impl PrincipledBasis {
         }
     }
 
+    /// `Σ` over the quadrature nodes of what `add(node, φ at the node, acc)` adds into a
+    /// `len`-vector: in parallel over fixed chunks, the chunks' sums added in order, so the
+    /// result does not depend on the thread count (a bake must come out bit for bit).
+    fn sum_over_nodes(
+        &self,
+        len: usize,
+        add: impl Fn(&Node, &[f64], &mut [f64]) + Sync,
+    ) -> Vec<f64> {
+        let ns = self.nspec.max(1);
+        let partial: Vec<Vec<f64>> = self
+            .nodes
+            .par_chunks(NODES_PER_CHUNK)
+            .zip(self.at_nodes.par_chunks(NODES_PER_CHUNK * ns))
+            .map(|(nodes, phis)| {
+                let mut acc = vec![0.0; len];
+                for (node, phi) in nodes.iter().zip(phis.chunks(ns)) {
+                    add(node, phi, &mut acc);
+                }
+                acc
+            })
+            .collect();
+        let mut total = vec![0.0; len];
+        for p in partial {
+            total.iter_mut().zip(&p).for_each(|(t, v)| *t += v);
+        }
+        total
+    }
+
     /// Per specular basis: RMS of (table − exact) over its RMS (1: bases are unit-norm).
     fn table_errors(&self) -> Vec<f64> {
         let ns = self.nspec;
-        let sums = self
-            .nodes
-            .par_iter()
-            .zip(self.at_nodes.par_chunks(ns.max(1)))
-            .fold(
-                || vec![0.0; ns],
-                |mut acc, (node, exact)| {
-                    let mut v = vec![0.0; ns];
-                    self.table.eval(node.c, &mut v);
-                    for k in 0..ns {
-                        acc[k] += node.weight * (v[k] - exact[k]).powi(2);
-                    }
-                    acc
-                },
-            )
-            .reduce(
-                || vec![0.0; ns],
-                |mut a, b| {
-                    a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
-                    a
-                },
-            );
+        let sums = self.sum_over_nodes(ns, |node, exact, acc| {
+            let mut v = [0.0f64; MAX_SLOTS];
+            let v = &mut v[..ns];
+            self.table.eval(node.c, v);
+            for k in 0..ns {
+                acc[k] += node.weight * (v[k] - exact[k]).powi(2);
+            }
+        });
         sums.into_iter().map(f64::sqrt).collect()
     }
 }

@@ -33,7 +33,8 @@ pub(crate) struct LobeGram {
 impl LobeGram {
     pub(crate) fn new(lobes: &LobeSet, nodes: &[Node]) -> LobeGram {
         let l = lobes.len();
-        let (gram, sum) = nodes
+        // Chunks summed in order: the Gram matrix does not depend on the thread count.
+        let partial: Vec<(Vec<f64>, Vec<f64>)> = nodes
             .par_chunks(NODES_PER_TASK)
             .map(|chunk| {
                 let mut acc = GramAccumulator::new(l);
@@ -48,14 +49,12 @@ impl LobeGram {
                 }
                 (acc.finish(), sum)
             })
-            .reduce(
-                || (vec![0.0; l * l], vec![0.0; l]),
-                |(mut g, mut s), (g2, s2)| {
-                    g.iter_mut().zip(&g2).for_each(|(a, b)| *a += b);
-                    s.iter_mut().zip(&s2).for_each(|(a, b)| *a += b);
-                    (g, s)
-                },
-            );
+            .collect();
+        let (mut gram, mut sum) = (vec![0.0; l * l], vec![0.0; l]);
+        for (g2, s2) in partial {
+            gram.iter_mut().zip(&g2).for_each(|(a, b)| *a += b);
+            sum.iter_mut().zip(&s2).for_each(|(a, b)| *a += b);
+        }
         let norm: Vec<f64> = (0..l).map(|j| gram[j * l + j].max(1e-300).sqrt()).collect();
         let mut g = gram;
         for i in 0..l {

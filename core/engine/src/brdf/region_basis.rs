@@ -1,0 +1,122 @@
+//! The basis an editable region is baked in, and a material's coefficients on it: the
+//! paper's PCA of Blinn–Phong lobes ([`BrdfBasis`], the default) or a PCA of Cycles'
+//! Principled lobes ([`PrincipledBasis`], chosen by the bake settings; opaque, untextured
+//! Principled regions only for now).
+
+use std::sync::Arc;
+
+use glam::Vec3;
+
+use super::basis::coefficients::slot_coefficients;
+use super::basis::BrdfBasis;
+use super::material::MaterialSpec;
+use super::principled_basis::{Cosines, PrincipledBasis, MAX_SLOTS};
+use crate::{RelumeError, Result, Rgb};
+
+/// An editable region's basis.
+#[derive(Clone)]
+pub enum RegionBasis {
+    BlinnPhong(Arc<BrdfBasis>),
+    Principled(Arc<PrincipledBasis>),
+}
+
+/// A material's coefficients on a region's basis, and what it could not be given exactly.
+pub struct RegionCoefficients {
+    pub slots: Vec<Rgb>,
+    /// A Principled material smoother than a Principled basis' range (its metal part is
+    /// relit with the range's smoothest lobe); reported, never silent.
+    pub below_range: bool,
+}
+
+impl RegionBasis {
+    /// Basis functions, the diffuse constant included (slots before any textured or
+    /// subsurface extras).
+    pub fn count(&self) -> usize {
+        match self {
+            RegionBasis::BlinnPhong(b) => b.count(),
+            RegionBasis::Principled(b) => b.count(),
+        }
+    }
+
+    /// Whether basis 0 carries part of the specular fit (then a textured region keeps that
+    /// part in a slot of its own).
+    pub fn spec_constant(&self) -> bool {
+        match self {
+            RegionBasis::BlinnPhong(b) => b.spec_constant(),
+            RegionBasis::Principled(_) => true,
+        }
+    }
+
+    /// The Blinn–Phong basis, if this is one.
+    pub fn blinn_phong(&self) -> Option<&Arc<BrdfBasis>> {
+        match self {
+            RegionBasis::BlinnPhong(b) => Some(b),
+            RegionBasis::Principled(_) => None,
+        }
+    }
+
+    /// Every basis function's value for light from `wi` seen from `wo` at normal `n`.
+    #[inline]
+    pub fn eval(&self, n: Vec3, wi: Vec3, wo: Vec3, out: &mut [f32]) {
+        let h = (wi + wo).normalize_or_zero();
+        match self {
+            RegionBasis::BlinnPhong(b) => b.eval(n.dot(h), out),
+            RegionBasis::Principled(b) => {
+                let count = b.count();
+                let mut v = [0.0f64; MAX_SLOTS];
+                b.eval(
+                    Cosines {
+                        cos_i: n.dot(wi) as f64,
+                        cos_o: n.dot(wo) as f64,
+                        cos_h: n.dot(h) as f64,
+                        cos_d: wo.dot(h) as f64,
+                    },
+                    &mut v[..count],
+                );
+                for (o, x) in out.iter_mut().zip(&v[..count]) {
+                    *o = *x as f32;
+                }
+            }
+        }
+    }
+
+    /// The coefficient of every BRDF slot for material `m` (a textured region's extra
+    /// constant slot included, see [`slot_coefficients`]). A Principled basis takes
+    /// Principled materials of untextured regions only (what the bake allows it for); any
+    /// other pairing is an error naming the region's basis.
+    pub fn slot_coefficients(
+        &self,
+        textured: bool,
+        m: &MaterialSpec,
+    ) -> Result<RegionCoefficients> {
+        match self {
+            RegionBasis::BlinnPhong(b) => Ok(RegionCoefficients {
+                slots: slot_coefficients(b, textured, &m.to_blinn_phong()),
+                below_range: false,
+            }),
+            RegionBasis::Principled(b) => {
+                let MaterialSpec::Principled(p) = m else {
+                    return Err(RelumeError::Materials(
+                        "this region was baked with the Principled basis (lobe \"principled\"): \
+                         give it a Principled material, not Blinn–Phong values"
+                            .into(),
+                    ));
+                };
+                if textured {
+                    return Err(RelumeError::Materials(
+                        "a textured region cannot use the Principled basis".into(),
+                    ));
+                }
+                let c = b.material_coefficients(&p.bsdf);
+                Ok(RegionCoefficients {
+                    slots: c
+                        .slots
+                        .iter()
+                        .map(|s| Rgb::new(s[0] as f32, s[1] as f32, s[2] as f32))
+                        .collect(),
+                    below_range: c.below_range,
+                })
+            }
+        }
+    }
+}

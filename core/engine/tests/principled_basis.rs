@@ -1,0 +1,185 @@
+//! An editable Principled region baked in the basis of Cycles' Principled lobes
+//! (`BakeSettings::principled_basis`): relit at its bake-time material it matches Cycles'
+//! Principled evaluated exactly (the same region baked as fixed), within the basis' error;
+//! relit after an edit it equals a bake of the edited material (linearity); a roughness
+//! below the basis' range is reported. The basis here is a small configuration, so that the
+//! test runs unoptimised in seconds; the full size's errors are in
+//! docs/principled_basis_study.md (part 6).
+mod common;
+
+use std::sync::Arc;
+
+use relume_engine::bake::{bake, progress::Progress, BakeSettings};
+use relume_engine::brdf::principled_basis::{PrincipledBasisConfig, QuadratureSize, TableSize};
+use relume_engine::brdf::{MaterialSpec, Principled, PrincipledMaterial};
+use relume_engine::relight::CpuRelighter;
+use relume_engine::scene::Scene;
+use relume_engine::stack::bases::StackBases;
+
+const SIZE: u32 = 32;
+
+fn small_basis() -> PrincipledBasisConfig {
+    PrincipledBasisConfig {
+        roughness_min: 0.2,
+        roughness_nodes: 16,
+        bases: 14,
+        quadrature: QuadratureSize {
+            theta_h: 64,
+            theta_d: 20,
+            phi_d: 24,
+        },
+        table: TableSize {
+            theta_h: 65,
+            s: 33,
+            eta: 33,
+        },
+    }
+}
+
+fn settings() -> BakeSettings {
+    BakeSettings {
+        spp: 8,
+        light_samples: 4,
+        principled_basis: Some(small_basis()),
+        ..Default::default()
+    }
+}
+
+fn principled(base: [f32; 3], metallic: f32, roughness: f32) -> MaterialSpec {
+    MaterialSpec::Principled(PrincipledMaterial::from(Principled {
+        base_color: base,
+        metallic,
+        roughness,
+        ior: 1.5,
+        specular_ior_level: 0.5,
+    }))
+}
+
+/// Pixels well inside the sphere's silhouette (RGB).
+fn sphere_rgb(rgba: &[f32]) -> Vec<[f32; 3]> {
+    let c = SIZE as f32 / 2.0;
+    let r = 0.2 * SIZE as f32;
+    let mut v = Vec::new();
+    for y in 0..SIZE {
+        for x in 0..SIZE {
+            let (dx, dy) = (x as f32 + 0.5 - c, y as f32 + 0.5 - c);
+            if dx * dx + dy * dy < r * r {
+                let i = ((y * SIZE + x) * 4) as usize;
+                v.push([rgba[i], rgba[i + 1], rgba[i + 2]]);
+            }
+        }
+    }
+    v
+}
+
+fn rel_l2(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
+    let (mut num, mut den) = (0.0f64, 0.0f64);
+    for (x, y) in a.iter().zip(b) {
+        for c in 0..3 {
+            num += (x[c] as f64 - y[c] as f64).powi(2);
+            den += (y[c] as f64).powi(2);
+        }
+    }
+    (num / den).sqrt()
+}
+
+/// Bakes `scene` and relights it with `materials` (the bake-time ones when empty).
+fn bake_and_relight(scene: &Scene, materials: &[MaterialSpec]) -> (Vec<f32>, StackBases) {
+    let (stack, _) = bake(scene, &settings(), &Progress::new()).unwrap();
+    let bases = StackBases::from_header(&stack.header).unwrap();
+    let materials: Vec<MaterialSpec> = if materials.is_empty() {
+        scene
+            .regions
+            .iter()
+            .filter(|r| r.editable)
+            .map(|r| r.material.clone())
+            .collect()
+    } else {
+        materials.to_vec()
+    };
+    let coefs = bases.coefficients(&materials).unwrap();
+    let mut relighter = CpuRelighter::new(Arc::new(stack)).unwrap();
+    (relighter.relight(&coefs).unwrap().to_vec(), bases)
+}
+
+#[test]
+fn relit_principled_region_matches_the_exact_material() {
+    // Gold metal, a dielectric and a half-metallic blend in a white furnace: the relit
+    // editable region against the same material baked as a fixed region (evaluated as
+    // Cycles does). What is left between them is the basis' projection and tables.
+    for (base, metallic, roughness) in [
+        ([0.9, 0.65, 0.35], 1.0, 0.3),
+        ([0.2, 0.35, 0.7], 0.0, 0.5),
+        ([0.8, 0.8, 0.8], 0.5, 0.7),
+    ] {
+        let material = principled(base, metallic, roughness);
+        let editable = common::furnace(material.clone(), true, SIZE);
+        let fixed = common::furnace(material, false, SIZE);
+        let (relit, bases) = bake_and_relight(&editable, &[]);
+        assert!(matches!(
+            bases.bases[0],
+            relume_engine::brdf::RegionBasis::Principled(_)
+        ));
+        let (exact, _) = bake_and_relight(&fixed, &[]);
+        let e = rel_l2(&sphere_rgb(&relit), &sphere_rgb(&exact));
+        eprintln!("metallic {metallic}, roughness {roughness}: relit vs exact {e:.4}");
+        assert!(e < 0.03, "metallic {metallic}, roughness {roughness}: {e}");
+    }
+}
+
+#[test]
+fn a_relit_edit_equals_a_bake_of_the_edited_material() {
+    let before = principled([0.9, 0.65, 0.35], 1.0, 0.3);
+    for after in [
+        principled([0.9, 0.65, 0.35], 1.0, 0.6),
+        principled([0.3, 0.6, 0.2], 1.0, 0.3),
+        principled([0.2, 0.35, 0.7], 0.0, 0.4),
+    ] {
+        let (relit, _) = bake_and_relight(
+            &common::furnace(before.clone(), true, SIZE),
+            std::slice::from_ref(&after),
+        );
+        let (rebaked, _) = bake_and_relight(&common::furnace(after.clone(), true, SIZE), &[]);
+        let e = rel_l2(&sphere_rgb(&relit), &sphere_rgb(&rebaked));
+        eprintln!("edit to {after:?}: relit vs rebaked {e:.2e}");
+        // The same paths (uniform sampling does not depend on the material); f16 storage.
+        assert!(e < 2e-3, "{after:?}: {e}");
+    }
+}
+
+#[test]
+fn roughness_below_the_principled_range_is_reported_and_blinn_phong_values_refused() {
+    let material = principled([0.9, 0.65, 0.35], 1.0, 0.3);
+    let (_, bases) = bake_and_relight(&common::furnace(material, true, SIZE), &[]);
+    let smooth = principled([0.9, 0.65, 0.35], 1.0, 0.1);
+    let warnings = bases.out_of_range(std::slice::from_ref(&smooth));
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(warnings[0].message("Ball").contains("roughness 0.100"));
+    assert!(bases
+        .out_of_range(&[principled([0.5; 3], 1.0, 0.25)])
+        .is_empty());
+    let e = bases
+        .coefficients(&[common::bp(0.5, 0.2, 50.0)])
+        .expect_err("Blinn–Phong values on a Principled basis are refused")
+        .to_string();
+    assert!(e.contains("Principled basis"), "{e}");
+}
+
+#[test]
+fn regions_the_principled_basis_cannot_take_keep_blinn_phong_with_a_warning() {
+    let scene = common::furnace(common::bp(0.5, 0.3, 40.0), true, SIZE);
+    let (ctx, report) =
+        relume_engine::bake::context::BakeContext::new(&scene, &settings()).unwrap();
+    assert!(matches!(
+        ctx.editable_bases()[0],
+        relume_engine::brdf::RegionBasis::BlinnPhong(_)
+    ));
+    assert!(
+        report
+            .warnings
+            .iter()
+            .any(|w| w.contains("Blinn–Phong basis")),
+        "{:?}",
+        report.warnings
+    );
+}
