@@ -18,9 +18,15 @@ issue's goal — metals within 5 %, dielectrics within 3 % — is asserted for e
 the smoothest metal (roughness 0.1), which measured 0.95–1.02 in front (bake seeds 0–2: the
 seed alone moves it by 4 %) and 1.11–1.15 to the side (a bias not yet explained:
 docs/principled_fit.md); it gets a bound on that measured gap instead. Over the metals the
-exact evaluation must beat the analytic mapping. Every figure goes to `principled_fit.json`
-in pytest's basetemp. (Editable Principled materials still go through the Blinn–Phong basis
-and the fitted mapping; their per-material figures are in docs/principled_fit.md.)
+exact evaluation must beat the analytic mapping.
+
+The same spheres made editable and baked in the basis of Principled lobes
+(`lobe="principled"`, core/engine/src/brdf/principled_basis), relit at their bake-time
+materials, are held to the same goal (measured over bake seeds 0–2: metals at roughness
+0.3–0.8 0.974–1.036, dielectrics 0.996–1.017), the smoothest metal again excepted: relit
+from the basis it measured 0.74–1.16 over those seeds — the final preset's samples on a
+lobe 0.6° wide reflecting a small light, noise rather than the basis — so it gets a bound
+on that. Every figure goes to `principled_fit.json` in pytest's basetemp.
 """
 
 from __future__ import annotations
@@ -28,6 +34,7 @@ from __future__ import annotations
 import json
 import math
 import pathlib
+import time
 
 import bpy
 import numpy as np
@@ -53,6 +60,9 @@ GOAL = {"metal": 0.05, "dielectric": 0.03}
 #: 0.153 over bake seeds 0–2 and both light placements (2026-11-27, bpy 5.0.1), plus Cycles'
 #: per-material noise (≈ 0.3 %) and a margin.
 MEASURED_BOUND = {"Metal r0.1": 0.17}
+#: The same for the spheres relit from the Principled basis: 0.264 measured (seed 1, light to
+#: the side), plus a margin.
+MEASURED_BOUND_BASIS = {"Metal r0.1": 0.30}
 
 _RESULTS: dict[str, dict] = {}
 
@@ -175,33 +185,37 @@ def material_ids(scene, path) -> tuple[np.ndarray, list[str]]:
     return ids, names
 
 
-def relume_image(addon, tmp: pathlib.Path, analytic: bool) -> np.ndarray:
+def relume_image(addon, tmp: pathlib.Path, mode: str) -> np.ndarray:
     """Export the scene, bake it (final preset, one bounce, denoiser off, seed 0) and relight
-    with the bake-time materials; with `analytic`, every Principled region is replaced by
-    the analytic mapping's Blinn–Phong before the bake."""
+    with the bake-time materials. `mode`: "exact" as exported (the spheres fixed, evaluated
+    as Cycles does); "analytic" with every Principled region replaced by the analytic
+    mapping's Blinn–Phong before the bake; "basis" with the spheres editable, baked in the
+    basis of Principled lobes (`lobe="principled"`) and relit from it."""
     import relume
 
     result = addon.api.export()
-    text = json.dumps(result.scene_dict)
-    if analytic:
-        scene_dict = json.loads(text)
-        for region in scene_dict["regions"]:
-            m = region.get("material", {})
-            if m.get("model") == "principled":
-                bp = relume.principled_to_blinn_phong_analytic(
-                    m["base_color"], metallic=m.get("metallic", 0.0), roughness=m.get("roughness", 0.5),
-                    ior=m.get("ior", 1.5), specular_ior_level=m.get("specular_ior_level", 0.5))
-                region["material"] = {"model": "blinn_phong", "kd": list(bp["kd"]), "ks": list(bp["ks"]),
-                                      "ns": bp["ns"]}
-        text = json.dumps(scene_dict)
-    name = "analytic" if analytic else "fit"
-    scene_path = tmp / f"{name}.scene.json"
+    scene_dict = json.loads(json.dumps(result.scene_dict))
+    for region in scene_dict["regions"]:
+        m = region.get("material", {})
+        if m.get("model") != "principled":
+            continue
+        if mode == "analytic":
+            bp = relume.principled_to_blinn_phong_analytic(
+                m["base_color"], metallic=m.get("metallic", 0.0), roughness=m.get("roughness", 0.5),
+                ior=m.get("ior", 1.5), specular_ior_level=m.get("specular_ior_level", 0.5))
+            region["material"] = {"model": "blinn_phong", "kd": list(bp["kd"]), "ks": list(bp["ks"]),
+                                  "ns": bp["ns"]}
+        elif mode == "basis":
+            region["editable"] = True
+    scene_path = tmp / f"{mode}.scene.json"
     result.scene.save(str(scene_path))
     full = json.loads(scene_path.read_text())
-    full["regions"] = json.loads(text)["regions"]
+    full["regions"] = scene_dict["regions"]
     scene = relume.Scene.from_json(json.dumps(full), base_dir=str(tmp))
-    settings = relume.BakeSettings.preset("final", seed=0, bounces=1, denoise_direct=0, denoise_bounce=0)
-    stack_path = tmp / f"{name}.relume.exr"
+    lobe = "principled" if mode == "basis" else "blinn-phong"
+    settings = relume.BakeSettings.preset("final", seed=0, bounces=1, denoise_direct=0, denoise_bounce=0,
+                                          lobe=lobe)
+    stack_path = tmp / f"{mode}.relume.exr"
     relume.bake(scene, settings, str(stack_path))
     relighter = relume.Relighter(relume.Stack.load(str(stack_path)), device="cpu")
     return np.asarray(relighter.relight(), dtype=np.float64)[..., :3]
@@ -221,14 +235,18 @@ def test_fixed_principled_per_material_against_cycles(addon, prefs, blend_dir, r
     c1, _ = cy.render_cycles(scene, blend_dir / "c1.exr", CYCLES_SPP // 2, seed=1, bounces=1)
     c2, _ = cy.render_cycles(scene, blend_dir / "c2.exr", CYCLES_SPP // 2, seed=2, bounces=1)
     reference = 0.5 * (c1 + c2)
-    exact = relume_image(addon, blend_dir, analytic=False)
-    old = relume_image(addon, blend_dir, analytic=True)
+    exact = relume_image(addon, blend_dir, "exact")
+    old = relume_image(addon, blend_dir, "analytic")
+    started = time.perf_counter()
+    basis = relume_image(addon, blend_dir, "basis")
+    basis_seconds = time.perf_counter() - started
     assert exact.shape == reference.shape == old.shape
     assert np.isfinite(exact).all() and np.isfinite(old).all()
     ref_m = per_material(reference, ids, names)
     m1, m2 = per_material(c1, ids, names), per_material(c2, ids, names)
     noise = {n: abs(m1[n] - m2[n]) / (m1[n] + m2[n]) for n in m1}
     exact_m, old_m = per_material(exact, ids, names), per_material(old, ids, names)
+    basis_m = per_material(basis, ids, names)
     figures = {}
     for name, colour, metallic, roughness in SPHERES:
         figures[name] = {
@@ -236,6 +254,7 @@ def test_fixed_principled_per_material_against_cycles(addon, prefs, blend_dir, r
             "pixels": counts[name],
             "ratio_exact": exact_m[name] / ref_m[name],
             "ratio_analytic": old_m[name] / ref_m[name],
+            "ratio_editable_principled_basis": basis_m[name] / ref_m[name],
             "cycles_noise_of_mean": noise[name],
         }
     for name in ("Floor", "Wall"):
@@ -244,14 +263,19 @@ def test_fixed_principled_per_material_against_cycles(addon, prefs, blend_dir, r
     _RESULTS[light_at] = figures
     _RESULTS["settings"] = {"resolution": RES, "cycles_spp": CYCLES_SPP, "bounces": 1,
                             "relume_preset": "final, denoiser off, seed 0"}
-    print(f"\n[principled fit] light {light_at}: Relume/Cycles per material (exact | analytic):")
+    print(f"\n[principled fit] light {light_at}: Relume/Cycles per material "
+          f"(exact | analytic | editable in the Principled basis, bake + relight {basis_seconds:.0f} s):")
     for name, f in figures.items():
-        print(f"  {name:16s} {f['ratio_exact']:.3f} | {f['ratio_analytic']:.3f}  ({f['pixels']} px)")
+        print(f"  {name:16s} {f['ratio_exact']:.3f} | {f['ratio_analytic']:.3f} | "
+              f"{f.get('ratio_editable_principled_basis', float('nan')):.3f}  ({f['pixels']} px)")
     for name, _colour, metallic, _r in SPHERES:
         f = figures[name]
         f["goal"] = GOAL["metal" if metallic else "dielectric"]
         f["meets_goal"] = abs(f["ratio_exact"] - 1.0) <= f["goal"]
+        f["basis_meets_goal"] = abs(f["ratio_editable_principled_basis"] - 1.0) <= f["goal"]
         assert abs(f["ratio_exact"] - 1.0) <= MEASURED_BOUND.get(name, f["goal"]), (name, f)
+        assert abs(f["ratio_editable_principled_basis"] - 1.0) <= MEASURED_BOUND_BASIS.get(name, f["goal"]), \
+            (name, f)
     # Metals: the exact evaluation is closer to Cycles than the analytic mapping, on average over them.
     metals = [figures[n] for n, _c, m, _r in SPHERES if m > 0.0]
     exact_err = sum(abs(f["ratio_exact"] - 1.0) for f in metals) / len(metals)
