@@ -18,9 +18,10 @@ and a glossy scene with the roughness range that covers its materials.
   (both editable), area light and an HDRI: Relume with the add-on's default roughness range
   (0.1–1, which covers both) against Cycles, one bounce, over 8×8 tiles; the same scene with
   the old ns range [1, 200] (roughness ≥ 0.32, so both materials are baked too rough) is
-  recorded beside it. The issue's goal is 5 %; the Principled → Blinn–Phong mapping (metals
-  too dark, being refitted in `brdf/`) keeps the gap above it, so the test asserts the bound
-  measured when it was written and records the figure (docs/fidelity.md).
+  recorded beside it. The issue's goal is 5 %. Baked in the Blinn–Phong basis the fitted
+  mapping keeps the gap above it (11.2 %: the test asserts that measured bound); baked in the
+  basis of Principled lobes (`lobe="principled"`, 2026-11-27: 4.8 %, mean 0.998) the scene
+  is held to the goal (docs/fidelity.md).
 
 Figures go to stdout (`pytest -s`) and `glossy_agreement.json` in pytest's basetemp.
 """
@@ -49,6 +50,8 @@ MAPPING_MARGIN = 0.25
 #: was written (11.5 %), with room for the Cycles reference's noise; the issue's goal, 5 %,
 #: needs the refitted mapping.
 GLOSSY_TILE_BOUND = 0.15
+#: The issue's goal, which the basis of Principled lobes meets (4.8 % measured).
+GLOSSY_GOAL = 0.05
 
 _RESULTS: dict[str, dict] = {}
 
@@ -117,11 +120,11 @@ def _cycles_pair(scene, tmp, name, spp):
     return c1, c2, t1 + t2
 
 
-def _relume(addon, tmp, name):
+def _relume(addon, tmp, name, lobe="blinn-phong"):
     import relume
 
     t0 = time.perf_counter()
-    report = addon.api.bake(settings=relume.BakeSettings.preset("final", seed=0, bounces=1))
+    report = addon.api.bake(settings=relume.BakeSettings.preset("final", seed=0, bounces=1, lobe=lobe))
     bake_s = time.perf_counter() - t0
     out = addon.api.render(str(tmp / f"{name}_relume.exr"))
     image = np.asarray(relume.read_exr(out), dtype=np.float64)[..., :3]
@@ -190,7 +193,8 @@ def test_glossy_scene_agrees_with_cycles(addon, prefs, blend_dir, results_file):
     figures = {"cycles_spp": GLOSSY_SPP, "cycles_s": cycles_s,
                "cycles_tile_noise": cy.noise_of_mean(cy.block_mean(c1, BLOCK), cy.block_mean(c2, BLOCK))}
     images = {}
-    for label, old in (("range_0.1-1", False), ("old_ns_1-200", True)):
+    for label, lobe, old in (("range_0.1-1", "blinn-phong", False), ("principled_basis", "principled", False),
+                             ("old_ns_1-200", "blinn-phong", True)):
         if old:
             # ns ∈ [1, 200] under ns = 2/α² − 2, α = r²: roughness (2/(ns + 2))^¼.
             for name in ("Ground", "Metal"):
@@ -198,7 +202,7 @@ def test_glossy_scene_agrees_with_cycles(addon, prefs, blend_dir, results_file):
                 m.relume.use_roughness_range = True
                 m.relume.roughness_min = (2.0 / 202.0) ** 0.25
                 m.relume.roughness_max = (2.0 / 3.0) ** 0.25
-        image, bake_s, report = _relume(addon, blend_dir, f"glossy_{label}")
+        image, bake_s, report = _relume(addon, blend_dir, f"glossy_{label}", lobe)
         assert image.shape == reference.shape and np.isfinite(image).all()
         images[label] = image
         figures[label] = {
@@ -212,6 +216,7 @@ def test_glossy_scene_agrees_with_cycles(addon, prefs, blend_dir, results_file):
     _record("glossy_ground_0.15_metal_0.25", figures)
     covered = figures["range_0.1-1"]["block8_rel_l2"]
     assert covered <= GLOSSY_TILE_BOUND, figures
+    assert figures["principled_basis"]["block8_rel_l2"] <= GLOSSY_GOAL, figures
     # Teeth: the same image 3 × the bound brighter fails.
     assert cy.rel_l2(cy.block_mean(images["range_0.1-1"] * (1 + 3 * GLOSSY_TILE_BOUND), BLOCK),
                      cy.block_mean(reference, BLOCK)) > GLOSSY_TILE_BOUND
