@@ -59,7 +59,27 @@ fn main() {
             }));
         }
     }
+    // What a relit edit costs: a material's coefficients (the metal from curves, the
+    // dielectric specular and diffuse base projected), fastest of five.
+    let timing = |p: Principled| {
+        (0..5)
+            .map(|_| {
+                let t = std::time::Instant::now();
+                std::hint::black_box(basis.material_coefficients(&p));
+                t.elapsed().as_secs_f64() * 1e3
+            })
+            .fold(f64::INFINITY, f64::min)
+    };
+    let material = |metallic: f32| Principled {
+        base_color: [0.8, 0.5, 0.3],
+        metallic,
+        roughness: 0.35,
+        ior: 1.5,
+        specular_ior_level: 0.5,
+    };
     let out = serde_json::json!({
+        "coefficients_ms_metal": timing(material(1.0)),
+        "coefficients_ms_dielectric": timing(material(0.0)),
         "config": basis.config(),
         "report": basis.report(),
         "lobes": lobes,
