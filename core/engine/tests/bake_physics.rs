@@ -9,22 +9,12 @@ use relume_engine::bake::{bake, progress::Progress, BakeSettings, IndirectSampli
 use relume_engine::brdf::{BlinnPhong, MaterialSpec};
 use relume_engine::RelumeError;
 
-/// Mean and standard error of the red channel over pixels whose alpha mask `inside` holds.
+/// The red channel of the pixels well inside the furnace's sphere.
 fn sphere_pixels(img: &[f32], size: u32) -> Vec<f32> {
-    // The unit sphere at distance 4 with a 50 mm lens covers the central ~40 % of the frame;
-    // keep pixels well inside its silhouette.
-    let c = size as f32 / 2.0;
-    let r = 0.2 * size as f32;
-    let mut v = Vec::new();
-    for y in 0..size {
-        for x in 0..size {
-            let (dx, dy) = (x as f32 + 0.5 - c, y as f32 + 0.5 - c);
-            if dx * dx + dy * dy < r * r {
-                v.push(img[((y * size + x) * 4) as usize]);
-            }
-        }
-    }
-    v
+    common::inside_furnace_sphere(size)
+        .into_iter()
+        .map(|i| img[i * 4])
+        .collect()
 }
 
 #[test]

@@ -57,19 +57,10 @@ fn principled(base: [f32; 3], metallic: f32, roughness: f32) -> MaterialSpec {
 
 /// Pixels well inside the sphere's silhouette (RGB).
 fn sphere_rgb(rgba: &[f32]) -> Vec<[f32; 3]> {
-    let c = SIZE as f32 / 2.0;
-    let r = 0.2 * SIZE as f32;
-    let mut v = Vec::new();
-    for y in 0..SIZE {
-        for x in 0..SIZE {
-            let (dx, dy) = (x as f32 + 0.5 - c, y as f32 + 0.5 - c);
-            if dx * dx + dy * dy < r * r {
-                let i = ((y * SIZE + x) * 4) as usize;
-                v.push([rgba[i], rgba[i + 1], rgba[i + 2]]);
-            }
-        }
-    }
-    v
+    common::inside_furnace_sphere(SIZE)
+        .into_iter()
+        .map(|i| [rgba[i * 4], rgba[i * 4 + 1], rgba[i * 4 + 2]])
+        .collect()
 }
 
 fn rel_l2(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {

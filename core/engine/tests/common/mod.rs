@@ -197,6 +197,23 @@ pub fn cornell(size: u32) -> Scene {
 }
 
 /// A smooth sphere alone in a uniform white world (a white furnace).
+/// Pixel indices (row-major) well inside the silhouette of [`furnace`]'s sphere: the unit
+/// sphere at distance 4 with a 50 mm lens covers the central ~40 % of the frame.
+pub fn inside_furnace_sphere(size: u32) -> Vec<usize> {
+    let c = size as f32 / 2.0;
+    let r = 0.2 * size as f32;
+    let mut v = Vec::new();
+    for y in 0..size {
+        for x in 0..size {
+            let (dx, dy) = (x as f32 + 0.5 - c, y as f32 + 0.5 - c);
+            if dx * dx + dy * dy < r * r {
+                v.push((y * size + x) as usize);
+            }
+        }
+    }
+    v
+}
+
 pub fn furnace(material: MaterialSpec, editable: bool, size: u32) -> Scene {
     Scene {
         meshes: vec![sphere("ball", [0.0, 0.0, 0.0], 1.0, 48, 96, 0)],
