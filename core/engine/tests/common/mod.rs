@@ -196,7 +196,6 @@ pub fn cornell(size: u32) -> Scene {
     }
 }
 
-/// A smooth sphere alone in a uniform white world (a white furnace).
 /// Pixel indices (row-major) well inside the silhouette of [`furnace`]'s sphere: the unit
 /// sphere at distance 4 with a 50 mm lens covers the central ~40 % of the frame.
 pub fn inside_furnace_sphere(size: u32) -> Vec<usize> {
@@ -214,6 +213,7 @@ pub fn inside_furnace_sphere(size: u32) -> Vec<usize> {
     v
 }
 
+/// A smooth sphere alone in a uniform white world (a white furnace).
 pub fn furnace(material: MaterialSpec, editable: bool, size: u32) -> Scene {
     Scene {
         meshes: vec![sphere("ball", [0.0, 0.0, 0.0], 1.0, 48, 96, 0)],
