@@ -52,7 +52,7 @@ def prefs(addon):
     saved = {k: getattr(p, k) for k in ("preset", "spp", "light_samples", "indirect_samples",
                                         "bounces", "basis_tolerance", "passes", "resolution_scale",
                                         "device", "stack_folder", "light_groups",
-                                        "bounces_from_scene")}
+                                        "bounces_from_scene", "material_lobes")}
     p.preset = "custom"
     p.spp = 2
     p.light_samples = 1
@@ -65,6 +65,7 @@ def prefs(addon):
     p.device = "cpu"
     p.stack_folder = ""
     p.light_groups = "none"
+    p.material_lobes = "blinn-phong"
     yield p
     for k, v in saved.items():
         setattr(p, k, v)

@@ -227,3 +227,13 @@ def test_cornell_from_the_preferences_button_cancelled_halfway_then_rerun(addon,
     assert (stack.width, stack.height) == (128, 128)
     image = _image()
     assert np.isfinite(image).all() and image[..., :3].max() > 0
+
+
+def test_material_lobes_preference_reaches_the_bake_settings(addon, prefs):
+    """The preference picks the basis editable Principled materials are baked in, with a
+    preset or custom samples alike (the `prefs` fixture restores it)."""
+    assert addon.api.bake_settings().lobe == "blinn-phong"
+    prefs.material_lobes = "principled"
+    assert addon.api.bake_settings().lobe == "principled"
+    prefs.preset = "final"
+    assert addon.api.bake_settings().lobe == "principled"

@@ -65,7 +65,8 @@ def bake_settings(context=None):
     else:
         bounces = int(prefs.bounces)
     common = {"bounces": bounces, "passes": int(prefs.passes),
-              "light_grouping": GROUPING_OF_PREF[prefs.light_groups]}
+              "light_grouping": GROUPING_OF_PREF[prefs.light_groups],
+              "lobe": getattr(prefs, "material_lobes", "blinn-phong")}
     budget = float(getattr(prefs, "memory_budget_mb", 0.0))
     if budget > 0.0:
         common["memory_budget_mb"] = budget
