@@ -103,9 +103,8 @@ impl BakeContext {
                 let cfg = basis_config_for(&settings.basis, region.ns_range);
                 let basis = match principled_basis_for(settings, region, texture.is_some()) {
                     Ok(Some(pcfg)) => RegionBasis::Principled(PrincipledBasis::shared(pcfg)?),
-                    Ok(None) | Err(_) => {
-                        if let Err(why) = principled_basis_for(settings, region, texture.is_some())
-                        {
+                    other => {
+                        if let Err(why) = other {
                             report.warnings.push(why);
                         }
                         let key = serde_json::to_string(&cfg).unwrap_or_default();

@@ -128,14 +128,30 @@ pub(crate) fn roughness_nodes(r_min: f64, count: usize) -> Vec<f64> {
 pub(crate) struct LobeSet {
     pub roughness: Vec<Roughness>,
     pub families: Vec<Family>,
+    /// `Fms` of every column (it depends on the roughness' `Eavg` and the family alone, so it
+    /// is computed once, not at every node the Gram matrix and the tables visit).
+    multiscatter: Vec<f64>,
 }
+
+/// Most training families [`LobeSet::eval`] holds per-node Fresnel values for.
+const MAX_FAMILIES: usize = 16;
 
 impl LobeSet {
     pub(crate) fn new(roughness: &[f64], families: &[Family]) -> LobeSet {
         use rayon::prelude::*;
+        assert!(
+            families.len() <= MAX_FAMILIES,
+            "at most {MAX_FAMILIES} families"
+        );
+        let roughness: Vec<Roughness> = roughness.par_iter().map(|&r| Roughness::new(r)).collect();
+        let multiscatter = roughness
+            .iter()
+            .flat_map(|r| families.iter().map(|f| f.multiscatter(r.e_avg)))
+            .collect();
         LobeSet {
-            roughness: roughness.par_iter().map(|&r| Roughness::new(r)).collect(),
+            roughness,
             families: families.to_vec(),
+            multiscatter,
         }
     }
 
@@ -143,9 +159,14 @@ impl LobeSet {
         self.roughness.len() * self.families.len()
     }
 
-    /// Every lobe at `c`, into `out` (`len()` values).
+    /// Every lobe at `c`, into `out` (`len()` values). The Fresnel factor depends on the
+    /// family and `cos θd` alone, so it is evaluated once per family, not per roughness.
     pub(crate) fn eval(&self, c: Cosines, out: &mut [f64]) {
         let nf = self.families.len();
+        let mut fresnel = [0.0f64; MAX_FAMILIES];
+        for (f, family) in fresnel.iter_mut().zip(&self.families) {
+            *f = family.fresnel(c.cos_d);
+        }
         for (a, r) in self.roughness.iter().enumerate() {
             let single = r.single(c);
             let row = &mut out[a * nf..(a + 1) * nf];
@@ -154,8 +175,9 @@ impl LobeSet {
                 continue;
             }
             let miss = r.miss(c);
-            for (o, family) in row.iter_mut().zip(&self.families) {
-                *o = single * family.fresnel(c.cos_d) * (1.0 + family.multiscatter(r.e_avg) * miss);
+            let fms = &self.multiscatter[a * nf..(a + 1) * nf];
+            for ((o, f), m) in row.iter_mut().zip(&fresnel).zip(fms) {
+                *o = single * f * (1.0 + m * miss);
             }
         }
     }
