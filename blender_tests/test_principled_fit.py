@@ -13,20 +13,25 @@ their four neighbours of the same material, are compared (edges, where the two r
 pixel samples differ, are left out).
 
 Per material the mean brightness (RGB summed over its pixels) of Relume over Cycles is the
-figure, for two placements of one area light (in front, above the camera; to the side). The
-issue's goal — metals within 5 %, dielectrics within 3 % — is asserted for every sphere but
-the smoothest metal (roughness 0.1), which measured 0.95–1.02 in front (bake seeds 0–2: the
-seed alone moves it by 4 %) and 1.11–1.15 to the side (a bias not yet explained:
-docs/principled_fit.md); it gets a bound on that measured gap instead. Over the metals the
-exact evaluation must beat the analytic mapping.
+figure, for two placements of one area light (in front, above the camera; to the side).
+Relume's figure is the mean over bake seeds 0–3 (each seed's figure is recorded too: a user
+gets one); Cycles' reference is converged: 8192 samples per pixel (two renders of 4096).
+Fewer do not converge on the smoothest metal: to the side its highlight holds a sliver of
+about 1 % of one pixel where the light's corner is seen past the neighbouring sphere
+(the light seen there is ≈ 50 times brighter than that pixel's value); Cycles at 2 × 128 samples missed it in both
+renders (their means agreed to 0.3 %, yet the sum on that material was 7.7 % under the
+value at 8192 samples), and that shortfall was what earlier sessions had recorded as
+Relume's 11–15 % excess there. The issue's goal — metals within 5 %, dielectrics within 3 %
+— is asserted for every sphere, the smoothest included. Over the metals the exact
+evaluation must beat the analytic mapping.
 
 The same spheres made editable and baked in the basis of Principled lobes
 (`lobe="principled"`, core/engine/src/brdf/principled_basis), relit at their bake-time
-materials, are held to the same goal (measured over bake seeds 0–2: metals at roughness
-0.3–0.8 0.974–1.036, dielectrics 0.996–1.017), the smoothest metal again excepted: relit
-from the basis it measured 0.74–1.16 over those seeds — the final preset's samples on a
-lobe 0.6° wide reflecting a small light, noise rather than the basis — so it gets a bound
-on that. Every figure goes to `principled_fit.json` in pytest's basetemp.
+materials, are held to the same goal but for the smoothest metal, at the basis' lower end
+(roughness 0.1): relit from the basis it measured 1.09–1.18 in front and 0.63–0.93 to the
+side over bake seeds 0–3 against this reference (2026-11-27) — a bias of the basis there
+plus noise, not the reference's — so it gets a bound on that instead (docs/fidelity.md).
+Every figure goes to `principled_fit.json` in pytest's basetemp.
 """
 
 from __future__ import annotations
@@ -43,8 +48,11 @@ from support import cycles as cy
 from support.scenes import add_camera_and_black_world, principled_material
 
 RES = 96
-#: Cycles samples (two renders of half as many; their difference is the noise estimate).
-CYCLES_SPP = 256
+#: Cycles samples (two renders of half as many; their difference is the noise estimate):
+#: enough for the smoothest metal's sub-pixel highlight (module docs).
+CYCLES_SPP = 8192
+#: Bake seeds Relume's figures are averaged over.
+SEEDS = (0, 1, 2, 3)
 #: Spheres: (name, base colour, metallic, roughness).
 SPHERES = (
     ("Metal r0.1", (0.9, 0.65, 0.35), 1.0, 0.1),
@@ -56,12 +64,8 @@ SPHERES = (
 )
 #: The issue's goals: metals within 5 % of Cycles' mean brightness, dielectrics within 3 %.
 GOAL = {"metal": 0.05, "dielectric": 0.03}
-#: Materials held to a measured gap instead of the goal: |Relume/Cycles − 1| measured at most
-#: 0.153 over bake seeds 0–2 and both light placements (2026-11-27, bpy 5.0.1), plus Cycles'
-#: per-material noise (≈ 0.3 %) and a margin.
-MEASURED_BOUND = {"Metal r0.1": 0.17}
-#: The same for the spheres relit from the Principled basis: 0.264 measured (seed 1, light to
-#: the side), plus a margin.
+#: The smoothest metal relit from the Principled basis: |mean over SEEDS − 1| measured 0.14
+#: in front and 0.25 to the side (2026-11-27, bpy 5.0.1), plus a margin.
 MEASURED_BOUND_BASIS = {"Metal r0.1": 0.30}
 
 _RESULTS: dict[str, dict] = {}
@@ -185,8 +189,8 @@ def material_ids(scene, path) -> tuple[np.ndarray, list[str]]:
     return ids, names
 
 
-def relume_image(addon, tmp: pathlib.Path, mode: str) -> np.ndarray:
-    """Export the scene, bake it (final preset, one bounce, denoiser off, seed 0) and relight
+def relume_image(addon, tmp: pathlib.Path, mode: str, seed: int = 0) -> np.ndarray:
+    """Export the scene, bake it (final preset, one bounce, denoiser off, bake seed `seed`) and relight
     with the bake-time materials. `mode`: "exact" as exported (the spheres fixed, evaluated
     as Cycles does); "analytic" with every Principled region replaced by the analytic
     mapping's Blinn–Phong before the bake; "basis" with the spheres editable, baked in the
@@ -213,9 +217,9 @@ def relume_image(addon, tmp: pathlib.Path, mode: str) -> np.ndarray:
     full["regions"] = scene_dict["regions"]
     scene = relume.Scene.from_json(json.dumps(full), base_dir=str(tmp))
     lobe = "principled" if mode == "basis" else "blinn-phong"
-    settings = relume.BakeSettings.preset("final", seed=0, bounces=1, denoise_direct=0, denoise_bounce=0,
+    settings = relume.BakeSettings.preset("final", seed=seed, bounces=1, denoise_direct=0, denoise_bounce=0,
                                           lobe=lobe)
-    stack_path = tmp / f"{mode}.relume.exr"
+    stack_path = tmp / f"{mode}_seed{seed}.relume.exr"
     relume.bake(scene, settings, str(stack_path))
     relighter = relume.Relighter(relume.Stack.load(str(stack_path)), device="cpu")
     return np.asarray(relighter.relight(), dtype=np.float64)[..., :3]
@@ -235,45 +239,58 @@ def test_fixed_principled_per_material_against_cycles(addon, prefs, blend_dir, r
     c1, _ = cy.render_cycles(scene, blend_dir / "c1.exr", CYCLES_SPP // 2, seed=1, bounces=1)
     c2, _ = cy.render_cycles(scene, blend_dir / "c2.exr", CYCLES_SPP // 2, seed=2, bounces=1)
     reference = 0.5 * (c1 + c2)
-    exact = relume_image(addon, blend_dir, "exact")
+    exacts = [relume_image(addon, blend_dir, "exact", seed) for seed in SEEDS]
     old = relume_image(addon, blend_dir, "analytic")
     started = time.perf_counter()
-    basis = relume_image(addon, blend_dir, "basis")
-    basis_seconds = time.perf_counter() - started
-    assert exact.shape == reference.shape == old.shape
-    assert np.isfinite(exact).all() and np.isfinite(old).all()
+    bases = [relume_image(addon, blend_dir, "basis", seed) for seed in SEEDS]
+    basis_seconds = (time.perf_counter() - started) / len(SEEDS)
+    assert all(e.shape == reference.shape for e in exacts + bases + [old])
+    assert all(np.isfinite(e).all() for e in exacts + bases + [old])
     ref_m = per_material(reference, ids, names)
     m1, m2 = per_material(c1, ids, names), per_material(c2, ids, names)
     noise = {n: abs(m1[n] - m2[n]) / (m1[n] + m2[n]) for n in m1}
-    exact_m, old_m = per_material(exact, ids, names), per_material(old, ids, names)
-    basis_m = per_material(basis, ids, names)
+    old_m = per_material(old, ids, names)
+
+    def ratios(images):
+        per_seed = [per_material(image, ids, names) for image in images]
+        return {n: [m[n] / ref_m[n] for m in per_seed] for n in ref_m}
+
+    exact_r, basis_r = ratios(exacts), ratios(bases)
     figures = {}
     for name, colour, metallic, roughness in SPHERES:
         figures[name] = {
             "metallic": metallic, "roughness": roughness, "base_color": list(colour),
             "pixels": counts[name],
-            "ratio_exact": exact_m[name] / ref_m[name],
+            "ratio_exact": float(np.mean(exact_r[name])),
+            "ratio_exact_per_seed": exact_r[name],
             "ratio_analytic": old_m[name] / ref_m[name],
-            "ratio_editable_principled_basis": basis_m[name] / ref_m[name],
+            "ratio_editable_principled_basis": float(np.mean(basis_r[name])),
+            "ratio_editable_principled_basis_per_seed": basis_r[name],
             "cycles_noise_of_mean": noise[name],
         }
     for name in ("Floor", "Wall"):
-        figures[name] = {"pixels": counts.get(name, 0), "ratio_exact": exact_m[name] / ref_m[name],
-                         "ratio_analytic": old_m[name] / ref_m[name]}
+        figures[name] = {"pixels": counts.get(name, 0), "ratio_exact": float(np.mean(exact_r[name])),
+                         "ratio_exact_per_seed": exact_r[name], "ratio_analytic": old_m[name] / ref_m[name]}
     _RESULTS[light_at] = figures
     _RESULTS["settings"] = {"resolution": RES, "cycles_spp": CYCLES_SPP, "bounces": 1,
-                            "relume_preset": "final, denoiser off, seed 0"}
-    print(f"\n[principled fit] light {light_at}: Relume/Cycles per material "
-          f"(exact | analytic | editable in the Principled basis, bake + relight {basis_seconds:.0f} s):")
+                            "relume_preset": "final, denoiser off", "relume_seeds": list(SEEDS)}
+    print(f"\n[principled fit] light {light_at}: Relume/Cycles per material, mean over bake seeds "
+          f"{list(SEEDS)} [range] (exact | analytic, seed 0 | editable in the Principled basis, "
+          f"bake + relight {basis_seconds:.0f} s a seed):")
     for name, f in figures.items():
-        print(f"  {name:16s} {f['ratio_exact']:.3f} | {f['ratio_analytic']:.3f} | "
-              f"{f.get('ratio_editable_principled_basis', float('nan')):.3f}  ({f['pixels']} px)")
+        line = (f"  {name:16s} {f['ratio_exact']:.3f} [{min(f['ratio_exact_per_seed']):.3f}–"
+                f"{max(f['ratio_exact_per_seed']):.3f}] | {f['ratio_analytic']:.3f}")
+        if "ratio_editable_principled_basis" in f:
+            per_seed = f["ratio_editable_principled_basis_per_seed"]
+            line += (f" | {f['ratio_editable_principled_basis']:.3f} [{min(per_seed):.3f}–"
+                     f"{max(per_seed):.3f}]  Cycles noise {f['cycles_noise_of_mean']:.4f}")
+        print(line + f"  ({f['pixels']} px)")
     for name, _colour, metallic, _r in SPHERES:
         f = figures[name]
         f["goal"] = GOAL["metal" if metallic else "dielectric"]
         f["meets_goal"] = abs(f["ratio_exact"] - 1.0) <= f["goal"]
         f["basis_meets_goal"] = abs(f["ratio_editable_principled_basis"] - 1.0) <= f["goal"]
-        assert abs(f["ratio_exact"] - 1.0) <= MEASURED_BOUND.get(name, f["goal"]), (name, f)
+        assert abs(f["ratio_exact"] - 1.0) <= f["goal"], (name, f)
         assert abs(f["ratio_editable_principled_basis"] - 1.0) <= MEASURED_BOUND_BASIS.get(name, f["goal"]), \
             (name, f)
     # Metals: the exact evaluation is closer to Cycles than the analytic mapping, on average over them.
