@@ -2,18 +2,21 @@
 and a glossy scene with the roughness range that covers its materials.
 
 - **No fireflies.** Metal spheres of Principled roughness 0.1, 0.2 (editable) and 0.3 on a
-  diffuse floor, under a small bright area light and an HDRI with a sun-like hot spot: the
-  brightest relit pixel of Relume's final preset (as users get it) must not exceed the
-  brightest pixel of a converged Cycles render of the same scene by more than that pixel's
-  noise (estimated from two half-sample renders), beyond a stated margin for the mapping:
-  the brightest pixel in both renderers is the roughness-0.1 sphere's reflection of the small
-  emitters, and Blinn–Phong concentrates it more than Cycles' GGX does (19 % more in that one
-  pixel, less in its neighbours; `MAPPING_MARGIN`). A firefly is an isolated pixel several
-  times the brightest. Multiple importance sampling against the BSDF mixture's directions
-  (`core/engine/src/bake/mis.rs`) is what keeps them out; at this preset and scene light
-  sampling alone also stayed within the bound (the engine's `tests/mis.rs` shows the
-  difference at low sample counts), so this test guards the behaviour users see rather than
-  telling the two estimators apart.
+  diffuse floor, under a small bright area light and an HDRI with a sun-like hot spot. The
+  brightest pixel in both renderers is the roughness-0.1 sphere's reflection of the 5 cm
+  emitter, which covers a few per cent of one pixel: how many of a pixel's samples land in it
+  moves that pixel by ±20 % at the final preset's 128 eye samples, in Cycles too (Cycles at 128
+  samples, seeds 1–8: 40–90 against 55.5 converged, 2026-11-27). So the pixel is compared at
+  equal noise: every relit pixel of Relume's final preset (bake seeds 0–7, as users get it)
+  must stay below Cycles' converged brightest pixel (16384 samples) plus three times the
+  spread of Cycles' own brightest pixel at 128 samples (seeds 1–8) — an isolated firefly, such
+  as the issue's 506 against 2.9, fails it — and the mean over Relume's seeds of that pixel must
+  be within three standard errors of the converged value, so a systematically brighter (or
+  dimmer) highlight fails too. Multiple importance sampling against the BSDF mixture's
+  directions (`core/engine/src/bake/mis.rs`) is what keeps fireflies out; at this preset and
+  scene light sampling alone also stayed within the bound (the engine's `tests/mis.rs` shows
+  the difference at low sample counts), so this test guards the behaviour users see rather
+  than telling the two estimators apart.
 - **Glossy scene.** A ground at Principled roughness 0.15 and a metallic sphere at 0.25
   (both editable), area light and an HDRI: Relume with the add-on's default roughness range
   (0.1–1, which covers both) against Cycles, one bounce, over 8×8 tiles; the same scene with
@@ -40,12 +43,14 @@ from support.scenes import add_camera_and_black_world, principled_material
 
 RES = 64
 BLOCK = 8
-#: Cycles samples of the references (two renders of half as many, seeds 1 and 2).
-FIREFLY_SPP = 1024
+#: Cycles samples of the references (two renders of half as many, seeds 1 and 2): the
+#: smooth-metal scene's is converged on its sub-pixel highlight (module docs).
+FIREFLY_SPP = 16384
 GLOSSY_SPP = 512
-#: Allowance above Cycles' brightest pixel (relative) for the Blinn–Phong mapping's sharper
-#: highlight of a small emitter in the roughness-0.1 sphere (module docs; 19 % measured).
-MAPPING_MARGIN = 0.25
+#: Samples of the Cycles renders whose brightest pixel's spread is the noise at the final
+#: preset's eye-sample count, and how many seeds of those and of Relume's bake.
+EQUAL_SPP = 128
+NOISE_SEEDS = 8
 #: Tile bound of the glossy scene with the covering range: what was measured when the test
 #: was written (11.5 %), with room for the Cycles reference's noise; the issue's goal, 5 %,
 #: needs the refitted mapping.
@@ -138,6 +143,8 @@ def _record(name, figures):
 
 
 def test_smooth_metal_has_no_fireflies(addon, prefs, blend_dir, results_file):
+    import relume
+
     ground = cy.diffuse_material("Floor", (0.5, 0.5, 0.5))
     # Small emitters: their reflections in the spheres cover a pixel only in part, so the
     # brightest converged pixel stays far below what a firefly reaches.
@@ -150,30 +157,58 @@ def test_smooth_metal_has_no_fireflies(addon, prefs, blend_dir, results_file):
     scene = bpy.context.scene
     c1, c2, cycles_s = _cycles_pair(scene, blend_dir, "fireflies", FIREFLY_SPP)
     reference = 0.5 * (c1 + c2)
-    image, bake_s, report = _relume(addon, blend_dir, "fireflies")
-    assert image.shape == reference.shape and np.isfinite(image).all()
+    peak = np.unravel_index(reference.max(axis=2).argmax(), reference.shape[:2])
     brightest = float(reference.max())
-    # Noise of the reference's brightest pixels: half the two renders' difference there.
-    top = reference.max(axis=2) >= np.quantile(reference.max(axis=2), 0.99)
-    noise = float(np.abs(c1 - c2)[top].max() / 2.0)
+    # Cycles' own brightest pixel at the final preset's sample count, over seeds: its spread is
+    # the noise a relit pixel is measured against.
+    equal = [cy.render_cycles(scene, blend_dir / f"equal_{seed}.exr", EQUAL_SPP, seed=seed, bounces=1)[0]
+             for seed in range(1, NOISE_SEEDS + 1)]
+    equal_brightest = [float(e.max()) for e in equal]
+    equal_sigma = float(np.std(equal_brightest, ddof=1))
+    images, bake_s, layers = [], [], None
+    for seed in range(NOISE_SEEDS):
+        t0 = time.perf_counter()
+        report = addon.api.bake(settings=relume.BakeSettings.preset("final", seed=seed, bounces=1))
+        bake_s.append(time.perf_counter() - t0)
+        layers = report.get("layers")
+        out = addon.api.render(str(blend_dir / f"fireflies_relume_{seed}.exr"))
+        images.append(np.asarray(relume.read_exr(out), dtype=np.float64)[..., :3])
+    assert all(i.shape == reference.shape and np.isfinite(i).all() for i in images)
+    relume_brightest = [float(i.max()) for i in images]
+    at_peak = [float(i[peak].max()) for i in images]
+    peak_mean = float(np.mean(at_peak))
+    peak_standard_error = float(np.std(at_peak, ddof=1) / math.sqrt(len(at_peak)))
+    bound = brightest + 3.0 * equal_sigma
+    image = images[0]
     err = ((image - reference) ** 2).sum(axis=2).ravel()
     figures = {
         "resolution": list(reference.shape[:2]),
         "cycles_spp": FIREFLY_SPP,
-        "relume_brightest": float(image.max()),
         "cycles_brightest": brightest,
-        "cycles_brightest_noise": noise,
-        "ratio_of_brightest": float(image.max()) / brightest,
-        "ten_worst_pixels_share_of_squared_error": float(np.sort(err)[-10:].sum() / err.sum()),
-        "mean_ratio_relume_over_cycles": float(image.sum() / reference.sum()),
-        "block8_rel_l2": cy.rel_l2(cy.block_mean(image, BLOCK), cy.block_mean(reference, BLOCK)),
-        "relume_bake_s": bake_s,
+        "cycles_brightest_noise": float(np.abs(c1 - c2)[peak].max() / 2.0),
+        "cycles_equal_spp": EQUAL_SPP,
+        "cycles_equal_spp_brightest_per_seed": equal_brightest,
+        "cycles_equal_spp_brightest_sigma": equal_sigma,
+        "relume_brightest_per_seed": relume_brightest,
+        "relume_at_cycles_peak_per_seed": at_peak,
+        "relume_at_cycles_peak_mean": peak_mean,
+        "relume_at_cycles_peak_standard_error": peak_standard_error,
+        "firefly_bound": bound,
+        "ratio_of_brightest_seed0": relume_brightest[0] / brightest,
+        "ten_worst_pixels_share_of_squared_error_seed0": float(np.sort(err)[-10:].sum() / err.sum()),
+        "mean_ratio_relume_over_cycles_seed0": float(image.sum() / reference.sum()),
+        "block8_rel_l2_seed0": cy.rel_l2(cy.block_mean(image, BLOCK), cy.block_mean(reference, BLOCK)),
+        "relume_bake_s": float(np.median(bake_s)),
         "cycles_s": cycles_s,
-        "relume_layers": report.get("layers"),
+        "relume_layers": layers,
     }
     _record("smooth_metal_fireflies", figures)
-    assert brightest > 0.0
-    assert image.max() <= (brightest + noise) * (1.0 + MAPPING_MARGIN), figures
+    assert brightest > 0.0 and equal_sigma > 0.0
+    # No firefly: every relit pixel of every seed within the noise of an unbiased render at
+    # the same sample count.
+    assert max(relume_brightest) <= bound, figures
+    # No systematic excess (or shortfall) of the highlight: the seeds' mean at Cycles' peak.
+    assert abs(peak_mean - brightest) <= 3.0 * peak_standard_error + figures["cycles_brightest_noise"], figures
 
 
 def _glossy_scene():
