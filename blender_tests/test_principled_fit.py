@@ -17,10 +17,9 @@ figure, for two placements of one area light (in front, above the camera; to the
 Relume's figure is the mean over bake seeds 0–3 (each seed's figure is recorded too: a user
 gets one); Cycles' reference is converged: 8192 samples per pixel (two renders of 4096).
 Fewer do not converge on the smoothest metal: to the side its highlight holds a sliver of
-about 1 % of one pixel where the light's corner is seen past the neighbouring sphere
-(the light seen there is ≈ 50 times brighter than that pixel's value); Cycles at 2 × 128 samples missed it in both
-renders (their means agreed to 0.3 %, yet the sum on that material was 7.7 % under the
-value at 8192 samples), and that shortfall was what earlier sessions had recorded as
+about 1 % of one pixel where the light's corner is seen past the neighbouring sphere (≈ 50
+times that pixel's value); Cycles at 2 × 128 samples missed it in both renders (their means
+agreed to 0.3 %, yet the sum on that material was 7.7 % under the value at 8192 samples), and that shortfall was what earlier sessions had recorded as
 Relume's 11–15 % excess there. The issue's goal — metals within 5 %, dielectrics within 3 %
 — is asserted for every sphere, the smoothest included. Over the metals the exact
 evaluation must beat the analytic mapping.
@@ -29,8 +28,10 @@ The same spheres made editable and baked in the basis of Principled lobes
 (`lobe="principled"`, core/engine/src/brdf/principled_basis), relit at their bake-time
 materials, are held to the same goal but for the smoothest metal, at the basis' lower end
 (roughness 0.1): relit from the basis it measured 1.09–1.18 in front and 0.63–0.93 to the
-side over bake seeds 0–3 against this reference (2026-11-27) — a bias of the basis there
-plus noise, not the reference's — so it gets a bound on that instead (docs/fidelity.md).
+side over bake seeds 0–3 against this reference (2026-11-27): the rebuilt lobe's far field
+(a ripple of a few hundredths, both signs, where the exact lobe is 0) picks up the large
+light in every pixel of the sphere, not only in the highlight — so it gets a bound on that
+instead (docs/fidelity.md, "The Principled basis at its lower end").
 Every figure goes to `principled_fit.json` in pytest's basetemp.
 """
 
