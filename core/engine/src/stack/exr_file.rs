@@ -217,7 +217,9 @@ pub fn write_stack(path: &Path, stack: &TransferStack) -> Result<u64> {
 }
 
 /// Passes writes through while `progress` is not cancelled; after a cancel every write
-/// fails, which stops the OpenEXR encoder within one chunk.
+/// fails, which stops the OpenEXR encoder within one chunk. The error's kind is `Other`:
+/// `Write::write_all` retries an `Interrupted` write forever, so a cancel that arrived in the
+/// middle of one of the encoder's `write_all` calls would spin instead of stopping.
 pub(crate) struct CancellableWriter<'a, W> {
     pub(crate) inner: W,
     pub(crate) progress: &'a Progress,
@@ -226,10 +228,7 @@ pub(crate) struct CancellableWriter<'a, W> {
 impl<W> CancellableWriter<'_, W> {
     fn check(&self) -> std::io::Result<()> {
         if self.progress.is_cancelled() {
-            Err(std::io::Error::new(
-                std::io::ErrorKind::Interrupted,
-                CANCELLED_WRITE,
-            ))
+            Err(std::io::Error::other(CANCELLED_WRITE))
         } else {
             Ok(())
         }
@@ -738,5 +737,39 @@ pub fn check_scene_hash(header: &StackHeader, scene_hash: &str) -> Result<()> {
             stack_hash: header.scene_hash.clone(),
             scene_hash: scene_hash.to_string(),
         })
+    }
+}
+
+#[cfg(test)]
+mod cancellable_writer_tests {
+    use std::io::Write as _;
+    use std::sync::mpsc;
+    use std::time::Duration;
+
+    use super::CancellableWriter;
+    use crate::progress::Progress;
+
+    /// A cancel must stop `write_all` (which the OpenEXR encoder uses), not make it retry: run
+    /// on a thread so that a regression fails here instead of hanging the test run.
+    #[test]
+    fn a_cancelled_write_all_returns_an_error() {
+        let (done, finished) = mpsc::channel();
+        std::thread::spawn(move || {
+            let progress = Progress::new();
+            let mut sink = Vec::new();
+            let mut writer = CancellableWriter {
+                inner: &mut sink,
+                progress: &progress,
+            };
+            writer.write_all(b"before").unwrap();
+            progress.cancel();
+            let result = writer.write_all(b"after");
+            let _ = done.send((result.is_err(), sink.len()));
+        });
+        let (failed, written) = finished
+            .recv_timeout(Duration::from_secs(20))
+            .expect("write_all after a cancel did not return");
+        assert!(failed, "a write after the cancel succeeded");
+        assert_eq!(written, 6, "only the bytes before the cancel are written");
     }
 }
