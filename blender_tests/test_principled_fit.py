@@ -19,10 +19,11 @@ gets one); Cycles' reference is converged: 8192 samples per pixel (two renders o
 Fewer do not converge on the smoothest metal: to the side its highlight holds a sliver of
 about 1 % of one pixel where the light's corner is seen past the neighbouring sphere (≈ 50
 times that pixel's value); Cycles at 2 × 128 samples missed it in both renders (their means
-agreed to 0.3 %, yet the sum on that material was 7.7 % under the value at 8192 samples), and that shortfall was what earlier sessions had recorded as
-Relume's 11–15 % excess there. The issue's goal — metals within 5 %, dielectrics within 3 %
-— is asserted for every sphere, the smoothest included. Over the metals the exact
-evaluation must beat the analytic mapping.
+agreed to 0.3 %, yet the sum on that material was 7.7 % under the value at 8192 samples),
+and that shortfall was what earlier sessions had recorded as Relume's 11–15 % excess there.
+The issue's goal — metals within 5 %, dielectrics within 3 % — is asserted for every
+sphere, the smoothest included. Over the metals the exact evaluation must beat the analytic
+mapping.
 
 The same spheres made editable and baked in the basis of Principled lobes
 (`lobe="principled"`, core/engine/src/brdf/principled_basis), relit at their bake-time
