@@ -125,11 +125,11 @@ def _cycles_pair(scene, tmp, name, spp):
     return c1, c2, t1 + t2
 
 
-def _relume(addon, tmp, name, lobe="blinn-phong"):
+def _relume(addon, tmp, name, lobe="blinn-phong", seed=0):
     import relume
 
     t0 = time.perf_counter()
-    report = addon.api.bake(settings=relume.BakeSettings.preset("final", seed=0, bounces=1, lobe=lobe))
+    report = addon.api.bake(settings=relume.BakeSettings.preset("final", seed=seed, bounces=1, lobe=lobe))
     bake_s = time.perf_counter() - t0
     out = addon.api.render(str(tmp / f"{name}_relume.exr"))
     image = np.asarray(relume.read_exr(out), dtype=np.float64)[..., :3]
@@ -143,8 +143,6 @@ def _record(name, figures):
 
 
 def test_smooth_metal_has_no_fireflies(addon, prefs, blend_dir, results_file):
-    import relume
-
     ground = cy.diffuse_material("Floor", (0.5, 0.5, 0.5))
     # Small emitters: their reflections in the spheres cover a pixel only in part, so the
     # brightest converged pixel stays far below what a firefly reaches.
@@ -165,14 +163,10 @@ def test_smooth_metal_has_no_fireflies(addon, prefs, blend_dir, results_file):
              for seed in range(1, NOISE_SEEDS + 1)]
     equal_brightest = [float(e.max()) for e in equal]
     equal_sigma = float(np.std(equal_brightest, ddof=1))
-    images, bake_s, layers = [], [], None
-    for seed in range(NOISE_SEEDS):
-        t0 = time.perf_counter()
-        report = addon.api.bake(settings=relume.BakeSettings.preset("final", seed=seed, bounces=1))
-        bake_s.append(time.perf_counter() - t0)
-        layers = report.get("layers")
-        out = addon.api.render(str(blend_dir / f"fireflies_relume_{seed}.exr"))
-        images.append(np.asarray(relume.read_exr(out), dtype=np.float64)[..., :3])
+    runs = [_relume(addon, blend_dir, f"fireflies_{seed}", seed=seed) for seed in range(NOISE_SEEDS)]
+    images = [image for image, _, _ in runs]
+    bake_s = [seconds for _, seconds, _ in runs]
+    layers = runs[-1][2].get("layers")
     assert all(i.shape == reference.shape and np.isfinite(i).all() for i in images)
     relume_brightest = [float(i.max()) for i in images]
     at_peak = [float(i[peak].max()) for i in images]
