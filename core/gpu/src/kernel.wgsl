@@ -8,12 +8,22 @@
 // `pixel = (grey + rgb)` on a full relight or `pixel += (grey + rgb)` on an incremental one.
 // The accumulators live in registers: the image is read at most once and written once.
 //
+// The entries are read in batches of BATCH: each invocation loads one entry's record, its
+// weight and its segment mask into workgroup memory, and after a barrier the whole workgroup
+// walks the batch from there. Otherwise every invocation reads every entry's record and then
+// its weight from the storage buffers, two dependent reads per entry before its values; a
+// tile holds hundreds of entries at several editable materials.
+//
 // Lattice entries (lattice.rs, core/engine/src/stack/tiled/lattice.rs) are summed as the
 // CPU sums them: each adds `weight · scale · coefficient` into per-(segment, lattice node,
 // channel) accumulators in workgroup memory — invocation `lid` owns slots lid, lid + 256, …,
 // so every slot receives its additions in entry order from one invocation, without atomics —
 // and after a barrier each pixel adds its segment's ≤ 4 hat nodes into its RGB accumulator,
-// after every RGB entry and before `grey + rgb`, as the CPU's expansion does.
+// after every RGB entry and before `grey + rgb`, as the CPU's expansion does. An
+// invocation's first slot (slot lid: all of them in a tile of at most INVOCATIONS node
+// floats, as at the presets' lattice steps) is summed in a register, its place among the
+// entry's coefficients found once per tile rather than once per entry, and stored into
+// workgroup memory before the barrier: the same additions in the same order.
 //
 // Full relight: `weights` holds every layer's weight. Incremental: it holds the weight
 // changes of the edited layers and zero elsewhere; an entry of zero weight is skipped
@@ -63,8 +73,19 @@ const NODE_FLOATS: u32 = 3072u;
 @group(0) @binding(6) var<storage, read> chunk2: array<u32>;
 @group(0) @binding(7) var<storage, read> chunk3: array<u32>;
 
+// BATCH, the entries per batch, is defined by the pipeline (tiles.rs's ENTRY_BATCH); with
+// the node accumulators, the batch arrays stay within WebGPU's default 16 KiB of workgroup
+// memory.
+
+// Bit of a batch entry's flags word: its weight is not zero, so it is added.
+const TO_ADD: u32 = 0x80000000u;
+
 // The tile's lattice entries summed: per segment, per lattice node, RGB.
 var<workgroup> nodes: array<f32, NODE_FLOATS>;
+// The current batch of the tile's entries: per entry weight · scale (3 floats), and its
+// flags (`Entry` packing, plus TO_ADD), first sample and segment mask (3 words).
+var<workgroup> batch_ws: array<f32, 3u * BATCH>;
+var<workgroup> batch_entry: array<u32, 3u * BATCH>;
 
 // Where a tile's lattice block (lattice.rs) keeps each part, in words of `tables`.
 struct Lattice {
@@ -119,37 +140,56 @@ fn axis_hats(x: u32, step: u32, n: u32) -> Hats {
     return Hats(i, i + 1u, 1.0 - t, t);
 }
 
-// Adds `ws ·` lattice entry `e` (covering the segments of `mask`) into the node slots
-// this invocation owns, `floats` of them in the tile.
-fn accumulate(l: Lattice, e: Entry, mask: u32, ws: vec3<f32>, lid: u32, floats: u32) {
+// Node slot `j` of a tile's lattice: its segment, its channel, whether the segment stores
+// its node, and the node's place among those the segment stores.
+struct Slot {
+    segment: u32,
+    channel: u32,
+    stored: bool,
+    index: u32,
+}
+
+fn slot_of(l: Lattice, j: u32) -> Slot {
     let per_segment = 3u * l.nx * l.ny;
-    for (var j = lid; j < floats; j += INVOCATIONS) {
-        let s = j / per_segment;
-        let node = (j % per_segment) / 3u;
-        let ch = j % 3u;
-        if ((mask >> s) & 1u) == 0u {
+    let s = j / per_segment;
+    let node = (j % per_segment) / 3u;
+    let node_set = l.sets_at + s * l.set_words;
+    let bits = tables[node_set + node / 32u];
+    let bit = node % 32u;
+    var index = countOneBits(bits & ((1u << bit) - 1u));
+    for (var q = 0u; q < node / 32u; q++) {
+        index += countOneBits(tables[node_set + q]);
+    }
+    return Slot(s, j % 3u, ((bits >> bit) & 1u) == 1u, index);
+}
+
+// Where slot `slot`'s coefficient of a lattice entry with values from `offset`, `channels`
+// channels and segment mask `mask` lies: after the coefficients of the covered segments
+// below the slot's (covered segments in id order).
+fn coefficient_at(l: Lattice, slot: Slot, mask: u32, offset: u32, channels: u32) -> u32 {
+    var start = 0u;
+    var below = mask & ((1u << slot.segment) - 1u);
+    while below != 0u {
+        start += tables[l.counts_at + firstTrailingBit(below)];
+        below &= below - 1u;
+    }
+    return offset + (start + slot.index) * channels + select(slot.channel, 0u, channels == 1u);
+}
+
+// Adds `ws ·` a lattice entry (values from `offset` in chunk `chunk`, `channels` channels,
+// covering the segments of `mask`) into the node slots this invocation owns beyond its
+// first (lid + INVOCATIONS, …: only in tiles of more than INVOCATIONS node floats).
+fn accumulate_more(
+    l: Lattice, mask: u32, offset: u32, channels: u32, chunk: u32, ws: vec3<f32>, lid: u32,
+    floats: u32,
+) {
+    for (var j = lid + INVOCATIONS; j < floats; j += INVOCATIONS) {
+        let slot = slot_of(l, j);
+        if ((mask >> slot.segment) & 1u) == 0u || !slot.stored {
             continue;
         }
-        let node_set = l.sets_at + s * l.set_words;
-        let bits = tables[node_set + node / 32u];
-        let bit = node % 32u;
-        if ((bits >> bit) & 1u) == 0u {
-            continue;
-        }
-        // The node's place among those the segment stores, and where the segment's
-        // coefficients start among the entry's (covered segments in id order).
-        var index = countOneBits(bits & ((1u << bit) - 1u));
-        for (var q = 0u; q < node / 32u; q++) {
-            index += countOneBits(tables[node_set + q]);
-        }
-        var start = 0u;
-        var below = mask & ((1u << s) - 1u);
-        while below != 0u {
-            start += tables[l.counts_at + firstTrailingBit(below)];
-            below &= below - 1u;
-        }
-        let at = e.offset + (start + index) * e.channels + select(ch, 0u, e.channels == 1u);
-        nodes[j] = nodes[j] + ws[ch] * sample(e.slot, at);
+        let at = coefficient_at(l, slot, mask, offset, channels);
+        nodes[j] = nodes[j] + ws[slot.channel] * sample(chunk, at);
     }
 }
 
@@ -254,53 +294,96 @@ fn main(
     let block = tables[lattices_at + tile];
     var l: Lattice;
     var node_floats = 0u;
+    // This invocation's first node slot (slot lid), summed in `own`.
+    var own = Slot(0u, 0u, false, 0u);
+    var own_sum = 0.0;
     if block != 0u {
         l = lattice_of(block, tile_width * tile_height);
         node_floats = 3u * l.segments * l.nx * l.ny;
-        for (var j = lid; j < node_floats; j += INVOCATIONS) {
+        for (var j = lid + INVOCATIONS; j < node_floats; j += INVOCATIONS) {
             nodes[j] = 0.0;
+        }
+        if lid < node_floats {
+            own = slot_of(l, lid);
         }
     }
     let first = tables[tile];
     let end = tables[tile + 1u];
-    for (var k = first; k < end; k++) {
-        let e = entry(k);
-        let w = weights[e.layer].xyz;
-        if all(w == vec3<f32>(0.0)) {
-            continue;
+    for (var base = first; base < end; base += BATCH) {
+        let count = min(BATCH, end - base);
+        if lid < count {
+            let k = base + lid;
+            let e = entry(k);
+            let w = weights[e.layer].xyz;
+            let ws = w * e.scale;
+            batch_ws[3u * lid] = ws.x;
+            batch_ws[3u * lid + 1u] = ws.y;
+            batch_ws[3u * lid + 2u] = ws.z;
+            let flags = tables[params.entries_at + 4u * k + 1u];
+            batch_entry[3u * lid] = flags | select(0u, TO_ADD, any(w != vec3<f32>(0.0)));
+            batch_entry[3u * lid + 1u] = e.offset;
+            var mask = 0u;
+            if e.kind == KIND_LATTICE {
+                mask = tables[l.masks_at + (k - first)];
+            }
+            batch_entry[3u * lid + 2u] = mask;
         }
-        added = true;
-        let ws = w * e.scale;
-        switch e.kind {
-            case KIND_VALUES: {
-                if inside {
-                    if e.channels == 1u {
-                        grey = fma(ws, vec3<f32>(sample(e.slot, e.offset + i)), grey);
-                    } else {
-                        let j = e.offset + 3u * i;
-                        let v = vec3<f32>(
-                            sample(e.slot, j),
-                            sample(e.slot, j + 1u),
-                            sample(e.slot, j + 2u),
-                        );
-                        rgb = fma(ws, v, rgb);
+        workgroupBarrier();
+        for (var e = 0u; e < count; e++) {
+            let flags = batch_entry[3u * e];
+            if (flags & TO_ADD) == 0u {
+                continue;
+            }
+            added = true;
+            let channels = flags & 0xffu;
+            let kind = (flags >> 8u) & 0xffu;
+            let chunk = (flags >> 16u) & 0xffu;
+            let offset = batch_entry[3u * e + 1u];
+            let ws = vec3<f32>(
+                batch_ws[3u * e],
+                batch_ws[3u * e + 1u],
+                batch_ws[3u * e + 2u],
+            );
+            switch kind {
+                case KIND_VALUES: {
+                    if inside {
+                        if channels == 1u {
+                            grey = fma(ws, vec3<f32>(sample(chunk, offset + i)), grey);
+                        } else {
+                            let j = offset + 3u * i;
+                            let values = vec3<f32>(
+                                sample(chunk, j),
+                                sample(chunk, j + 1u),
+                                sample(chunk, j + 2u),
+                            );
+                            rgb = fma(ws, values, rgb);
+                        }
                     }
                 }
+                case KIND_LATTICE: {
+                    lattice_added = true;
+                    let mask = batch_entry[3u * e + 2u];
+                    if own.stored && ((mask >> own.segment) & 1u) == 1u {
+                        let at = coefficient_at(l, own, mask, offset, channels);
+                        own_sum = own_sum + ws[own.channel] * sample(chunk, at);
+                    }
+                    accumulate_more(l, mask, offset, channels, chunk, ws, lid, node_floats);
+                }
+                default: {}
             }
-            case KIND_LATTICE: {
-                lattice_added = true;
-                let mask = tables[l.masks_at + (k - first)];
-                accumulate(l, e, mask, ws, lid, node_floats);
-            }
-            default: {}
         }
+        // The batch is read by every invocation before the next one overwrites it.
+        workgroupBarrier();
     }
-    if lattice_added {
+    if block != 0u {
+        if lid < node_floats {
+            nodes[lid] = own_sum;
+        }
         // Every slot's sum is complete before any pixel reads it.
         workgroupBarrier();
-        if inside {
-            rgb = rgb + expand(l, local.x, local.y, i);
-        }
+    }
+    if lattice_added && inside {
+        rgb = rgb + expand(l, local.x, local.y, i);
     }
     if !inside {
         return;

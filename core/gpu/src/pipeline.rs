@@ -69,6 +69,15 @@ pub(crate) struct Bindings<'a> {
 /// Compiles the kernel and builds one dispatch per group of `layout`; `base` holds the
 /// parameters shared by every dispatch. Validation errors surface through the caller's
 /// error scope.
+/// `kernel.wgsl` with the constants it takes from the host side.
+fn kernel_source() -> String {
+    format!(
+        "const BATCH: u32 = {}u;\n{}",
+        crate::tiles::ENTRY_BATCH,
+        include_str!("kernel.wgsl")
+    )
+}
+
 pub(crate) fn build(
     device: &wgpu::Device,
     layout: &Layout,
@@ -77,7 +86,7 @@ pub(crate) fn build(
 ) -> (wgpu::ComputePipeline, Vec<Dispatch>) {
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some("relume relight kernel"),
-        source: wgpu::ShaderSource::Wgsl(Cow::Borrowed(include_str!("kernel.wgsl"))),
+        source: wgpu::ShaderSource::Wgsl(Cow::Owned(kernel_source())),
     });
     let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
         label: Some("relume relight"),

@@ -20,6 +20,10 @@
 /// Words of one entry record.
 pub const ENTRY_WORDS: usize = 4;
 
+/// Entries the kernel reads into workgroup memory at a time (`BATCH` in `kernel.wgsl`,
+/// which the pipeline defines from this): a tile's entries are walked batch by batch.
+pub const ENTRY_BATCH: usize = 128;
+
 /// How an entry's values are stored (the kind byte of its flags).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum EntryKind {

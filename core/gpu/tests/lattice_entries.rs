@@ -18,6 +18,7 @@ use relume_engine::stack::tiled::{TileLattice, TileValues, TiledStack};
 use relume_engine::stack::Precision;
 use relume_gpu::device::is_real_gpu;
 use relume_gpu::lattice::{block_words, MAX_NODE_SLOTS};
+use relume_gpu::tiles::ENTRY_BATCH;
 use relume_gpu::{DeviceKind, DevicePreference, GpuError, GpuOptions, GpuRelighter, Relighter};
 
 fn lattice_entries(stack: &TiledStack) -> usize {
@@ -196,6 +197,37 @@ fn synthetic_mixed_stacks_agree_full_and_incremental() {
         assert!(chunks > 4, "{name}: {chunks} chunks, one bind group");
         compare_with_cpu(&format!("{name}, {chunks} chunks"), &stack, &mut gpu, 2);
     }
+}
+
+/// Tiles of more entries than the kernel reads into workgroup memory at a time: the
+/// Cornell box baked at 32×32 into the dense layout holds every layer in every tile, and
+/// with lattices on three of its four tiles (the first at 32 segments, past the slots one
+/// invocation sums in a register) each tile's entries, per-pixel and lattice ones
+/// alternating, run through a full batch and a partial one.
+#[test]
+fn tiles_of_several_batches_agree_full_and_incremental() {
+    let Some(adapter) = gpu_or_skip("tiles_of_several_batches_agree_full_and_incremental") else {
+        return;
+    };
+    let settings = small_bake(32, 32, Precision::F16);
+    let (dense, _) =
+        relume_engine::bake::bake(&scene("cornell"), &settings, &Progress::new()).expect("cornell");
+    let tiled = TiledStack::from_dense(&dense).expect("tiled");
+    let stack = Arc::new(with_lattices(&tiled, 11));
+    let most = stack.tiles.iter().map(|t| t.entries.len()).max().unwrap();
+    assert!(
+        most > ENTRY_BATCH,
+        "{most} entries in the largest tile: one batch"
+    );
+    assert!(lattice_entries(&stack) > 0);
+    let mut gpu = GpuRelighter::new(stack.clone(), &adapter, GpuOptions::default()).unwrap();
+    let worst = compare_with_cpu("cornell 32×32, several batches", &stack, &mut gpu, 4);
+    eprintln!(
+        "cornell 32×32 with lattices: {most} entries in the largest tile, {} lattice entries \
+         of {}, worst GPU vs CPU {worst:.2e}",
+        lattice_entries(&stack),
+        stack.entry_count()
+    );
 }
 
 /// Step 1 over 32 segments needs 8192 (segment, node) pairs, past the kernel's limit: the
