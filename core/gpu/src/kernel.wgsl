@@ -86,6 +86,10 @@ var<workgroup> nodes: array<f32, NODE_FLOATS>;
 // flags (`Entry` packing, plus TO_ADD), first sample and segment mask (3 words).
 var<workgroup> batch_ws: array<f32, 3u * BATCH>;
 var<workgroup> batch_entry: array<u32, 3u * BATCH>;
+// Whether the tile has a lattice entry to add (zero at the start of every workgroup).
+var<workgroup> lattice_any: atomic<u32>;
+// Most groups of invocations that sum a tile's lattice entries side by side.
+const MAX_LANES: u32 = 8u;
 
 // Where a tile's lattice block (lattice.rs) keeps each part, in words of `tables`.
 struct Lattice {
@@ -261,6 +265,38 @@ fn sample(slot: u32, i: u32) -> f32 {
     return half_to_f32(select(w & 0xffffu, w >> 16u, (i & 1u) == 1u));
 }
 
+// Loads entries base .. base + count of the tile (whose first entry is `first`) into the
+// batch arrays, one per invocation, and notes in `lattice_any` a lattice entry to add.
+fn load_batch(base: u32, count: u32, first: u32, l: Lattice, lid: u32) {
+    if lid >= count {
+        return;
+    }
+    let k = base + lid;
+    let e = entry(k);
+    let w = weights[e.layer].xyz;
+    let ws = w * e.scale;
+    batch_ws[3u * lid] = ws.x;
+    batch_ws[3u * lid + 1u] = ws.y;
+    batch_ws[3u * lid + 2u] = ws.z;
+    let to_add = any(w != vec3<f32>(0.0));
+    let flags = tables[params.entries_at + 4u * k + 1u];
+    batch_entry[3u * lid] = flags | select(0u, TO_ADD, to_add);
+    batch_entry[3u * lid + 1u] = e.offset;
+    var mask = 0u;
+    if e.kind == KIND_LATTICE {
+        mask = tables[l.masks_at + (k - first)];
+        if to_add {
+            atomicOr(&lattice_any, 1u);
+        }
+    }
+    batch_entry[3u * lid + 2u] = mask;
+}
+
+// Weight · scale of entry `e` of the batch.
+fn batch_weight(e: u32) -> vec3<f32> {
+    return vec3<f32>(batch_ws[3u * e], batch_ws[3u * e + 1u], batch_ws[3u * e + 2u]);
+}
+
 @compute @workgroup_size(16, 16)
 fn main(
     @builtin(workgroup_id) group: vec3<u32>,
@@ -288,13 +324,12 @@ fn main(
     var grey = vec3<f32>(0.0);
     var rgb = vec3<f32>(0.0);
     var added = false;
-    var lattice_added = false;
     // The lattice pointers follow the entry records, whose count is the last tile start.
     let lattices_at = params.entries_at + 4u * tables[params.entries_at - 1u];
     let block = tables[lattices_at + tile];
     var l: Lattice;
     var node_floats = 0u;
-    // This invocation's first node slot (slot lid), summed in `own`.
+    // The node slot this invocation sums in `own_sum` (see the lattice entries' loop).
     var own = Slot(0u, 0u, false, 0u);
     var own_sum = 0.0;
     if block != 0u {
@@ -303,31 +338,19 @@ fn main(
         for (var j = lid + INVOCATIONS; j < node_floats; j += INVOCATIONS) {
             nodes[j] = 0.0;
         }
-        if lid < node_floats {
-            own = slot_of(l, lid);
-        }
     }
     let first = tables[tile];
     let end = tables[tile + 1u];
-    for (var base = first; base < end; base += BATCH) {
-        let count = min(BATCH, end - base);
-        if lid < count {
-            let k = base + lid;
-            let e = entry(k);
-            let w = weights[e.layer].xyz;
-            let ws = w * e.scale;
-            batch_ws[3u * lid] = ws.x;
-            batch_ws[3u * lid + 1u] = ws.y;
-            batch_ws[3u * lid + 2u] = ws.z;
-            let flags = tables[params.entries_at + 4u * k + 1u];
-            batch_entry[3u * lid] = flags | select(0u, TO_ADD, any(w != vec3<f32>(0.0)));
-            batch_entry[3u * lid + 1u] = e.offset;
-            var mask = 0u;
-            if e.kind == KIND_LATTICE {
-                mask = tables[l.masks_at + (k - first)];
-            }
-            batch_entry[3u * lid + 2u] = mask;
-        }
+    // The tile's per-pixel entries come first, then its lattice entries (tiles.rs); the
+    // block's last word counts the former.
+    var lattice_first = end;
+    if block != 0u {
+        lattice_first = first + tables[l.masks_at + (end - first)];
+    }
+    // Per-pixel entries: each invocation adds every one at its own pixel.
+    for (var base = first; base < lattice_first; base += BATCH) {
+        let count = min(BATCH, lattice_first - base);
+        load_batch(base, count, first, l, lid);
         workgroupBarrier();
         for (var e = 0u; e < count; e++) {
             let flags = batch_entry[3u * e];
@@ -335,49 +358,90 @@ fn main(
                 continue;
             }
             added = true;
-            let channels = flags & 0xffu;
-            let kind = (flags >> 8u) & 0xffu;
+            if !inside {
+                continue;
+            }
             let chunk = (flags >> 16u) & 0xffu;
             let offset = batch_entry[3u * e + 1u];
-            let ws = vec3<f32>(
-                batch_ws[3u * e],
-                batch_ws[3u * e + 1u],
-                batch_ws[3u * e + 2u],
-            );
-            switch kind {
-                case KIND_VALUES: {
-                    if inside {
-                        if channels == 1u {
-                            grey = fma(ws, vec3<f32>(sample(chunk, offset + i)), grey);
-                        } else {
-                            let j = offset + 3u * i;
-                            let values = vec3<f32>(
-                                sample(chunk, j),
-                                sample(chunk, j + 1u),
-                                sample(chunk, j + 2u),
-                            );
-                            rgb = fma(ws, values, rgb);
-                        }
-                    }
-                }
-                case KIND_LATTICE: {
-                    lattice_added = true;
-                    let mask = batch_entry[3u * e + 2u];
-                    if own.stored && ((mask >> own.segment) & 1u) == 1u {
-                        let at = coefficient_at(l, own, mask, offset, channels);
-                        own_sum = own_sum + ws[own.channel] * sample(chunk, at);
-                    }
-                    accumulate_more(l, mask, offset, channels, chunk, ws, lid, node_floats);
-                }
-                default: {}
+            let ws = batch_weight(e);
+            if (flags & 0xffu) == 1u {
+                grey = fma(ws, vec3<f32>(sample(chunk, offset + i)), grey);
+            } else {
+                let j = offset + 3u * i;
+                let values = vec3<f32>(
+                    sample(chunk, j),
+                    sample(chunk, j + 1u),
+                    sample(chunk, j + 2u),
+                );
+                rgb = fma(ws, values, rgb);
             }
         }
         // The batch is read by every invocation before the next one overwrites it.
         workgroupBarrier();
     }
+    // Lattice entries. Where the tile's node slots fill at most half the workgroup, the
+    // invocations form `lanes` groups of one invocation per slot, and group k sums the
+    // batch's entries k, k + lanes, …; the groups' sums are added per slot at the end, in
+    // group order. Otherwise one group: invocation lid sums slot lid (and, through
+    // accumulate_more, lid + INVOCATIONS, …) over every entry.
+    var lanes = 1u;
+    var lane = 0u;
+    if node_floats > 0u && node_floats <= INVOCATIONS / 2u {
+        lanes = min(MAX_LANES, INVOCATIONS / node_floats);
+        lane = lid / node_floats;
+    }
+    if block != 0u && lane < lanes && lid - lane * node_floats < node_floats {
+        own = slot_of(l, lid - lane * node_floats);
+    }
+    for (var base = lattice_first; base < end; base += BATCH) {
+        let count = min(BATCH, end - base);
+        load_batch(base, count, first, l, lid);
+        workgroupBarrier();
+        if lanes == 1u {
+            for (var e = 0u; e < count; e++) {
+                let flags = batch_entry[3u * e];
+                if (flags & TO_ADD) == 0u {
+                    continue;
+                }
+                let channels = flags & 0xffu;
+                let chunk = (flags >> 16u) & 0xffu;
+                let offset = batch_entry[3u * e + 1u];
+                let mask = batch_entry[3u * e + 2u];
+                let ws = batch_weight(e);
+                if own.stored && ((mask >> own.segment) & 1u) == 1u {
+                    let at = coefficient_at(l, own, mask, offset, channels);
+                    own_sum = own_sum + ws[own.channel] * sample(chunk, at);
+                }
+                accumulate_more(l, mask, offset, channels, chunk, ws, lid, node_floats);
+            }
+        } else if own.stored {
+            for (var e = lane; e < count; e += lanes) {
+                let flags = batch_entry[3u * e];
+                let mask = batch_entry[3u * e + 2u];
+                if (flags & TO_ADD) == 0u || ((mask >> own.segment) & 1u) == 0u {
+                    continue;
+                }
+                let at = coefficient_at(l, own, mask, batch_entry[3u * e + 1u], flags & 0xffu);
+                let v = sample((flags >> 16u) & 0xffu, at);
+                own_sum = own_sum + batch_ws[3u * e + own.channel] * v;
+            }
+        }
+        workgroupBarrier();
+    }
+    let lattice_added = atomicLoad(&lattice_any) != 0u;
+    added = added || lattice_added;
     if block != 0u {
+        // The groups' sums, added per slot in group order (one group: the sum itself).
+        if lane < lanes {
+            batch_ws[lid] = own_sum;
+        }
+        workgroupBarrier();
         if lid < node_floats {
-            nodes[lid] = own_sum;
+            var sum = batch_ws[lid];
+            for (var k = 1u; k < lanes; k++) {
+                sum = sum + batch_ws[k * node_floats + lid];
+            }
+            nodes[lid] = sum;
         }
         // Every slot's sum is complete before any pixel reads it.
         workgroupBarrier();

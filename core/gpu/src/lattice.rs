@@ -16,15 +16,16 @@
 //! - then, per segment, its stored-node count;
 //! - then, per segment, a bit set of the lattice nodes it stores
 //!   ([`mask_words`] words each, node `n` at bit `n % 32` of word `n / 32`);
-//! - then, per entry of the tile (in entry order), its segment mask (0 for an entry of
-//!   per-pixel values).
+//! - then, per entry of the tile in the GPU's order ([`gpu_order`]: its per-pixel entries,
+//!   then its lattice entries), its segment mask (0 for an entry of per-pixel values);
+//! - last, the number of the tile's per-pixel entries (where its lattice entries start).
 //!
 //! The stored-node counts and bit sets follow from the map (the engine's
 //! [`TileLattice`] derives them the same way); uploading them spares the kernel a pass
 //! over the map per entry.
 
 use relume_engine::stack::tiled::lattice::TileLattice;
-use relume_engine::stack::tiled::{StackTile, TiledStack};
+use relume_engine::stack::tiled::{StackTile, TileLayer, TiledStack};
 
 /// Most (segment, lattice node) pairs one tile may hold: the kernel's workgroup array of
 /// node accumulators has three floats for each (12 KiB, within WebGPU's default 16 KiB of
@@ -58,6 +59,16 @@ pub fn block_words(tile: &StackTile) -> usize {
         + usize::from((w * h) % 4 != 0)
         + segments * (1 + mask_words(l.node_count()))
         + tile.entries.len()
+        + 1
+}
+
+/// `tile`'s entries in the order the GPU's tables list them: the per-pixel entries, then
+/// the lattice entries, each in the tile's (layer) order. The two kinds add into different
+/// accumulators (a pixel's, a lattice node's), so every accumulator still receives its
+/// additions in layer order; the kernel walks each kind in a loop of its own.
+pub fn gpu_order(tile: &StackTile) -> impl Iterator<Item = &TileLayer> {
+    let values = tile.entries.iter().filter(|e| e.segments == 0);
+    values.chain(tile.entries.iter().filter(|e| e.segments != 0))
 }
 
 /// Checks every used lattice against [`MAX_NODE_SLOTS`] and returns the words of all
@@ -113,7 +124,8 @@ pub fn block(tile: &StackTile) -> Vec<u32> {
         }
         out.extend(bits);
     }
-    out.extend(tile.entries.iter().map(|e| e.segments));
+    out.extend(gpu_order(tile).map(|e| e.segments));
+    out.push(tile.entries.iter().filter(|e| e.segments == 0).count() as u32);
     out
 }
 
@@ -142,7 +154,7 @@ mod tests {
             segments,
         };
         let tile = StackTile {
-            entries: vec![entry(0, 0), entry(1, 0b11), entry(2, 0b10)],
+            entries: vec![entry(0, 0b11), entry(1, 0), entry(2, 0b10)],
             values: TileValues::F32(Vec::new()),
             lattice: Some(lattice.clone()),
         };
@@ -161,6 +173,6 @@ mod tests {
             let from_bits: Vec<u16> = (0..4).filter(|n| bits >> n & 1 == 1).collect();
             assert_eq!(&from_bits, stored, "segment {s}");
         }
-        assert_eq!(&b[b.len() - 3..], [0, 0b11, 0b10]);
+        assert_eq!(&b[b.len() - 4..], [0, 0b11, 0b10, 1]);
     }
 }

@@ -3,8 +3,9 @@
 //! - **Tile starts** (words `0 ..= tiles`): tile `t`'s entries are records
 //!   `starts[t] .. starts[t + 1]`, so the table costs one word per tile.
 //! - **Entry records** (from word [`entries_at`], [`ENTRY_WORDS`] words each), the tiled
-//!   stack's entries in tile order and, within a tile, in its (ascending) layer order —
-//!   the order the CPU's tiled sum adds them in:
+//!   stack's entries in tile order and, within a tile, its per-pixel entries then its
+//!   lattice entries, each kind in its (ascending) layer order (`crate::lattice::gpu_order`:
+//!   every accumulator receives its additions in the order the CPU's tiled sum adds them):
 //!   `[layer, flags, scale (f32 bits), offset]`, where `offset` is the entry's first sample
 //!   in its chunk and `flags` packs the channels (bits 0–7: 1 grey, 3 RGB), the entry kind
 //!   (bits 8–15, [`EntryKind`]) and the chunk's slot in its bind group (bits 16–23).

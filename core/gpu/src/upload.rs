@@ -9,7 +9,7 @@
 use relume_engine::stack::tiled::{TileValues, TiledStack};
 
 use crate::error::GpuError;
-use crate::lattice::{block, block_words};
+use crate::lattice::{block, block_words, gpu_order};
 use crate::layout::{Layout, CHUNKS_PER_GROUP};
 use crate::tiles::{entry_flags, entry_record, lattices_at, EntryKind};
 
@@ -119,7 +119,8 @@ pub(crate) fn upload_values(
 }
 
 /// Writes the tables (`tiles.rs`): the tile starts, one record per entry with its offset
-/// in its chunk, the lattice pointers, then the lattice blocks (`lattice.rs`).
+/// in its chunk (a tile's entries in [`gpu_order`]), the lattice pointers, then the lattice
+/// blocks (`lattice.rs`).
 pub(crate) fn upload_tables(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
@@ -142,7 +143,7 @@ pub(crate) fn upload_tables(
         let mut tile_start = 0u64;
         let tiles = &stack.tiles[chunk.first_tile as usize..][..chunk.tiles as usize];
         for tile in tiles {
-            for e in &tile.entries {
+            for e in gpu_order(tile) {
                 let kind = if e.segments == 0 {
                     EntryKind::Values
                 } else {
