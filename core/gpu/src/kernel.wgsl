@@ -3,27 +3,32 @@
 // tiles.rs for the tables and layout.rs for the value chunks.
 //
 // Per pixel the order of operations is the CPU tiled sum's (core/engine/src/relight/
-// tiled_sum.rs): the tile's entries in layer order, grey entries into one accumulator and
-// RGB entries into another, each `acc = fma(weight · scale, value, acc)`, then
-// `pixel = (grey + rgb)` on a full relight or `pixel += (grey + rgb)` on an incremental one.
-// The accumulators live in registers: the image is read at most once and written once.
+// tiled_sum.rs): the tile's per-pixel entries in layer order, grey entries into one
+// accumulator and RGB entries into another, each `acc = fma(weight · scale, value, acc)`,
+// then `pixel = (grey + rgb)` on a full relight or `pixel += (grey + rgb)` on an
+// incremental one. The accumulators live in registers: the image is read at most once and
+// written once.
 //
 // The entries are read in batches of BATCH: each invocation loads one entry's record, its
 // weight and its segment mask into workgroup memory, and after a barrier the whole workgroup
 // walks the batch from there. Otherwise every invocation reads every entry's record and then
 // its weight from the storage buffers, two dependent reads per entry before its values; a
-// tile holds hundreds of entries at several editable materials.
+// tile holds hundreds of entries at several editable materials. The tables list a tile's
+// per-pixel entries before its lattice entries (tiles.rs), and each kind has a loop of its
+// own: they add into different accumulators, so neither order changes a sum.
 //
 // Lattice entries (lattice.rs, core/engine/src/stack/tiled/lattice.rs) are summed as the
 // CPU sums them: each adds `weight · scale · coefficient` into per-(segment, lattice node,
-// channel) accumulators in workgroup memory — invocation `lid` owns slots lid, lid + 256, …,
-// so every slot receives its additions in entry order from one invocation, without atomics —
-// and after a barrier each pixel adds its segment's ≤ 4 hat nodes into its RGB accumulator,
-// after every RGB entry and before `grey + rgb`, as the CPU's expansion does. An
-// invocation's first slot (slot lid: all of them in a tile of at most INVOCATIONS node
-// floats, as at the presets' lattice steps) is summed in a register, its place among the
-// entry's coefficients found once per tile rather than once per entry, and stored into
-// workgroup memory before the barrier: the same additions in the same order.
+// channel) accumulators, and after a barrier each pixel adds its segment's ≤ 4 hat nodes
+// into its RGB accumulator, after every RGB entry and before `grey + rgb`, as the CPU's
+// expansion does. A slot's place among an entry's coefficients is found once per tile, and
+// its sum kept in a register. Where a tile's slots fill at most half the workgroup (75 of
+// 256 at the presets' 25-node lattices), the invocations form up to MAX_LANES groups of one
+// invocation per slot that sum every `lanes`-th entry side by side, and the groups' sums
+// are added per slot in group order: the same additions as the CPU's, grouped differently
+// (so equal to rounding). Larger lattices take one group, and an invocation also owns slots
+// lid + 256, … in workgroup memory; every slot's additions come from one invocation in
+// entry order, without atomics.
 //
 // Full relight: `weights` holds every layer's weight. Incremental: it holds the weight
 // changes of the edited layers and zero elsewhere; an entry of zero weight is skipped
