@@ -25,6 +25,13 @@ pub const ENTRY_WORDS: usize = 4;
 /// which the pipeline defines from this): a tile's entries are walked batch by batch.
 pub const ENTRY_BATCH: usize = 128;
 
+// The kernel's batch arrays (three words an entry, twice) also hold one float per invocation
+// of a workgroup (256) when the lattice groups' sums are added, and together with the node
+// accumulators (three floats a slot) and one flag word they must fit WebGPU's default 16 KiB
+// of workgroup memory.
+const _: () = assert!(3 * ENTRY_BATCH >= 256);
+const _: () = assert!(4 * (3 * crate::lattice::MAX_NODE_SLOTS + 6 * ENTRY_BATCH + 1) <= 16384);
+
 /// How an entry's values are stored (the kind byte of its flags).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum EntryKind {
