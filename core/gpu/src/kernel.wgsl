@@ -52,11 +52,9 @@ struct Params {
 // An entry record (tiles.rs): 4 words.
 struct Entry {
     layer: u32,
-    channels: u32,
-    // 0: one value per pixel and channel; 1: lattice coefficients.
-    kind: u32,
-    // Which chunk binding of the group holds the values (0..3).
-    slot: u32,
+    // Channels, kind and chunk slot, packed as tiles.rs's entry_flags (see `channels_of`,
+    // `kind_of`, `chunk_of`).
+    flags: u32,
     scale: f32,
     // First sample of the entry in its chunk.
     offset: u32,
@@ -64,7 +62,6 @@ struct Entry {
 
 const TILE: u32 = 16u;
 const INVOCATIONS: u32 = 256u;
-const KIND_VALUES: u32 = 0u;
 const KIND_LATTICE: u32 = 1u;
 // Three floats for each of lattice.rs's MAX_NODE_SLOTS (segment, node) pairs.
 const NODE_FLOATS: u32 = 3072u;
@@ -224,15 +221,22 @@ fn expand(l: Lattice, x: u32, y: u32, i: u32) -> vec3<f32> {
 
 fn entry(k: u32) -> Entry {
     let at = params.entries_at + 4u * k;
-    let flags = tables[at + 1u];
-    return Entry(
-        tables[at],
-        flags & 0xffu,
-        (flags >> 8u) & 0xffu,
-        (flags >> 16u) & 0xffu,
-        bitcast<f32>(tables[at + 2u]),
-        tables[at + 3u],
-    );
+    return Entry(tables[at], tables[at + 1u], bitcast<f32>(tables[at + 2u]), tables[at + 3u]);
+}
+
+// An entry's channels (1 grey, 3 RGB).
+fn channels_of(flags: u32) -> u32 {
+    return flags & 0xffu;
+}
+
+// An entry's kind: KIND_LATTICE, or 0 for one value per pixel and channel.
+fn kind_of(flags: u32) -> u32 {
+    return (flags >> 8u) & 0xffu;
+}
+
+// Which chunk binding of the group holds an entry's values (0..3).
+fn chunk_of(flags: u32) -> u32 {
+    return (flags >> 16u) & 0xffu;
 }
 
 // The slot is the same for every invocation of a workgroup at a given entry, so the
@@ -284,11 +288,10 @@ fn load_batch(base: u32, count: u32, first: u32, l: Lattice, lid: u32) {
     batch_ws[3u * lid + 1u] = ws.y;
     batch_ws[3u * lid + 2u] = ws.z;
     let to_add = any(w != vec3<f32>(0.0));
-    let flags = tables[params.entries_at + 4u * k + 1u];
-    batch_entry[3u * lid] = flags | select(0u, TO_ADD, to_add);
+    batch_entry[3u * lid] = e.flags | select(0u, TO_ADD, to_add);
     batch_entry[3u * lid + 1u] = e.offset;
     var mask = 0u;
-    if e.kind == KIND_LATTICE {
+    if kind_of(e.flags) == KIND_LATTICE {
         mask = tables[l.masks_at + (k - first)];
         if to_add {
             atomicOr(&lattice_any, 1u);
@@ -366,10 +369,10 @@ fn main(
             if !inside {
                 continue;
             }
-            let chunk = (flags >> 16u) & 0xffu;
+            let chunk = chunk_of(flags);
             let offset = batch_entry[3u * e + 1u];
             let ws = batch_weight(e);
-            if (flags & 0xffu) == 1u {
+            if channels_of(flags) == 1u {
                 grey = fma(ws, vec3<f32>(sample(chunk, offset + i)), grey);
             } else {
                 let j = offset + 3u * i;
@@ -408,8 +411,8 @@ fn main(
                 if (flags & TO_ADD) == 0u {
                     continue;
                 }
-                let channels = flags & 0xffu;
-                let chunk = (flags >> 16u) & 0xffu;
+                let channels = channels_of(flags);
+                let chunk = chunk_of(flags);
                 let offset = batch_entry[3u * e + 1u];
                 let mask = batch_entry[3u * e + 2u];
                 let ws = batch_weight(e);
@@ -426,8 +429,8 @@ fn main(
                 if (flags & TO_ADD) == 0u || ((mask >> own.segment) & 1u) == 0u {
                     continue;
                 }
-                let at = coefficient_at(l, own, mask, batch_entry[3u * e + 1u], flags & 0xffu);
-                let v = sample((flags >> 16u) & 0xffu, at);
+                let at = coefficient_at(l, own, mask, batch_entry[3u * e + 1u], channels_of(flags));
+                let v = sample(chunk_of(flags), at);
                 own_sum = own_sum + batch_ws[3u * e + own.channel] * v;
             }
         }

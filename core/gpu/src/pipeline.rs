@@ -66,9 +66,6 @@ pub(crate) struct Bindings<'a> {
     pub placeholder: &'a wgpu::Buffer,
 }
 
-/// Compiles the kernel and builds one dispatch per group of `layout`; `base` holds the
-/// parameters shared by every dispatch. Validation errors surface through the caller's
-/// error scope.
 /// `kernel.wgsl` with the constants it takes from the host side.
 fn kernel_source() -> String {
     format!(
@@ -78,6 +75,9 @@ fn kernel_source() -> String {
     )
 }
 
+/// Compiles the kernel and builds one dispatch per group of `layout`; `base` holds the
+/// parameters shared by every dispatch. Validation errors surface through the caller's
+/// error scope.
 pub(crate) fn build(
     device: &wgpu::Device,
     layout: &Layout,
