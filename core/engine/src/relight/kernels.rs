@@ -27,19 +27,20 @@
 //! partial vector is added whole — reading past the entry where the tile's values go on,
 //! else from a zero-filled copy — into padding lanes nobody reads. No scalar tail.
 //!
-//! Two implementations, each a type implementing [`EntryKernels`], so the tile loop that
+//! Three implementations, each a type implementing [`EntryKernels`], so the tile loop that
 //! calls them is compiled once per implementation with the calls inlined (no dispatch per
 //! entry); [`Kernels`] says which one runs, chosen once per [`Kernels::detect`]:
 //! - **AVX2 + FMA + F16C** ([`Avx2`]; x86-64, detected at run time because the workspace
 //!   builds for baseline x86-64): 8 samples per step, `vcvtph2ps` converts f16 in
 //!   registers, one fused multiply-add per 8 samples and accumulator. Its methods are meant
 //!   to be inlined into a function compiled with those features (`tiled_sum.rs` does so).
-//!   Where the CPU also has AVX-512F and AVX-512VL, the tile loop with these kernels is
-//!   compiled with those features as well ([`Kernels::Avx2Wide`]): the same 256-bit
-//!   instructions, so the same results, with 32 vector registers instead of 16.
+//! - **AVX-512F + VL** besides ([`Avx512`], `kernels/wide.rs`): the AVX2 loops with the
+//!   two that carry most values in 16-lane steps, in a tile loop compiled with those
+//!   features (32 vector registers instead of 16); the same additions per lane, so the same
+//!   results, bit for bit.
 //! - **Portable** ([`Portable`]): converts a chunk of at most [`CHUNK`] samples into a
 //!   stack buffer with `half`'s slice conversion, then plain loops over exactly the entry.
-//!   Used on other CPUs, and by the tests to check the AVX2 path against it.
+//!   Used on other CPUs, and by the tests to check the vector paths against it.
 //!
 //! The accumulators hold colour only; the image's alpha of 1 is never touched by a sum.
 
@@ -116,6 +117,12 @@ pub(crate) trait Sample: Copy + Send + Sync + 'static {
     /// `p` must be valid for reading 8 values, and the CPU must have AVX2 and F16C.
     #[cfg(target_arch = "x86_64")]
     unsafe fn load8(p: *const Self) -> std::arch::x86_64::__m256;
+    /// Loads 16 consecutive samples as f32.
+    ///
+    /// # Safety
+    /// `p` must be valid for reading 16 values, and the CPU must have AVX-512F and F16C.
+    #[cfg(target_arch = "x86_64")]
+    unsafe fn load16(p: *const Self) -> std::arch::x86_64::__m512;
 }
 
 impl Sample for f32 {
@@ -129,6 +136,12 @@ impl Sample for f32 {
     unsafe fn load8(p: *const f32) -> std::arch::x86_64::__m256 {
         // SAFETY: the caller guarantees 8 readable values and AVX.
         unsafe { std::arch::x86_64::_mm256_loadu_ps(p) }
+    }
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn load16(p: *const f32) -> std::arch::x86_64::__m512 {
+        // SAFETY: the caller guarantees 16 readable values and AVX-512F.
+        unsafe { std::arch::x86_64::_mm512_loadu_ps(p) }
     }
 }
 
@@ -147,6 +160,14 @@ impl Sample for f16 {
         // transparent u16, so the bytes are IEEE binary16 as `vcvtph2ps` expects.
         unsafe { _mm256_cvtph_ps(_mm_loadu_si128(p as *const __m128i)) }
     }
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn load16(p: *const f16) -> std::arch::x86_64::__m512 {
+        use std::arch::x86_64::*;
+        // SAFETY: the caller guarantees 16 readable halves (32 bytes) and AVX-512F; the
+        // bytes are IEEE binary16 as `vcvtph2ps` expects.
+        unsafe { _mm512_cvtph_ps(_mm256_loadu_si256(p as *const __m256i)) }
+    }
 }
 
 /// Which implementation of the inner loops runs.
@@ -155,12 +176,13 @@ pub(crate) enum Kernels {
     Portable,
     #[cfg(target_arch = "x86_64")]
     Avx2(Avx2),
-    /// The AVX2 loops, in a tile loop compiled with AVX-512F and AVX-512VL as well: the same
-    /// 256-bit instructions (so the same results, bit for bit), but 32 vector registers
+    /// The AVX2 loops with the two busiest in 512-bit steps ([`Avx512`]), in a tile loop
+    /// compiled with AVX-512F and AVX-512VL as well: the same additions per lane (so the
+    /// same results, bit for bit), in half the instructions, with 32 vector registers
     /// instead of 16, so the lattice sums' accumulators, weights and loaded values all fit
     /// and nothing is spilled to the stack.
     #[cfg(target_arch = "x86_64")]
-    Avx2Wide(Avx2),
+    Avx512(Avx512),
 }
 
 impl Kernels {
@@ -168,12 +190,11 @@ impl Kernels {
     pub(crate) fn detect() -> Kernels {
         #[cfg(target_arch = "x86_64")]
         {
+            if let Some(k) = Avx512::new() {
+                return Kernels::Avx512(k);
+            }
             if let Some(k) = Avx2::new() {
-                return if k.wide() {
-                    Kernels::Avx2Wide(k)
-                } else {
-                    Kernels::Avx2(k)
-                };
+                return Kernels::Avx2(k);
             }
         }
         Kernels::Portable
@@ -187,9 +208,9 @@ impl Kernels {
         {
             if let Some(k) = Avx2::new() {
                 all.push(Kernels::Avx2(k));
-                if k.wide() {
-                    all.push(Kernels::Avx2Wide(k));
-                }
+            }
+            if let Some(k) = Avx512::new() {
+                all.push(Kernels::Avx512(k));
             }
         }
         all
@@ -328,7 +349,9 @@ impl Kernels {
         match self {
             Kernels::Portable => Portable.end_of_band(),
             #[cfg(target_arch = "x86_64")]
-            Kernels::Avx2(k) | Kernels::Avx2Wide(k) => k.end_of_band(),
+            Kernels::Avx2(k) => k.end_of_band(),
+            #[cfg(target_arch = "x86_64")]
+            Kernels::Avx512(k) => k.end_of_band(),
         }
     }
 }
@@ -400,6 +423,11 @@ fn rgb_interleaved_portable<S: Sample>(acc: &mut [f32], src: &[S], w: [f32; 3]) 
 pub(crate) use x86::Avx2;
 
 #[cfg(target_arch = "x86_64")]
+mod wide;
+#[cfg(target_arch = "x86_64")]
+pub(crate) use wide::Avx512;
+
+#[cfg(target_arch = "x86_64")]
 mod x86 {
     use super::{padded, zero_rows, Ahead, EntryKernels, GreyEntry, Sample, LANES};
     use crate::relight::tile_output::{self, ColumnHats, TileOutputKernels};
@@ -433,14 +461,6 @@ mod x86 {
 
     impl Avx2 {
         /// The AVX2 loops, when this CPU has AVX2, FMA and F16C.
-        /// Whether the CPU also has AVX-512F and AVX-512VL: then the tile loop with these
-        /// kernels can be compiled with those features too ([`Kernels::Avx2Wide`]).
-        ///
-        /// [`Kernels::Avx2Wide`]: super::Kernels::Avx2Wide
-        pub(crate) fn wide(&self) -> bool {
-            is_x86_feature_detected!("avx512f") && is_x86_feature_detected!("avx512vl")
-        }
-
         pub(crate) fn new() -> Option<Avx2> {
             (is_x86_feature_detected!("avx2")
                 && is_x86_feature_detected!("fma")
@@ -984,6 +1004,29 @@ pub(super) mod tests {
             }
             None => eprintln!("no AVX2 + FMA + F16C on this CPU: only the portable loops run"),
         }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx512_kernels_match_scalar() {
+        match Avx512::new() {
+            // SAFETY: `Avx512::new` checked the features the test is compiled with.
+            Some(k) => unsafe { wide_checks(k) },
+            None => eprintln!("no AVX-512F + VL on this CPU: the 512-bit loops are not run"),
+        }
+    }
+
+    /// The checks compiled with the wide loops' features, as the relight compiles its tile
+    /// loop for them (`tiled_sum.rs`), so their instructions are inlined the same way.
+    ///
+    /// # Safety
+    /// The CPU has AVX2, FMA, F16C, AVX-512F and AVX-512VL.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,f16c,avx512f,avx512vl")]
+    unsafe fn wide_checks(k: Avx512) {
+        check(k);
+        check_many(k);
+        check_rows(k);
     }
 
     #[test]

@@ -350,8 +350,8 @@ fn tiled_sum_matches_the_reference_on_every_kind_of_entry_and_path() {
                 );
             }
         }
-        // The vector loops with 16 or 32 registers run the same instructions in the same
-        // order: the same image, bit for bit.
+        // The AVX2 loops and the ones with 512-bit steps do the same additions per lane in
+        // the same order: the same image, bit for bit.
         if let Some((first, rest)) = vector_images.split_first() {
             for image in rest {
                 assert!(

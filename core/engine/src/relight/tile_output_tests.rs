@@ -56,9 +56,9 @@ fn every_implementation_equals_the_scalar_loops() {
                     let got = match k {
                         Kernels::Portable => run(Portable, reset, width, nodes, offset),
                         #[cfg(target_arch = "x86_64")]
-                        Kernels::Avx2(a) | Kernels::Avx2Wide(a) => {
-                            run(a, reset, width, nodes, offset)
-                        }
+                        Kernels::Avx2(a) => run(a, reset, width, nodes, offset),
+                        #[cfg(target_arch = "x86_64")]
+                        Kernels::Avx512(a) => run(a, reset, width, nodes, offset),
                     };
                     let case = format!("{k:?}, reset {reset}, {width} px, {nodes} nodes");
                     assert_eq!(bits(&got.0), bits(&want.0), "along x: {case}");

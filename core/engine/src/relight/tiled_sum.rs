@@ -35,7 +35,7 @@
 //! costs besides its values matters as much as the values: the sum of a tile (its entries,
 //! then the image add) is one function per implementation of the kernels and sample type,
 //! the kernels inlined into it (compiled with AVX2 where that is the implementation, and
-//! with AVX-512F and VL besides where the CPU has them, for their 32 vector registers),
+//! with AVX-512F and VL besides for the kernels with 512-bit steps and 32 registers),
 //! with no dynamic dispatch or precision match per entry, and nothing called inside the
 //! loops that keep accumulators in registers (a call would have them spilled).
 
@@ -424,13 +424,13 @@ fn sum_tile<Sel: EntrySelection>(
         (Kernels::Avx2(k), TileValues::F32(v)) => unsafe {
             avx2::sum_tile(k, tile, v, select, acc, ahead, image)
         },
-        // SAFETY: an `Avx2Wide` is made only where the CPU also has AVX-512F and VL.
+        // SAFETY: an `Avx512` is made only where the CPU also has AVX-512F and VL.
         #[cfg(target_arch = "x86_64")]
-        (Kernels::Avx2Wide(k), TileValues::F16(v)) => unsafe {
+        (Kernels::Avx512(k), TileValues::F16(v)) => unsafe {
             avx2::sum_tile_wide(k, tile, v, select, acc, ahead, image)
         },
         #[cfg(target_arch = "x86_64")]
-        (Kernels::Avx2Wide(k), TileValues::F32(v)) => unsafe {
+        (Kernels::Avx512(k), TileValues::F32(v)) => unsafe {
             avx2::sum_tile_wide(k, tile, v, select, acc, ahead, image)
         },
     }
@@ -490,7 +490,7 @@ fn sum_tile_with<K: EntryKernels, S: Sample, Sel: EntrySelection>(
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
     use super::{Ahead, EntrySelection, Sample, StackTile, TileAccumulators, TileImage};
-    use crate::relight::kernels::Avx2;
+    use crate::relight::kernels::{Avx2, Avx512};
 
     /// [`super::add_entries`] with the AVX2 kernels, compiled with those features so the
     /// kernels inline into the entry loop.
@@ -510,14 +510,15 @@ mod avx2 {
         super::sum_tile_with(kernels, tile, values, select, acc, ahead, image)
     }
 
-    /// [`sum_tile`] compiled with AVX-512F and AVX-512VL as well: the same AVX2 kernels,
-    /// with 32 vector registers ([`crate::relight::kernels::Kernels::Avx2Wide`]).
+    /// [`sum_tile`] with the kernels that take 512-bit steps, compiled with AVX-512F and
+    /// AVX-512VL as well, for those steps and 32 vector registers
+    /// ([`crate::relight::kernels::Kernels::Avx512`]).
     ///
     /// # Safety
     /// The CPU has AVX2, FMA, F16C, AVX-512F and AVX-512VL.
     #[target_feature(enable = "avx2,fma,f16c,avx512f,avx512vl")]
     pub(super) unsafe fn sum_tile_wide<S: Sample, Sel: EntrySelection>(
-        kernels: Avx2,
+        kernels: Avx512,
         tile: &StackTile,
         values: &[S],
         select: &Sel,
