@@ -8,6 +8,8 @@
 //! at nodes uniform in `ln r` and interpolated linearly (the study measured ≤ 2e-4 of a
 //! lobe at 256 nodes); the weights are applied per colour channel at lookup.
 
+use rayon::prelude::*;
+
 use super::lobes::{roughness_nodes, Cosines, Family, Roughness};
 
 /// Nodes of the curves, uniform in `ln r` over the basis' roughness range.
@@ -37,8 +39,13 @@ impl MetalCurves {
     ) -> MetalCurves {
         let mut e_avg = Vec::with_capacity(CURVE_NODES);
         let mut values = Vec::with_capacity(CURVE_NODES * PARTS * slots);
-        for r in roughness_nodes(r_min, CURVE_NODES) {
-            let rough = Roughness::new(r);
+        // Each roughness' albedo tables first, in parallel (each is an integration of its
+        // own); the projections below are parallel inside.
+        let roughness: Vec<Roughness> = roughness_nodes(r_min, CURVE_NODES)
+            .into_par_iter()
+            .map(Roughness::new)
+            .collect();
+        for rough in &roughness {
             let parts = project(&|c: Cosines, out: &mut [f64]| {
                 let (single, miss) = rough.single_and_miss(c);
                 let w = (1.0 - c.cos_d).clamp(0.0, 1.0).powi(5);
