@@ -46,131 +46,11 @@
 //!
 //! The accumulators hold colour only; the image's alpha of 1 is never touched by a sum.
 
-use half::f16;
-
-use super::ahead::Ahead;
 use super::tile_output::TileOutputKernels;
 
 /// Pixels converted per step of the portable path (64 px × 3 channels × 4 B = 768 B of
 /// stack: small enough for L1, large enough to amortise the per-call dispatch of `half`).
 pub(crate) const CHUNK: usize = 64;
-
-/// Lanes of one vector step: accumulators are padded to a multiple of this.
-pub(crate) const LANES: usize = 8;
-
-/// Floats an accumulator for `len` values must hold: `len` rounded up to whole vectors.
-#[inline(always)]
-pub(crate) const fn padded(len: usize) -> usize {
-    len.div_ceil(LANES) * LANES
-}
-
-/// Zeroes the planar R, G, B rows for `len` values, padding lanes included.
-#[inline(always)]
-fn zero_rows(r: &mut [f32], g: &mut [f32], b: &mut [f32], len: usize) {
-    let end = padded(len);
-    r[..end].fill(0.0);
-    g[..end].fill(0.0);
-    b[..end].fill(0.0);
-}
-
-/// A grey lattice entry of a tile waiting for its segments to be summed
-/// ([`EntryKernels::grey_many`]).
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct PendingEntry {
-    /// Where its values for the next segment it covers start in the tile's values: segments
-    /// are summed in ascending order, so this moves on by each covered segment's node count.
-    pub cursor: usize,
-    /// The segments it covers (bit `s`: segment `s`).
-    pub segments: u32,
-    /// Weight × scale.
-    pub weight: [f32; 3],
-}
-
-/// A grey per-pixel entry of a tile, gathered to be summed with the tile's others
-/// ([`EntryKernels::grey_rows`]).
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct GreyEntry {
-    /// Where its values start in the tile's values.
-    pub start: usize,
-    /// Weight × scale.
-    pub weight: [f32; 3],
-}
-
-/// An RGB entry of a tile, gathered to be added after the tile's grey lattice entries.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct RgbEntry {
-    /// Where its values start in the tile's values.
-    pub start: usize,
-    /// Weight × scale.
-    pub weight: [f32; 3],
-    /// Whether it is a lattice entry (its values are node coefficients).
-    pub lattice: bool,
-}
-
-/// A sample type a layer can be stored in.
-pub(crate) trait Sample: Copy + Send + Sync + 'static {
-    /// The value 0.
-    const ZERO: Self;
-    /// Converts `src` to f32 into `dst` (same length).
-    fn convert(src: &[Self], dst: &mut [f32]);
-    /// Loads 8 consecutive samples as f32.
-    ///
-    /// # Safety
-    /// `p` must be valid for reading 8 values, and the CPU must have AVX2 and F16C.
-    #[cfg(target_arch = "x86_64")]
-    unsafe fn load8(p: *const Self) -> std::arch::x86_64::__m256;
-    /// Loads 16 consecutive samples as f32.
-    ///
-    /// # Safety
-    /// `p` must be valid for reading 16 values, and the CPU must have AVX-512F and F16C.
-    #[cfg(target_arch = "x86_64")]
-    unsafe fn load16(p: *const Self) -> std::arch::x86_64::__m512;
-}
-
-impl Sample for f32 {
-    const ZERO: f32 = 0.0;
-    #[inline(always)]
-    fn convert(src: &[f32], dst: &mut [f32]) {
-        dst.copy_from_slice(src);
-    }
-    #[cfg(target_arch = "x86_64")]
-    #[inline(always)]
-    unsafe fn load8(p: *const f32) -> std::arch::x86_64::__m256 {
-        // SAFETY: the caller guarantees 8 readable values and AVX.
-        unsafe { std::arch::x86_64::_mm256_loadu_ps(p) }
-    }
-    #[cfg(target_arch = "x86_64")]
-    #[inline(always)]
-    unsafe fn load16(p: *const f32) -> std::arch::x86_64::__m512 {
-        // SAFETY: the caller guarantees 16 readable values and AVX-512F.
-        unsafe { std::arch::x86_64::_mm512_loadu_ps(p) }
-    }
-}
-
-impl Sample for f16 {
-    const ZERO: f16 = f16::ZERO;
-    #[inline(always)]
-    fn convert(src: &[f16], dst: &mut [f32]) {
-        use half::slice::HalfFloatSliceExt;
-        src.convert_to_f32_slice(dst);
-    }
-    #[cfg(target_arch = "x86_64")]
-    #[inline(always)]
-    unsafe fn load8(p: *const f16) -> std::arch::x86_64::__m256 {
-        use std::arch::x86_64::*;
-        // SAFETY: the caller guarantees 8 readable halves (16 bytes) and F16C; f16 is a
-        // transparent u16, so the bytes are IEEE binary16 as `vcvtph2ps` expects.
-        unsafe { _mm256_cvtph_ps(_mm_loadu_si128(p as *const __m128i)) }
-    }
-    #[cfg(target_arch = "x86_64")]
-    #[inline(always)]
-    unsafe fn load16(p: *const f16) -> std::arch::x86_64::__m512 {
-        use std::arch::x86_64::*;
-        // SAFETY: the caller guarantees 16 readable halves (32 bytes) and AVX-512F; the
-        // bytes are IEEE binary16 as `vcvtph2ps` expects.
-        unsafe { _mm512_cvtph_ps(_mm256_loadu_si256(p as *const __m256i)) }
-    }
-}
 
 /// Which implementation of the inner loops runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -216,125 +96,6 @@ impl Kernels {
             }
         }
         all
-    }
-}
-
-/// The two inner loops of one implementation. `len` values of `src` are added; `src` may
-/// hold more (the tile's later values), which a vector implementation may read into
-/// padding lanes.
-pub(crate) trait EntryKernels: Copy + std::fmt::Debug + TileOutputKernels {
-    /// Planar grey: `r[p] += w[0]·src[p]`, `g[p] += w[1]·src[p]`, `b[p] += w[2]·src[p]`
-    /// for `p < len`. Each accumulator holds at least [`padded`]`(len)` floats; those from
-    /// `len` on may change (padding).
-    ///
-    /// # Panics
-    /// If an accumulator is shorter than that or `src` shorter than `len`.
-    fn grey<S: Sample>(
-        self,
-        r: &mut [f32],
-        g: &mut [f32],
-        b: &mut [f32],
-        src: &[S],
-        len: usize,
-        w: [f32; 3],
-    );
-
-    /// Interleaved RGB: `acc[i] += w[i mod 3]·src[i]` for `i < len` (a multiple of 3).
-    /// `acc` holds at least [`padded`]`(len)` floats; those from `len` on may change.
-    ///
-    /// # Panics
-    /// If `acc` is shorter than that, `src` shorter than `len`, or `len` not a multiple of 3.
-    fn rgb<S: Sample>(self, acc: &mut [f32], src: &[S], len: usize, w: [f32; 3]);
-
-    /// [`grey`](Self::grey) for each `(start, weight)` of `entries` in order into the same
-    /// rows, `len` values of `values` from its start. A vector implementation keeps short
-    /// rows (a lattice segment's nodes) in registers across the entries and stores them
-    /// once, instead of once per entry: it sums the entries first and adds the sum to the
-    /// rows, which for rows that start at 0 (a tile's node rows) are the same additions in
-    /// the same order as `grey` per entry. `entries` is an iterator so that its caller can
-    /// gather other entries on the way (the loop over a tile's entries drives it), and it is
-    /// handed back, run out, so that the caller reads what it gathered from its fields:
-    /// taken by value, its state can live in registers through the loop, where through a
-    /// reference it would be stored and reloaded per entry.
-    ///
-    /// # Panics
-    /// As [`grey`](Self::grey), for any entry.
-    #[inline(always)]
-    fn grey_stream<S: Sample, I: Iterator<Item = Option<(usize, [f32; 3])>>>(
-        self,
-        r: &mut [f32],
-        g: &mut [f32],
-        b: &mut [f32],
-        values: &[S],
-        len: usize,
-        mut entries: I,
-    ) -> I {
-        for (start, weight) in entries.by_ref().flatten() {
-            self.grey(r, g, b, &values[start..], len, weight);
-        }
-        entries
-    }
-
-    /// [`grey_stream`](Self::grey_stream) for the entries of `pending` that cover segment
-    /// bit `segment`: `len` values of `values` from each one's cursor, in `pending`'s order;
-    /// each such cursor then moves on by `len` (to its next segment's values), and the
-    /// values read are reported to `ahead`.
-    ///
-    /// # Panics
-    /// As [`grey`](Self::grey), for any entry.
-    #[allow(clippy::too_many_arguments)]
-    #[inline(always)]
-    fn grey_many<S: Sample>(
-        self,
-        r: &mut [f32],
-        g: &mut [f32],
-        b: &mut [f32],
-        values: &[S],
-        len: usize,
-        segment: u32,
-        pending: &mut [PendingEntry],
-        ahead: &mut Ahead,
-    ) {
-        // An item per pending entry, `None` for one that does not cover the segment (a
-        // filter would nest a loop in the kernel's and have its accumulators spilled).
-        let entries = pending.iter_mut().map(|p| {
-            if p.segments & segment == 0 {
-                return None;
-            }
-            let start = p.cursor;
-            p.cursor += len;
-            ahead.read(len * std::mem::size_of::<S>());
-            Some((start, p.weight))
-        });
-        // Run out: nothing to read back from it.
-        let _ = self.grey_stream(r, g, b, values, len, entries);
-    }
-
-    /// Sets the rows to zero, then [`grey`](Self::grey) for each of `entries` in order:
-    /// `len` values of `values` from its start. The rows' first [`padded`]`(len)` floats
-    /// are overwritten. A vector implementation adds a few entries per pass over the rows,
-    /// so each row vector is loaded and stored once per few entries instead of once per
-    /// entry; per value the additions are the same, in the same order, from the same 0.
-    ///
-    /// # Panics
-    /// As [`grey`](Self::grey), for any entry.
-    #[allow(clippy::too_many_arguments)]
-    #[inline(always)]
-    fn grey_rows<S: Sample>(
-        self,
-        r: &mut [f32],
-        g: &mut [f32],
-        b: &mut [f32],
-        values: &[S],
-        len: usize,
-        entries: &[GreyEntry],
-        ahead: &mut Ahead,
-    ) {
-        zero_rows(r, g, b, len);
-        for e in entries {
-            self.grey(r, g, b, &values[e.start..], len, e.weight);
-            ahead.read(len * std::mem::size_of::<S>());
-        }
     }
 }
 
@@ -421,6 +182,11 @@ fn rgb_interleaved_portable<S: Sample>(acc: &mut [f32], src: &[S], w: [f32; 3]) 
     }
 }
 
+mod entry_kernels;
+mod sample;
+pub(crate) use entry_kernels::{padded, EntryKernels, GreyEntry, PendingEntry, RgbEntry};
+pub(crate) use sample::Sample;
+
 #[cfg(target_arch = "x86_64")]
 mod avx2;
 #[cfg(target_arch = "x86_64")]
@@ -436,6 +202,8 @@ pub(crate) use wide::Avx512;
 #[cfg(test)]
 pub(super) mod tests {
     use super::*;
+    use crate::relight::ahead::Ahead;
+    use half::f16;
 
     /// `n` pseudo-random values in [−1, 1] from `seed` (xorshift), for the kernels' tests.
     pub(crate) fn pseudo(n: usize, seed: u32) -> Vec<f32> {

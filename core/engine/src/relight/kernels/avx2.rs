@@ -2,8 +2,10 @@
 //! f16 in registers. The planar grey loops are written over [`Lanes`] so that the 512-bit
 //! kernels ([`super::wide`]) run the same code sixteen lanes at a time.
 
+use super::entry_kernels::{padded, zero_rows, EntryKernels, GreyEntry, LANES};
 use super::lanes::Lanes;
-use super::{padded, zero_rows, Ahead, EntryKernels, GreyEntry, Sample, LANES};
+use super::sample::Sample;
+use crate::relight::ahead::Ahead;
 use crate::relight::tile_output::{self, ColumnHats, TileOutputKernels};
 use std::arch::x86_64::*;
 

@@ -6,7 +6,7 @@
 
 use std::arch::x86_64::*;
 
-use super::Sample;
+use super::sample::Sample;
 
 /// The operations the planar grey loops need from a vector of f32 lanes.
 ///

@@ -23,7 +23,9 @@
 use std::arch::x86_64::*;
 
 use super::avx2::{grey_in_registers, grey_rows_grouped, Avx2};
-use super::{padded, Ahead, EntryKernels, GreyEntry, Sample, LANES};
+use super::entry_kernels::{padded, EntryKernels, GreyEntry, LANES};
+use super::sample::Sample;
+use crate::relight::ahead::Ahead;
 use crate::relight::tile_output::{ColumnHats, TileOutputKernels};
 
 /// The AVX2 loops with 512-bit steps in [`EntryKernels::grey_stream`] and
