@@ -39,18 +39,29 @@ pub(super) trait Lanes: Copy {
     /// The features of the width; `i < src.len()`.
     #[inline(always)]
     unsafe fn load_at<S: Sample>(src: &[S], i: usize) -> Self {
+        const {
+            assert!(
+                Self::LANES <= PARTIAL,
+                "the partial load's buffer holds a vector"
+            )
+        };
         if i + Self::LANES <= src.len() {
             // SAFETY: `LANES` values from i are in `src`; features as the caller promises.
             unsafe { Self::load(src.as_ptr().add(i)) }
         } else {
-            let mut buf = [S::ZERO; 16];
+            let mut buf = [S::ZERO; PARTIAL];
             let rest = &src[i..];
             buf[..rest.len()].copy_from_slice(rest);
-            // SAFETY: `buf` holds 16 ≥ `LANES` values; features as the caller promises.
+            // SAFETY: `buf` holds `PARTIAL` ≥ `LANES` values (checked at compile time);
+            // features as the caller promises.
             unsafe { Self::load(buf.as_ptr()) }
         }
     }
 }
+
+/// Values of the zero-filled copy [`Lanes::load_at`] reads a last, partial vector from: the
+/// widest vector's lanes.
+const PARTIAL: usize = 16;
 
 // SAFETY (every method below): the caller guarantees the features and valid pointers.
 impl Lanes for __m256 {
