@@ -162,6 +162,20 @@ fn benches_print_figures() {
     ] {
         assert!(r[k].as_f64().unwrap() > 0.0, "{k}: {r}");
     }
+    // The bound is the faster of the bandwidths measured before and after the relights.
+    let both: Vec<f64> = r["bandwidth_gb_s_before_and_after"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert_eq!(both.len(), 2, "{r}");
+    assert!(both.iter().all(|b| *b > 0.0), "{r}");
+    assert_eq!(
+        r["bandwidth_gb_s"].as_f64().unwrap(),
+        both[0].max(both[1]),
+        "{r}"
+    );
     let regions = r["incremental_per_region"].as_array().unwrap();
     assert_eq!(
         regions.len(),
