@@ -72,6 +72,17 @@ pub enum RelumeError {
     /// A command whose output path is one of its inputs: refused before anything is read.
     #[error("the output {output} is also an input of this command ({role}): writing it would destroy the input; choose another output path")]
     OutputIsInput { output: PathBuf, role: String },
+    /// Two outputs of one command that are one file: the second write would replace the first.
+    #[error("the output {output} ({role}) is also {other_role}: the second write would replace the first; choose two different output paths")]
+    OutputsCollide {
+        output: PathBuf,
+        role: String,
+        other_role: String,
+    },
+    /// An existing output that is not a regular file: refused, never replaced or written
+    /// through.
+    #[error("the output {output} is {kind}, not a regular file: refused (Relume writes a new file and renames it over the output, which would replace it; it does not write through); choose a file path")]
+    OutputNotAFile { output: PathBuf, kind: String },
 }
 
 /// Result with [`RelumeError`].
@@ -83,6 +94,19 @@ impl RelumeError {
         RelumeError::Io {
             path: path.into(),
             source,
+        }
+    }
+    /// This error with `path` as the stack file it concerns where it names none (a stack
+    /// checked in memory before it is written, as a bake does).
+    pub fn for_stack_file(self, path: &std::path::Path) -> Self {
+        match self {
+            RelumeError::StackFormat { path: p, message } if p.as_os_str().is_empty() => {
+                RelumeError::StackFormat {
+                    path: path.to_path_buf(),
+                    message,
+                }
+            }
+            other => other,
         }
     }
     /// Shorthand for [`RelumeError::InvalidValue`].

@@ -294,7 +294,7 @@ pub(crate) fn layer_report(
         height: res.height,
         triangles: 0,
         degenerate_triangles: 0,
-        warnings: Vec::new(),
+        warnings: finished.non_finite.warning().into_iter().collect(),
         layers_possible: finished.possible,
         layers_grey: finished.grey,
         layers_rgb: finished.rgb,
@@ -310,6 +310,7 @@ pub(crate) fn layer_report(
         estimate: None,
         bounces: ctx.settings.bounces,
         bounce_estimate: ctx.bounce_estimate.clone(),
+        non_finite: finished.non_finite,
     };
     (stack, report)
 }

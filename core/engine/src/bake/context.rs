@@ -72,6 +72,8 @@ pub struct BakeContext {
     /// What the bounce pre-pass measured when the settings asked for the bounce count the
     /// scene needs ([`crate::bake::bounces`]); `None` when the count was taken as given.
     pub bounce_estimate: Option<crate::bake::bounce_budget::BounceEstimate>,
+    /// What the bake's threads kept finite so far ([`crate::bake::non_finite`]).
+    pub non_finite: crate::bake::non_finite::NonFiniteCounter,
 }
 
 impl BakeContext {
@@ -257,6 +259,7 @@ impl BakeContext {
             translucent,
             eye_diffuse_slot,
             bounce_estimate: None,
+            non_finite: Default::default(),
         };
         Ok((ctx, report))
     }

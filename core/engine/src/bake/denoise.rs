@@ -197,6 +197,12 @@ impl EyeFeatures {
                         let plane = np.dot(self.position[q] - xp).abs() / (fp * pixels);
                         let w_plane = (-plane * plane * 4.0).exp();
                         let v = H[i] * H[j] * w_normal * w_plane;
+                        // Bounded by construction: a scene so large that the plane
+                        // distance overflows (inf − inf) gives this tap no weight instead
+                        // of a NaN that would spread through the window.
+                        if !v.is_finite() {
+                            continue;
+                        }
                         w[j * 5 + i] = v;
                         sum += v;
                     }

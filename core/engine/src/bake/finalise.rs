@@ -20,6 +20,7 @@
 use crate::bake::context::BakeContext;
 use crate::bake::denoise::EyeFeatures;
 use crate::bake::drop::{self, DropReport, LayerNorm};
+use crate::bake::non_finite::{zero_non_finite, NonFiniteReport};
 use crate::bake::settings::BounceCompression;
 use crate::layer_key::LayerKey;
 use crate::layer_key::PathVertex;
@@ -56,6 +57,10 @@ pub(crate) struct TileTally {
     /// hold instead.
     lattice_replaced: usize,
     lattice_values: usize,
+    /// Layer values that came in NaN or infinite (stored as 0) and lattice fits given up
+    /// for a non-finite coefficient ([`crate::bake::non_finite`]).
+    non_finite_values: u64,
+    non_finite_fits: u64,
 }
 
 /// What a bake compresses as lattice entries: the settings' step and tolerance and, per
@@ -146,7 +151,9 @@ pub(crate) fn finalise_tile(
     let mut image = vec![0.0f64; rect.pixels() * 3];
     let mut kept: Vec<TileInput> = Vec::with_capacity(inputs.len());
     let mut entries = Vec::with_capacity(inputs.len());
+    let mut non_finite_values = 0;
     for mut input in inputs {
+        non_finite_values += zero_non_finite(&mut input.data);
         if input.data.iter().all(|v| *v == 0.0) {
             continue;
         }
@@ -183,9 +190,9 @@ pub(crate) fn finalise_tile(
         }
         _ => None,
     };
-    let (lattice, fits) = match compressed {
-        Some((lattice, fits)) => (Some(lattice), fits),
-        None => (None, Vec::new()),
+    let (lattice, fits, non_finite_fits) = match compressed {
+        Some((lattice, fits, refused)) => (Some(lattice), fits, refused),
+        None => (None, Vec::new(), 0),
     };
     let radiance: Vec<TileRadiance> = kept
         .iter()
@@ -238,6 +245,8 @@ pub(crate) fn finalise_tile(
         error_sumsq: error.iter().map(|v| v * v).sum(),
         lattice_replaced,
         lattice_values,
+        non_finite_values,
+        non_finite_fits,
     })
 }
 
@@ -250,8 +259,9 @@ struct KeptFit {
     reconstructed: Vec<f32>,
 }
 
-/// The tile's lattice and the plan's layers it keeps as lattice entries; `None` when it
-/// keeps none (or the tile needs more segments than a lattice has).
+/// The tile's lattice, the plan's layers it keeps as lattice entries and how many fits were
+/// given up for a non-finite coefficient or reconstruction (those layers stay exact, per
+/// pixel); `None` when it keeps none (or the tile needs more segments than a lattice has).
 ///
 /// Which: each candidate is fitted, and its error weighs `‖w̄ ⊙ (L − L̃)‖` over the tile,
 /// `w̄` its bake-time weight per channel in magnitude, raised to at least the plan's weight
@@ -273,7 +283,7 @@ fn compress_tile(
     image: &[f64],
     image_sumsq: f64,
     weights: &[Rgb],
-) -> Option<(TileLattice, Vec<KeptFit>)> {
+) -> Option<(TileLattice, Vec<KeptFit>, u64)> {
     let candidates: Vec<usize> = (0..kept.len())
         .filter(|&k| plan.eligible[kept[k].layer as usize])
         .filter(|&k| weights.get(kept[k].layer as usize).is_some())
@@ -285,11 +295,18 @@ fn compress_tile(
     let lattice = TileLattice::new(plan.step, rect.width, rect.height, map).ok()?;
     let fitter = LatticeFitter::new(&lattice);
     let mut fitted: Vec<(f64, KeptFit)> = Vec::new();
+    let mut non_finite_fits = 0;
     for k in candidates {
         let input = &kept[k];
         let Some(fit) = fitter.fit(&input.data, input.channels) else {
             continue;
         };
+        if !(fit.coefficients.iter().all(|v| v.is_finite())
+            && fit.reconstructed.iter().all(|v| v.is_finite()))
+        {
+            non_finite_fits += 1;
+            continue;
+        }
         if fit.coefficients.len() >= input.data.len() {
             continue;
         }
@@ -346,7 +363,9 @@ fn compress_tile(
     let mut keep = keep.into_iter();
     fits.retain(|_| keep.next().unwrap_or(false));
     fits.sort_by_key(|f| f.input);
-    (!fits.is_empty()).then_some((lattice, fits))
+    // A tile with no fit kept still reports the fits it gave up (the builder keeps no
+    // lattice without a lattice entry).
+    (!fits.is_empty() || non_finite_fits > 0).then_some((lattice, fits, non_finite_fits))
 }
 
 /// The statistics of the tiles finalised so far, added in raster order.
@@ -364,6 +383,8 @@ pub(crate) struct StackTally {
     error_sumsq: f64,
     lattice_replaced: usize,
     lattice_values: usize,
+    non_finite_values: u64,
+    non_finite_fits: u64,
 }
 
 impl StackTally {
@@ -387,6 +408,8 @@ impl StackTally {
             error_sumsq: 0.0,
             lattice_replaced: 0,
             lattice_values: 0,
+            non_finite_values: 0,
+            non_finite_fits: 0,
         }
     }
 
@@ -406,6 +429,8 @@ impl StackTally {
         self.error_sumsq += tally.error_sumsq;
         self.lattice_replaced += tally.lattice_replaced;
         self.lattice_values += tally.lattice_values;
+        self.non_finite_values += tally.non_finite_values;
+        self.non_finite_fits += tally.non_finite_fits;
         if let (Some(all), Some(tile)) = (&mut self.image, tally.image) {
             for ty in 0..rect.height as usize {
                 let row = (rect.y0 as usize + ty) * self.width + rect.x0 as usize;
@@ -449,6 +474,8 @@ pub(crate) struct Finished {
     /// Bytes the lattice entries saved against storing the same entries per pixel, before
     /// layers are dropped.
     pub compression_saved_bytes: usize,
+    /// What each stage kept finite ([`crate::bake::non_finite`]).
+    pub non_finite: NonFiniteReport,
 }
 
 /// Per layer id what the whole bake saw: whether any sample reached it, and whether its
@@ -471,6 +498,12 @@ pub(crate) fn finish_stack(
     weights: &[Rgb],
     budget: f64,
 ) -> Result<Finished> {
+    let non_finite = NonFiniteReport {
+        path_contributions: ctx.non_finite.path_contributions(),
+        layer_values: tally.non_finite_values,
+        lattice_fits: tally.non_finite_fits,
+        stored_values: builder.non_finite_zeroed(),
+    };
     let stack = builder.finish()?;
     let compression_error = if tally.image_sumsq > 0.0 {
         (tally.error_sumsq / tally.image_sumsq).sqrt()
@@ -554,6 +587,7 @@ pub(crate) fn finish_stack(
         image: tally.image,
         compression_error,
         compression_saved_bytes,
+        non_finite,
     })
 }
 

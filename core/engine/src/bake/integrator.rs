@@ -177,8 +177,72 @@ impl Tracer for CountingTracer {
     }
 }
 
-/// Traces eye sample number `sample` of pixel (`px`, `py`).
+/// Passes on only finite contributions: a NaN or infinite one (a degenerate pdf, a
+/// throughput that overflowed) is discarded and counted, as Cycles discards such samples,
+/// so one bad path never poisons a pixel's sum, its denoiser window or the stack.
+struct FiniteOnly<'a, S> {
+    inner: &'a mut S,
+    discarded: u32,
+}
+
+impl<S: PathSink> FiniteOnly<'_, S> {
+    #[inline]
+    fn keep(&mut self, v: Rgb) -> bool {
+        let finite = v.is_finite();
+        self.discarded += u32::from(!finite);
+        finite
+    }
+}
+
+impl<S: PathSink> PathSink for FiniteOnly<'_, S> {
+    #[inline]
+    fn world(&mut self, group: usize, value: Rgb) {
+        if self.keep(value) {
+            self.inner.world(group, value);
+        }
+    }
+    #[inline]
+    fn direct(&mut self, group: usize, slot: u32, value: Rgb) {
+        if self.keep(value) {
+            self.inner.direct(group, slot, value);
+        }
+    }
+    #[inline]
+    fn bounce(&mut self, group: usize, eye_slot: u32, bounce_slot: u32, value: Rgb) {
+        if self.keep(value) {
+            self.inner.bounce(group, eye_slot, bounce_slot, value);
+        }
+    }
+    #[inline]
+    fn eye_hit(&mut self, region: u32, normal: Vec3, position: Vec3) {
+        if normal.is_finite() && position.is_finite() {
+            self.inner.eye_hit(region, normal, position);
+        }
+    }
+}
+
+/// Traces eye sample number `sample` of pixel (`px`, `py`) into `sink`, which receives only
+/// finite contributions; returns how many were discarded for a NaN or infinite channel
+/// (for [`crate::bake::non_finite`]'s count).
 pub fn trace_eye_sample<B: VertexBrdf, S: PathSink, T: Tracer>(
+    ctx: &BakeContext,
+    brdf: &B,
+    sink: &mut S,
+    tracer: &mut T,
+    px: u32,
+    py: u32,
+    sample: u32,
+) -> u32 {
+    let mut finite = FiniteOnly {
+        inner: sink,
+        discarded: 0,
+    };
+    trace_path(ctx, brdf, &mut finite, tracer, px, py, sample);
+    finite.discarded
+}
+
+/// The path of [`trace_eye_sample`], into any sink.
+fn trace_path<B: VertexBrdf, S: PathSink, T: Tracer>(
     ctx: &BakeContext,
     brdf: &B,
     sink: &mut S,

@@ -33,6 +33,7 @@ pub mod integrator;
 pub mod layout;
 pub mod mis;
 pub mod mixture;
+pub mod non_finite;
 pub mod partial;
 pub mod partition;
 pub mod presets;
@@ -61,6 +62,7 @@ use crate::stack::TransferStack;
 use crate::Result;
 pub(crate) use assemble::assemble;
 pub use layout::layer_key;
+pub use non_finite::NonFiniteReport;
 pub use report::{BakeReport, PassReport};
 pub use settings::{BakeSettings, Denoise, IndirectSampling, LightGrouping};
 pub(crate) use trace::trace_range;
@@ -203,7 +205,9 @@ fn run_passes(
         report.rays_per_second = rays as f64 / report.trace_seconds.max(1e-9);
         report.triangles = validation.triangles;
         report.degenerate_triangles = validation.degenerate_triangles;
-        report.warnings = validation.warnings.clone();
+        // The validation's warnings first, then those of the bake itself.
+        let own = std::mem::take(&mut report.warnings);
+        report.warnings = validation.warnings.iter().cloned().chain(own).collect();
         report.estimate = Some(forecast.clone());
     };
     if passes.len() == 1 {

@@ -460,7 +460,8 @@ fn merge_with(
     report.rays_per_second = rays as f64 / trace_seconds.max(1e-9);
     report.triangles = validation.triangles;
     report.degenerate_triangles = validation.degenerate_triangles;
-    report.warnings = validation.warnings;
+    let own = std::mem::take(&mut report.warnings);
+    report.warnings = validation.warnings.into_iter().chain(own).collect();
     progress.set_stage(Stage::Done);
     Ok((stack, report))
 }

@@ -3,7 +3,7 @@
 
 use serde::Serialize;
 
-use super::{bounce_budget, drop, estimate};
+use super::{bounce_budget, drop, estimate, NonFiniteReport};
 
 /// What a bake did, for the command line's JSON and the add-on's status.
 #[derive(Clone, Debug, Serialize)]
@@ -63,6 +63,9 @@ pub struct BakeReport {
     /// scene needs, what the pre-pass measured ([`bounces`]).
     pub bounces: u32,
     pub bounce_estimate: Option<bounce_budget::BounceEstimate>,
+    /// Values that were not finite, per stage, and what was done with each (all 0 in a
+    /// clean bake; otherwise `warnings` says so too).
+    pub non_finite: NonFiniteReport,
 }
 
 /// One pass of a progressive bake.

@@ -69,7 +69,8 @@ pub fn bake_to_file(
             stacks_written += 1;
             on_written(pass, file_bytes);
             Ok(())
-        })?;
+        })
+        .map_err(|e| e.for_stack_file(path))?;
     Ok(BakedFile {
         stack,
         report,

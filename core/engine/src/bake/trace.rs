@@ -78,6 +78,7 @@ pub(crate) fn trace_tile_records(
     let mut buf: Vec<f32> = crate::memory::try_zeroed(blocks * tp * record, "a tile's layer sums")?;
     let mut tree = blocks::PixelTree::new(layer_count)?;
     let mut tracer = CountingTracer::default();
+    let mut discarded = 0u64;
     for ty in 0..tile.height {
         if progress.is_cancelled() {
             return Ok(None);
@@ -92,7 +93,7 @@ pub(crate) fn trace_tile_records(
                     layout,
                     features,
                 };
-                trace_eye_sample(
+                discarded += trace_eye_sample(
                     ctx,
                     brdf,
                     &mut sink,
@@ -100,7 +101,7 @@ pub(crate) fn trace_tile_records(
                     tile.x0 + tx,
                     tile.y0 + ty,
                     s,
-                );
+                ) as u64;
                 tree.close_leaf();
             }
             if fold {
@@ -114,6 +115,7 @@ pub(crate) fn trace_tile_records(
         }
     }
     rays.fetch_add(tracer.rays, std::sync::atomic::Ordering::Relaxed);
+    ctx.non_finite.add_path_contributions(discarded);
     Ok(Some(buf))
 }
 

@@ -2,6 +2,7 @@
 //! f32 radiance ([`TiledStackBuilder`], for a bake that finalises its tiles as it goes).
 
 use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
 
 use half::f16;
@@ -298,6 +299,8 @@ pub struct TiledStackBuilder {
     header: StackHeader,
     layers: Vec<(LayerKey, u8)>,
     tiles: Vec<Mutex<Option<StackTile>>>,
+    /// Values handed in that were not finite, stored as 0 ([`Self::non_finite_zeroed`]).
+    non_finite: AtomicU64,
 }
 
 impl TiledStackBuilder {
@@ -323,16 +326,27 @@ impl TiledStackBuilder {
             },
             layers,
             tiles: (0..count).map(|_| Mutex::new(None)).collect(),
+            non_finite: AtomicU64::new(0),
         })
+    }
+
+    /// How many values given to [`insert`](Self::insert) or
+    /// [`insert_with_lattice`](Self::insert_with_lattice) so far were NaN or infinite and
+    /// were stored as 0. The stages before the builder keep their values finite, so this
+    /// is the count of what slipped past them; a bake reports it.
+    pub fn non_finite_zeroed(&self) -> u64 {
+        self.non_finite.load(Ordering::Relaxed)
     }
 
     /// Quantises and stores tile `tile` (raster order): an entry per layer of `layers`
     /// with a non-zero value (stored grey where RGB channels are equal), each with its own
     /// scale — f16: the largest magnitude maps to 2¹⁴ as in [`Layer::from_f32`]; f32: 1.
     ///
+    /// A NaN or infinite value is stored as 0 and counted ([`Self::non_finite_zeroed`]).
+    ///
     /// Errors: a tile index out of range or inserted before, a layer id out of range or
     /// given twice, channels other than 1 or the layer's, a radiance length other than
-    /// pixels × channels, a non-finite radiance.
+    /// pixels × channels.
     pub fn insert(&self, tile: usize, layers: &[TileRadiance]) -> Result<()> {
         self.insert_with_lattice(tile, layers, None, &[])
     }
@@ -438,11 +452,15 @@ impl TiledStackBuilder {
                     (f.coefficients, f.segments)
                 }
             };
-            if data.iter().any(|v| !v.is_finite()) {
-                return Err(RelumeError::NonFinite {
-                    what: format!("radiance of {}", what()),
-                });
-            }
+            // The last guard before the file: a value no stage should have let through is
+            // stored as 0 and counted (the bake reports it), never the reason a bake is lost.
+            let zeroed;
+            let data = if data.iter().any(|v| !v.is_finite()) {
+                zeroed = finite_or_zero(data, &self.non_finite);
+                &zeroed[..]
+            } else {
+                data
+            };
             if data.iter().all(|&v| v == 0.0) {
                 continue;
             }
@@ -459,15 +477,19 @@ impl TiledStackBuilder {
                 }
                 TileValues::F16(out) => {
                     let max_abs = data.iter().fold(0.0f32, |m, v| m.max(v.abs()));
-                    let scale = max_abs / 16384.0;
-                    let inv = 1.0 / scale;
-                    out.extend(kept.map(|v| f16::from_f32(v * inv)));
+                    let scale = f16_scale(max_abs);
+                    if scale > 0.0 {
+                        // The inverse in f64: for a subnormal scale 1/scale overflows f32
+                        // (and 0 × inf would store NaN), while in f64 it is exact enough
+                        // that every stored value stays within f16's range.
+                        let inv = 1.0 / scale as f64;
+                        out.extend(kept.map(|v| f16::from_f64(*v as f64 * inv)));
+                    }
                     scale
                 }
             };
-            if !(scale.is_finite() && scale > 0.0) {
-                // Radiance so small that its scale underflows: nothing a relight could show.
-                values = truncate_values(values, offset as usize);
+            if scale == 0.0 {
+                // Radiance so small that its scale underflows f32: nothing a relight could show.
                 continue;
             }
             entries.push(TileLayer {
@@ -568,10 +590,27 @@ fn expand_lattice_entry(
     Ok(())
 }
 
-fn truncate_values(mut values: TileValues, len: usize) -> TileValues {
-    match &mut values {
-        TileValues::F16(v) => v.truncate(len),
-        TileValues::F32(v) => v.truncate(len),
-    }
-    values
+/// The f16 scale of an entry whose largest magnitude is `max_abs` (finite): that magnitude
+/// maps to 2¹⁴, leaving f16's range (65504) room for the rounding of a subnormal scale;
+/// 0 when the scale underflows f32 (the entry is below anything a relight can show).
+pub(crate) fn f16_scale(max_abs: f32) -> f32 {
+    max_abs / 16384.0
+}
+
+/// `data` with every NaN or infinite value replaced by 0, adding how many to `count`.
+fn finite_or_zero(data: &[f32], count: &AtomicU64) -> Vec<f32> {
+    let mut zeroed = 0u64;
+    let out = data
+        .iter()
+        .map(|&v| {
+            if v.is_finite() {
+                v
+            } else {
+                zeroed += 1;
+                0.0
+            }
+        })
+        .collect();
+    count.fetch_add(zeroed, Ordering::Relaxed);
+    out
 }
