@@ -196,3 +196,9 @@ def test_bake_summary_names_layers_bytes_and_compression_error():
     # A bake without compression or a tiled report (a merge, older bindings) says only what it has.
     assert bake_summary({"seconds": 1.0, "report": {"compression_error": 0.0}}) == "baked in 1.0 s"
     assert bake_summary({}) == "baked in 0.0 s"
+    # Values a stage kept out of the stack (bake/non_finite.rs) are said, not hidden.
+    kept = bake_summary({"seconds": 1.0, "report": {"non_finite": {
+        "path_contributions": 3, "layer_values": 0, "lattice_fits": 1, "stored_values": 0}}})
+    assert kept == "baked in 1.0 s · 4 non-finite values kept out (see warnings)"
+    clean = {"path_contributions": 0, "layer_values": 0, "lattice_fits": 0, "stored_values": 0}
+    assert bake_summary({"seconds": 1.0, "report": {"non_finite": clean}}) == "baked in 1.0 s"

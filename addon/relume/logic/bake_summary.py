@@ -19,4 +19,7 @@ def bake_summary(result: dict) -> str:
     error = report.get("compression_error")
     if error:
         parts.append(f"compression error {100 * float(error):.2f} %")
+    kept_out = sum(int(v) for v in (report.get("non_finite") or {}).values())
+    if kept_out:
+        parts.append(f"{kept_out} non-finite values kept out (see warnings)")
     return " · ".join(parts)
