@@ -3,7 +3,8 @@
 //!
 //! Every command prints a human summary, or one JSON object on stdout with `--json`.
 //! Progress goes to stderr as a bar when stderr is a terminal. Ctrl-C cancels a bake
-//! cleanly (no file is written). Errors exit with status 1 and a specific message.
+//! cleanly (no file is written). Errors exit with status 1 and a specific message; a command
+//! line that does not parse exits with status 2 (clap's usage-error code).
 
 mod commands;
 mod options;

@@ -103,12 +103,16 @@ where
 /// [`write_atomic`] with `before_rename` asked last, after the data is on disk and before
 /// the rename: an error from it (a cancel, say) removes the temp file and leaves `path` as
 /// it was. Stale temp files of dead writers of `path` are removed first
-/// ([`remove_stale_temp_files`]).
+/// ([`remove_stale_temp_files`]). An existing `path` that is not a regular file (a device,
+/// FIFO, socket or directory) is refused before anything is written
+/// ([`crate::output_path::refuse_non_regular_output`]).
 pub fn write_atomic_checked<F, C>(path: &Path, write: F, before_rename: C) -> Result<u64>
 where
     F: FnOnce(&mut BufWriter<File>) -> Result<()>,
     C: FnOnce() -> Result<()>,
 {
+    // The rename would replace a device, FIFO or socket with a regular file: refused.
+    crate::output_path::refuse_non_regular_output(path)?;
     remove_stale_temp_files(path);
     let tmp = temp_path_for(path)?;
     let file = OpenOptions::new()

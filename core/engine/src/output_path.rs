@@ -1,5 +1,9 @@
-//! The rule that a command never writes over one of its own inputs (`relume relight S.exr
-//! -o S.exr` would replace the stack with an image; `relume bake X.json -o X.json` the scene).
+//! The rules that an output never destroys a file: a command never writes over one of its
+//! own inputs (`relume relight S.exr -o S.exr` would replace the stack with an image;
+//! `relume bake X.json -o X.json` the scene), two outputs of one command are never the same
+//! file (`-o X.exr --png X.exr`), and an existing output that is not a regular file (a
+//! device, FIFO, socket or directory) is refused, since the atomic write's rename would
+//! replace it with a regular file (`-o /dev/null` as root would replace `/dev/null`).
 
 use std::path::{Path, PathBuf};
 
@@ -33,6 +37,72 @@ fn same_file(a: &Path, b: &Path) -> bool {
         (Some(x), Some(y)) => x == y,
         _ => false,
     }
+}
+
+/// What the file system object at `path` is, when it exists and is not a regular file
+/// (symbolic links followed): "a directory", "a FIFO (named pipe)", … `None` when `path`
+/// does not exist or is a regular file.
+fn non_regular_kind(path: &Path) -> Option<&'static str> {
+    let file_type = std::fs::metadata(path).ok()?.file_type();
+    if file_type.is_file() {
+        return None;
+    }
+    if file_type.is_dir() {
+        return Some("a directory");
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if file_type.is_fifo() {
+            return Some("a FIFO (named pipe)");
+        }
+        if file_type.is_socket() {
+            return Some("a socket");
+        }
+        if file_type.is_char_device() {
+            return Some("a character device");
+        }
+        if file_type.is_block_device() {
+            return Some("a block device");
+        }
+    }
+    Some("a special file")
+}
+
+/// Refuses an existing `output` that is not a regular file, with
+/// [`RelumeError::OutputNotAFile`]: every file Relume writes is renamed over its target
+/// ([`crate::image_io::write_atomic`]), which would replace a device or FIFO with a regular
+/// file. Refused rather than written through. The atomic write asks this too.
+pub fn refuse_non_regular_output(output: &Path) -> Result<()> {
+    match non_regular_kind(output) {
+        Some(kind) => Err(RelumeError::OutputNotAFile {
+            output: output.to_path_buf(),
+            kind: kind.to_string(),
+        }),
+        None => Ok(()),
+    }
+}
+
+/// The one check of a command's paths, before it reads anything: each of `outputs` (each
+/// with its role, e.g. "the PNG") is refused when it exists and is not a regular file
+/// ([`refuse_non_regular_output`]), when it is one of `inputs`
+/// ([`refuse_output_over_inputs`]), or when it is another of `outputs`
+/// ([`RelumeError::OutputsCollide`]: the second write would replace the first).
+pub fn check_outputs(outputs: &[(&Path, &str)], inputs: &[(&Path, &str)]) -> Result<()> {
+    for (i, (output, role)) in outputs.iter().enumerate() {
+        refuse_non_regular_output(output)?;
+        refuse_output_over_inputs(output, inputs)?;
+        for (earlier, earlier_role) in &outputs[..i] {
+            if same_file(output, earlier) {
+                return Err(RelumeError::OutputsCollide {
+                    output: output.to_path_buf(),
+                    role: role.to_string(),
+                    other_role: earlier_role.to_string(),
+                });
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Refuses `output` when it is one of `inputs` (each with the role it plays, e.g. "the
@@ -74,5 +144,57 @@ mod tests {
         let link = dir.path().join("link.json");
         std::fs::hard_link(&input, &link).unwrap();
         assert!(refuse_output_over_inputs(&link, &[(&input, "the scene")]).is_err());
+    }
+
+    #[test]
+    fn two_outputs_that_are_one_file_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let a = dir.path().join("x.exr");
+        let b = dir.path().join(".").join("x.exr");
+        let e = check_outputs(&[(&a, "the image"), (&b, "the PNG")], &[]).unwrap_err();
+        let text = e.to_string();
+        assert!(
+            text.contains("the PNG") && text.contains("the image") && text.contains("x.exr"),
+            "{text}"
+        );
+        let c = dir.path().join("x.png");
+        check_outputs(&[(&a, "the image"), (&c, "the PNG")], &[]).unwrap();
+    }
+
+    /// Every writer goes through `write_atomic`, which asks the same rule: a FIFO stays a
+    /// FIFO and nothing is written.
+    #[cfg(unix)]
+    #[test]
+    fn the_atomic_write_refuses_a_fifo_and_leaves_it() {
+        use std::os::unix::fs::FileTypeExt;
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("pipe");
+        let made = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap();
+        assert!(made.success());
+        let mut called = false;
+        let e = crate::image_io::write_atomic(&fifo, |_| {
+            called = true;
+            Ok(())
+        })
+        .unwrap_err();
+        assert!(e.to_string().contains("is a FIFO (named pipe)"), "{e}");
+        assert!(!called, "refused before writing");
+        let kind = std::fs::symlink_metadata(&fifo).unwrap().file_type();
+        assert!(kind.is_fifo());
+        assert_eq!(
+            std::fs::read_dir(dir.path()).unwrap().count(),
+            1,
+            "no temp file"
+        );
+    }
+
+    #[test]
+    fn a_directory_is_refused_as_an_output() {
+        let dir = tempfile::tempdir().unwrap();
+        let e = check_outputs(&[(dir.path(), "the image")], &[]).unwrap_err();
+        assert!(e.to_string().contains("is a directory"), "{e}");
     }
 }

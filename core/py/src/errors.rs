@@ -102,7 +102,9 @@ pub fn class_of(e: &Engine) -> &'static str {
         Engine::Materials(_) => "MaterialsError",
         Engine::Basis(_) => "BasisError",
         Engine::OutOfMemory { .. } => "OutOfMemoryError",
-        Engine::OutputIsInput { .. } => "RelumeIOError",
+        Engine::OutputIsInput { .. }
+        | Engine::OutputsCollide { .. }
+        | Engine::OutputNotAFile { .. } => "RelumeIOError",
     }
 }
 

@@ -47,7 +47,7 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
     if let Some(g) = &args.guide {
         inputs.push((g, "the guide file"));
     }
-    relume_engine::output_path::refuse_output_over_inputs(&args.output, &inputs)?;
+    relume_engine::output_path::check_outputs(&[(&args.output, "the output")], &inputs)?;
     let scene = load_scene(&args.scene)?;
     let rss_before_bake = relume_engine::memory::current_rss_bytes();
     let settings = args.options.settings(scene.resolution)?;

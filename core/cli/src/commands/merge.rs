@@ -35,18 +35,30 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> Result<(), RelumeError> {
-    let inputs: Vec<(&std::path::Path, &str)> = args
+    use relume_engine::output_path::check_outputs;
+    let output = [(args.output.as_path(), "the output")];
+    let mut inputs: Vec<(&std::path::Path, &str)> = args
         .parts
         .iter()
         .map(|p| (p.as_path(), "a partial stack"))
         .collect();
-    relume_engine::output_path::refuse_output_over_inputs(&args.output, &inputs)?;
-    let first = args
+    if let Some(s) = &args.scene {
+        inputs.push((s, "the scene"));
+    }
+    // The parts first (before any is read), then the scene files they record.
+    check_outputs(&output, &inputs)?;
+    let headers = args
         .parts
-        .first()
+        .iter()
         .map(|p| read_partial_header(p))
-        .transpose()?;
-    let scene_path = match (&args.scene, first) {
+        .collect::<Result<Vec<_>, _>>()?;
+    let recorded: Vec<(&std::path::Path, &str)> = headers
+        .iter()
+        .filter_map(|h| h.scene_path.as_deref())
+        .map(|p| (p, "the scene recorded in the partial stacks"))
+        .collect();
+    check_outputs(&output, &recorded)?;
+    let scene_path = match (&args.scene, headers.first()) {
         (Some(s), _) => s.clone(),
         (None, Some(header)) => header.scene_path.clone().ok_or_else(|| {
             RelumeError::invalid("--scene", "the parts record no scene file: give --scene")

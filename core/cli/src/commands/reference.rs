@@ -45,9 +45,11 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
     if let Some(m) = &args.materials {
         inputs.push((m, "the materials file"));
     }
-    for out in std::iter::once(&args.output).chain(&args.png) {
-        relume_engine::output_path::refuse_output_over_inputs(out, &inputs)?;
+    let mut outputs: Vec<(&std::path::Path, &str)> = vec![(&args.output, "the image")];
+    if let Some(p) = &args.png {
+        outputs.push((p, "the PNG"));
     }
+    relume_engine::output_path::check_outputs(&outputs, &inputs)?;
     let scene = load_scene(&args.scene)?;
     let settings = args.options.settings(scene.resolution)?;
     let edits = match &args.materials {

@@ -83,9 +83,11 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
     if let Some(s) = &args.scene {
         inputs.push((s, "the scene"));
     }
-    for out in std::iter::once(&args.output).chain(&args.png) {
-        relume_engine::output_path::refuse_output_over_inputs(out, &inputs)?;
+    let mut outputs: Vec<(&std::path::Path, &str)> = vec![(&args.output, "the image")];
+    if let Some(p) = &args.png {
+        outputs.push((p, "the PNG"));
     }
+    relume_engine::output_path::check_outputs(&outputs, &inputs)?;
     let t = Instant::now();
     let stack = read_tiled(&args.stack)?;
     let load_seconds = t.elapsed().as_secs_f64();
@@ -134,6 +136,8 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
     let device = relighter.device();
     let device_reason = relighter.device_reason().to_string();
     let relight_ms = t.elapsed().as_secs_f64() * 1e3;
+    // An image with inf or NaN pixels is refused, not written as if it were right.
+    relume_engine::relight::check_finite_image(&image, width)?;
     write_rgba_exr(&args.output, width, height, &image)?;
     if let Some(png) = &args.png {
         write_png_srgb(png, width, height, &image, args.exposure)?;

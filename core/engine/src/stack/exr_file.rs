@@ -304,14 +304,15 @@ pub fn write_stack_cancellable(
     let channels = x::AnyChannels::sort(list);
 
     let text = |s: &str| x::AttributeValue::Text(x::Text::from_slice_unchecked(s.as_bytes()));
-    let mut other = std::collections::HashMap::new();
-    other.insert(x::Text::from(ATTR_HEADER), text(&header_json));
-    other.insert(
-        x::Text::from(ATTR_FORMAT_VERSION),
-        x::AttributeValue::I32(STACK_FORMAT_VERSION as i32),
-    );
-    other.insert(x::Text::from(ATTR_SCENE_HASH), text(&h.scene_hash));
-    other.insert(x::Text::from(ATTR_LAYERS), text(&layers_json));
+    let other = attributes_in_name_order(vec![
+        (x::Text::from(ATTR_HEADER), text(&header_json)),
+        (
+            x::Text::from(ATTR_FORMAT_VERSION),
+            x::AttributeValue::I32(STACK_FORMAT_VERSION as i32),
+        ),
+        (x::Text::from(ATTR_SCENE_HASH), text(&h.scene_hash)),
+        (x::Text::from(ATTR_LAYERS), text(&layers_json)),
+    ]);
     let attributes = x::LayerAttributes {
         software_name: Some(x::Text::from_slice_unchecked(
             concat!("Relume ", env!("CARGO_PKG_VERSION")).as_bytes(),
@@ -373,6 +374,36 @@ pub(crate) fn map_exr_err(path: &Path, e: x::Error, in_pixels: bool) -> RelumeEr
         x::Error::NotSupported(m) => format_err(path, format!("unsupported OpenEXR feature: {m}")),
         x::Error::Aborted => format_err(path, "reading was aborted"),
     }
+}
+
+/// Most draws [`attributes_in_name_order`] makes before it settles for another order (for
+/// four attributes one draw in 24 iterates sorted; missing a million is beyond chance).
+const MAX_ATTRIBUTE_DRAWS: usize = 1_000_000;
+
+/// The Relume attributes `entries` as the map the exr crate writes, iterating in name order,
+/// so that one stack always gives the same bytes. exr keeps custom attributes in a std
+/// `HashMap` and writes them in its iteration order, which follows the map's random hash
+/// keys; each new map draws new keys, so maps of the names are drawn until one iterates
+/// sorted (about n! draws for n attributes), then filled with the values (which moves
+/// nothing). A clone keeps the order, so exr's own copies write it too.
+pub(crate) fn attributes_in_name_order(
+    mut entries: Vec<(x::Text, x::AttributeValue)>,
+) -> std::collections::HashMap<x::Text, x::AttributeValue> {
+    entries.sort_by(|a, b| a.0.cmp(&b.0));
+    let mut map = std::collections::HashMap::new();
+    for _ in 0..MAX_ATTRIBUTE_DRAWS {
+        map = entries
+            .iter()
+            .map(|(name, _)| (name.clone(), x::AttributeValue::I32(0)))
+            .collect();
+        if map.keys().eq(entries.iter().map(|(name, _)| name)) {
+            break;
+        }
+    }
+    for (name, value) in entries {
+        map.insert(name, value);
+    }
+    map
 }
 
 fn attr_text<'a>(attrs: &'a x::LayerAttributes, name: &str) -> Option<&'a x::AttributeValue> {

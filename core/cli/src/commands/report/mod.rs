@@ -98,6 +98,7 @@ const BAKE_SEED: u64 = 0;
 pub fn run(args: Args) -> Result<(), RelumeError> {
     if args.redraw {
         let path = args.out.join("presets.json");
+        check_report_outputs(&args, &[(&path, "the report being redrawn")], false)?;
         let text = std::fs::read_to_string(&path).map_err(|e| RelumeError::io(&path, e))?;
         let report: Value = serde_json::from_str(&text)
             .map_err(|e| RelumeError::invalid("--redraw", format!("{}: {e}", path.display())))?;
@@ -113,6 +114,9 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
     if args.presets.is_empty() {
         return Err(RelumeError::invalid("--presets", "no preset named"));
     }
+    let scene_inputs: Vec<(&Path, &str)> =
+        scenes.iter().map(|p| (p.as_path(), "a scene")).collect();
+    check_report_outputs(&args, &scene_inputs, true)?;
     let resolution = args
         .resolution
         .as_deref()
@@ -194,6 +198,32 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
     write_outputs(&args, &report, true)
 }
 
+/// The chart's path: `--chart`, else OUT/presets.png.
+fn chart_path(args: &Args) -> PathBuf {
+    args.chart
+        .clone()
+        .unwrap_or_else(|| args.out.join("presets.png"))
+}
+
+/// Refuses report outputs (presets.json when `write_json`, presets.md, the chart) that are
+/// `inputs`, one another, or existing non-regular files, before any work.
+fn check_report_outputs(
+    args: &Args,
+    inputs: &[(&Path, &str)],
+    write_json: bool,
+) -> Result<(), RelumeError> {
+    let (json_path, md_path, chart) = (
+        args.out.join("presets.json"),
+        args.out.join("presets.md"),
+        chart_path(args),
+    );
+    let mut outputs: Vec<(&Path, &str)> = vec![(&md_path, "the table"), (&chart, "the chart")];
+    if write_json {
+        outputs.push((&json_path, "the JSON report"));
+    }
+    relume_engine::output_path::check_outputs(&outputs, inputs)
+}
+
 /// Writes presets.json (when `write_json`), presets.md and the chart, and prints the summary.
 fn write_outputs(args: &Args, report: &Value, write_json: bool) -> Result<(), RelumeError> {
     let json_path = args.out.join("presets.json");
@@ -213,10 +243,7 @@ fn write_outputs(args: &Args, report: &Value, write_json: bool) -> Result<(), Re
         w.write_all(md.as_bytes())
             .map_err(|e| RelumeError::io(&md_path, e))
     })?;
-    let chart_path = args
-        .chart
-        .clone()
-        .unwrap_or_else(|| args.out.join("presets.png"));
+    let chart_path = chart_path(args);
     if let Some(dir) = chart_path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).map_err(|e| RelumeError::io(dir, e))?;
     }

@@ -50,8 +50,8 @@ use crate::image_io::write_atomic_checked;
 use crate::layer_key::LayerKey;
 use crate::progress::Progress;
 use crate::stack::exr_file::{
-    map_exr_err, read_stack, text_attr, CancellableWriter, ATTR_FORMAT_VERSION, ATTR_HEADER,
-    ATTR_LAYERS, ATTR_SCENE_HASH, MAX_COMPRESSION_RATIO,
+    attributes_in_name_order, map_exr_err, read_stack, text_attr, CancellableWriter,
+    ATTR_FORMAT_VERSION, ATTR_HEADER, ATTR_LAYERS, ATTR_SCENE_HASH, MAX_COMPRESSION_RATIO,
 };
 use crate::stack::{Precision, StackHeader, STACK_FORMAT_VERSION};
 
@@ -367,14 +367,16 @@ fn encode(
     };
 
     let text = |s: &str| x::AttributeValue::Text(x::Text::from_slice_unchecked(s.as_bytes()));
-    let mut other = std::collections::HashMap::new();
-    other.insert(x::Text::from(ATTR_HEADER), text(&header_json));
-    other.insert(
-        x::Text::from(ATTR_FORMAT_VERSION),
-        x::AttributeValue::I32(version as i32),
-    );
-    other.insert(x::Text::from(ATTR_SCENE_HASH), text(&h.scene_hash));
-    other.insert(x::Text::from(ATTR_LAYERS), text(&layers_json));
+    // In name order, so the same stack gives the same bytes.
+    let other = attributes_in_name_order(vec![
+        (x::Text::from(ATTR_HEADER), text(&header_json)),
+        (
+            x::Text::from(ATTR_FORMAT_VERSION),
+            x::AttributeValue::I32(version as i32),
+        ),
+        (x::Text::from(ATTR_SCENE_HASH), text(&h.scene_hash)),
+        (x::Text::from(ATTR_LAYERS), text(&layers_json)),
+    ]);
 
     let image_size = (h.width as usize, h.height as usize);
     let tiles_size = (stack.tiles_x() as usize, stack.tiles_y() as usize);
