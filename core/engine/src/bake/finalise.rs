@@ -780,3 +780,63 @@ pub(crate) fn layer_weights(ctx: &BakeContext, scene: &Scene) -> Result<Vec<Rgb>
         .collect();
     drop::bake_time_weights(ctx, scene, &keys)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::stack::StackHeader;
+
+    fn header(size: u32) -> StackHeader {
+        serde_json::from_value(serde_json::json!({
+            "format_version": 2, "width": size, "height": size,
+            "camera": {"projection": "perspective",
+                       "matrix_world": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]},
+            "spp": 1, "light_samples": 1, "bounces": 0, "sampling": "uniform", "seed": 0,
+            "regions": [], "lights": [], "scene_hash": "", "precision": "f16",
+            "light_tint": [1.0, 1.0, 1.0], "light_groups": [],
+            "denoise": {"direct_iterations": 0, "bounce_iterations": 0},
+        }))
+        .unwrap()
+    }
+
+    /// The denoiser's output stage: a NaN, an infinity and a subnormal among a tile's layer
+    /// values. The first two are stored as 0 and counted, the subnormal is kept; the builder
+    /// (the last guard) has nothing left to do.
+    #[test]
+    fn non_finite_layer_values_are_stored_as_zero_and_counted() {
+        let builder =
+            TiledStackBuilder::new(header(4), vec![(LayerKey::new(vec![]), 3u8)]).unwrap();
+        let mut data = vec![0.25f32; 16 * 3];
+        data[0] = f32::NAN;
+        data[4] = f32::INFINITY;
+        data[8] = 1e-40;
+        let rect = crate::stack::tiled::tile_rect(4, 4, 0);
+        let input = TileInput {
+            layer: 0,
+            channels: 3,
+            data,
+        };
+        let tally = finalise_tile(
+            &builder,
+            0,
+            rect,
+            vec![input],
+            &[Rgb::ONE],
+            false,
+            None,
+            &[],
+        )
+        .unwrap();
+        assert_eq!(tally.non_finite_values, 2);
+        assert!(tally.image_sumsq.is_finite() && tally.image_sumsq > 0.0);
+        assert_eq!(builder.non_finite_zeroed(), 0);
+        let stack = builder.finish().unwrap();
+        let TileValues::F16(v) = &stack.tiles[0].values else {
+            panic!("f16 expected");
+        };
+        let scale = stack.tiles[0].entries[0].scale;
+        assert_eq!(v[0].to_f32(), 0.0);
+        assert_eq!(v[4].to_f32(), 0.0);
+        assert_eq!(v[1].to_f32() * scale, 0.25);
+    }
+}

@@ -791,3 +791,41 @@ pub fn guide_sample<B: VertexBrdf, T: Tracer>(
     }
     Some((wi, crate::luminance(radiance) * PI))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Default)]
+    struct Recorder(Vec<Rgb>);
+
+    impl PathSink for Recorder {
+        fn world(&mut self, _: usize, v: Rgb) {
+            self.0.push(v);
+        }
+        fn direct(&mut self, _: usize, _: u32, v: Rgb) {
+            self.0.push(v);
+        }
+        fn bounce(&mut self, _: usize, _: u32, _: u32, v: Rgb) {
+            self.0.push(v);
+        }
+    }
+
+    /// The path stage: a contribution with a NaN or an infinite channel is discarded and
+    /// counted, whichever layer it was for; a subnormal one is kept as it is.
+    #[test]
+    fn non_finite_path_contributions_are_discarded_and_counted() {
+        let mut recorder = Recorder::default();
+        let mut sink = FiniteOnly {
+            inner: &mut recorder,
+            discarded: 0,
+        };
+        sink.world(0, Rgb::new(f32::NAN, 1.0, 1.0));
+        sink.direct(0, 1, Rgb::new(1.0, f32::INFINITY, 1.0));
+        sink.bounce(0, 1, 2, Rgb::new(1.0, 1.0, f32::NEG_INFINITY));
+        sink.direct(0, 1, Rgb::splat(1e-40));
+        sink.bounce(0, 1, 2, Rgb::splat(2.0));
+        assert_eq!(sink.discarded, 3);
+        assert_eq!(recorder.0, vec![Rgb::splat(1e-40), Rgb::splat(2.0)]);
+    }
+}
