@@ -114,6 +114,11 @@ def test_material_mapping_rules():
     diffuse, tex = material_map.map_material(SN("D", material_map.DIFFUSE, values={"Color": (0.2, 0.3, 0.4, 1)}), w)
     assert diffuse == {"model": "blinn_phong", "kd": [0.2, 0.3, 0.4], "ks": [0, 0, 0], "ns": 1.0}
     assert not tex and len(w) == 0  # exact, not a fallback
+    # A Diffuse colour above 1 (Blender allows it) is clamped with a warning: the core refuses
+    # Kd > 1 in a scene as in a materials file.
+    bright, _ = material_map.map_material(SN("B", material_map.DIFFUSE, values={"Color": (2.0, 0.3, 0.4, 1)}), w)
+    assert bright["kd"] == [1.0, 0.3, 0.4] and len(w) == 1
+    w = WarningList()
 
     w = WarningList()
     mat, tex = material_map.map_material(SN(

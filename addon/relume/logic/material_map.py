@@ -89,6 +89,10 @@ def map_material(nodes: SurfaceNodes, warnings: WarningList) -> tuple[dict, bool
             warnings.add(subject, f"Diffuse Color linked to {nodes.links['Color']}",
                          "the socket's own colour")
         colour = _rgb(nodes.values.get("Color", (0.8, 0.8, 0.8)))
+        if any(c > 1.0 for c in colour):
+            # Blender allows a colour above 1; the core refuses Kd > 1 (more light out than in).
+            warnings.add(subject, "Diffuse Color above 1", "the colour clamped to 1 per channel")
+            colour = [min(1.0, c) for c in colour]
         return ({"model": "blinn_phong", "kd": colour, "ks": [0.0, 0.0, 0.0], "ns": 1.0}, False)
     if nodes.shader == EMISSION:
         # A pure emitter reflects nothing; its light is exported by `emission_of`.

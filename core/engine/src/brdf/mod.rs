@@ -12,7 +12,7 @@ pub mod principled_fit;
 pub mod region_basis;
 
 pub use crate::bssrdf::mapping::Subsurface;
-pub use basis::{BasisConfig, BasisCount, BrdfBasis};
+pub use basis::{check_basis_limits, BasisConfig, BasisCount, BrdfBasis};
 pub use blinn_phong::BlinnPhong;
 pub use material::{MaterialSpec, PrincipledMaterial, ENERGY_SLACK};
 pub use principled::Principled;

@@ -101,7 +101,27 @@ struct AreaPlane {
     elliptic: bool,
 }
 
+/// A square or rectangle whose diagonal is below this fraction of its distance is sampled
+/// by area even under [`AreaSampling::SolidAngle`]: its solid angle Ω ≈ A·cos θ/d² falls
+/// below 10⁻⁶ sr, where the spherical-rectangle formula (four dihedral angles summing to
+/// 2π + Ω, in f64) starts losing Ω's digits to rounding — seen from 1 m, a side of 10⁻⁷ m
+/// came out 2 % too bright and one of 10⁻⁸ m (Ω ≈ 10⁻¹⁶, all rounding) black or up to
+/// 10²⁹× too bright, depending on where it stood — while
+/// the area sample's weight L·A·cos θ_l/d² varies by under 0.1 % across so small a light.
+const SMALL_RECT_RATIO: f32 = 1e-3;
+
 impl AreaPlane {
+    /// Whether a light sampled under `sampling` is drawn uniformly in solid angle from `p`
+    /// (a square or rectangle that is not small as seen from `p`), else uniformly by area.
+    /// The light's sample and its pdf for a BSDF-sampled hit both ask this.
+    fn by_solid_angle(&self, p: Vec3, sampling: AreaSampling) -> bool {
+        if self.elliptic || sampling != AreaSampling::SolidAngle {
+            return false;
+        }
+        let diagonal2 = 4.0 * (self.half_u * self.half_u + self.half_v * self.half_v);
+        diagonal2 >= SMALL_RECT_RATIO * SMALL_RECT_RATIO * (p - self.centre).length_squared()
+    }
+
     /// Whether a ray from `origin` along unit `dir` meets the light's front face before
     /// distance `t_hit` (the light emits along `normal`, so the ray meets it head-on).
     fn front_face_hit(&self, origin: Vec3, dir: Vec3, t_hit: f32) -> bool {
@@ -536,20 +556,20 @@ impl LightSet {
                 })
             }
             Emitter::Area {
-                shape:
-                    AreaPlane {
-                        centre,
-                        u,
-                        v,
-                        normal,
-                        half_u,
-                        half_v,
-                        elliptic,
-                    },
+                shape,
                 radiance_times_area,
                 area,
             } => {
-                if !*elliptic && self.area_sampling == AreaSampling::SolidAngle {
+                let AreaPlane {
+                    centre,
+                    u,
+                    v,
+                    normal,
+                    half_u,
+                    half_v,
+                    elliptic,
+                } = shape;
+                if shape.by_solid_angle(p, self.area_sampling) {
                     // One-sided: a point behind the light's plane (or in it) gets nothing.
                     if !((p - *centre).dot(*normal) > 0.0) || !(*area > 0.0) {
                         return None;

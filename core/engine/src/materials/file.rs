@@ -61,6 +61,37 @@ pub struct LightGroupEdit {
     pub color: [f32; 3],
 }
 
+/// Largest gain (`strength × colour`, per channel) a light group edit may apply. The relight
+/// sums `gain · weight · layer` in f32 over every layer: a baked layer holds radiance of
+/// order 1 (f16 layers at most 65 504), so a gain of 10⁶ keeps each term below 10¹¹ and the
+/// sum of even millions of layers 20 orders of magnitude below f32's 3.4·10³⁸, where a
+/// strength of 3·10³⁸ overflows to inf at the first layer. 10⁶ is 20 stops above the baked
+/// light: no real edit (the add-on's slider goes to 10) comes near it.
+pub const MAX_LIGHT_GAIN: f32 = 1e6;
+
+impl LightGroupEdit {
+    /// The rule for a light group edit, whoever makes it (the materials file, the Python
+    /// bindings, the add-on): strength and colour finite and ≥ 0, and `strength × colour`
+    /// at most [`MAX_LIGHT_GAIN`] in every channel. Errors ([`RelumeError::Materials`]) name
+    /// the group, the value and the limit.
+    pub fn validate(&self, name: &str) -> Result<()> {
+        let values = [self.strength, self.color[0], self.color[1], self.color[2]];
+        if values.iter().any(|v| !v.is_finite() || *v < 0.0) {
+            return Err(RelumeError::Materials(format!(
+                "light group \"{name}\": strength and colour must be finite and ≥ 0, got strength {} and colour {:?}",
+                self.strength, self.color
+            )));
+        }
+        let gain = self.color.iter().fold(0.0f64, |m, c| m.max(*c as f64)) * self.strength as f64;
+        if gain > MAX_LIGHT_GAIN as f64 {
+            return Err(RelumeError::Materials(format!(
+                "light group \"{name}\": strength × colour = {gain:e} exceeds the limit of {MAX_LIGHT_GAIN:e} (beyond it the relit sum can overflow f32 to inf)"
+            )));
+        }
+        Ok(())
+    }
+}
+
 fn one() -> f32 {
     1.0
 }

@@ -18,7 +18,7 @@ mod resolve;
 
 pub use file::{
     load_materials, parse_materials, LightGroupEdit, MaterialsFile, MATERIALS_FORMAT,
-    MATERIALS_FORMAT_VERSION,
+    MATERIALS_FORMAT_VERSION, MAX_LIGHT_GAIN,
 };
 pub use live::{LiveMaterials, LiveRelighter};
 pub use resolve::{resolve_light_gains, resolve_materials};

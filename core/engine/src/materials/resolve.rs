@@ -12,7 +12,8 @@ use super::file::MaterialsFile;
 
 /// The gain of every light group of `header` (editable order of its `light_groups`) from
 /// `edits`, or `None` when the file edits no group. Errors: a group the stack does not have
-/// (its groups are listed), a negative or non-finite strength or colour.
+/// (its groups are listed), anything [`super::LightGroupEdit::validate`] refuses (a negative,
+/// non-finite or too large strength or colour).
 pub fn resolve_light_gains(
     header: &StackHeader,
     edits: &MaterialsFile,
@@ -32,12 +33,7 @@ pub fn resolve_light_gains(
                 if names.is_empty() { "none".to_string() } else { names.join(", ") }
             )));
         }
-        let values = [e.strength, e.color[0], e.color[1], e.color[2]];
-        if values.iter().any(|v| !v.is_finite() || *v < 0.0) {
-            return Err(RelumeError::Materials(format!(
-                "light group \"{name}\": strength and colour must be finite and ≥ 0"
-            )));
-        }
+        e.validate(name)?;
     }
     Ok(Some(
         header

@@ -22,6 +22,7 @@
 //!   image add); `ahead`: its paced prefetch of the next tile's values.
 //! - `cpu_sum`: that sum as the CPU's [`LayerSum`], with its image.
 //! - `cpu`: [`CpuRelighter`], the bookkeeping over the CPU sum.
+//! - `finite`: [`check_finite_image`], the last check on a relit image.
 //! - [`bandwidth`]: how fast this machine reads memory, the floor under any relight.
 //!
 //! The sum is memory-bound; how the CPU sum reads each needed sample once is in
@@ -32,6 +33,7 @@ pub mod bandwidth;
 mod bookkeeping;
 mod cpu;
 mod cpu_sum;
+mod finite;
 pub(crate) mod kernels;
 mod layer_sum;
 mod region_entries;
@@ -43,6 +45,7 @@ mod weight;
 
 pub use bookkeeping::{RelightBookkeeping, FULL_RESUM_EVERY};
 pub use cpu::CpuRelighter;
+pub use finite::check_finite_image;
 pub use layer_sum::{LayerSum, RelightStats};
 pub use shape::StackShape;
 pub use weight::{group_factors, group_factors_of, layer_weight};

@@ -14,7 +14,7 @@ pub struct ValidationReport {
     pub degenerate_triangles: usize,
     /// Triangles the bake will use.
     pub triangles: usize,
-    /// Human-readable warnings (no light, no editable region, Kd + Ks > 1, …).
+    /// Human-readable warnings (no light, no editable region, …).
     pub warnings: Vec<String>,
 }
 
@@ -49,11 +49,9 @@ pub fn validate_scene(scene: &Scene) -> Result<ValidationReport> {
         return Err(RelumeError::EmptyScene("no triangle in any mesh".into()));
     }
     scene.resolution.validate("resolution")?;
-    for (ri, region) in scene.regions.iter().enumerate() {
-        validate_material(
-            &format!("region {ri} \"{}\" material", region.name),
-            &region.material,
-        )?;
+    for region in &scene.regions {
+        // Named as a materials file's edit of the region is, so both read the same.
+        validate_material(&format!("region \"{}\"", region.name), &region.material)?;
         if let Some(img) = &region.albedo_texture {
             validate_image(&format!("region \"{}\" albedo texture", region.name), img)?;
         }
@@ -65,13 +63,6 @@ pub fn validate_scene(scene: &Scene) -> Result<ValidationReport> {
                     format!("[{lo}, {hi}] (need 0 < min < max, finite)"),
                 ));
             }
-        }
-        let bp = region.material.to_blinn_phong();
-        if (0..3).any(|c| bp.kd[c] + bp.ks[c] > 1.0 + 1e-6) {
-            report.warnings.push(format!(
-                "region \"{}\": Kd + Ks > 1 in some channel: the material reflects more than it receives",
-                region.name
-            ));
         }
     }
     for (mi, mesh) in scene.meshes.iter().enumerate() {
@@ -158,6 +149,7 @@ pub fn validate_scene(scene: &Scene) -> Result<ValidationReport> {
         }
         emits |= validate_light(li, light)?;
     }
+    validate_light_groups(scene)?;
     match &scene.world {
         World::Color { color, strength } => {
             finite(
@@ -192,42 +184,12 @@ pub fn validate_scene(scene: &Scene) -> Result<ValidationReport> {
     Ok(report)
 }
 
+/// A region's material passes the materials file's rule ([`MaterialSpec::validate`]), in
+/// its words: a scene and a relight edit refuse the same values, and nothing is clamped
+/// silently (Principled metallic, roughness outside [0, 1], IOR ≤ 0, negative base colour,
+/// Blinn–Phong Kd + Ks > 1, …).
 fn validate_material(what: &str, m: &MaterialSpec) -> Result<()> {
-    match m {
-        MaterialSpec::BlinnPhong(b) => {
-            finite(
-                || what.to_string(),
-                &[b.kd[0], b.kd[1], b.kd[2], b.ks[0], b.ks[1], b.ks[2], b.ns],
-            )?;
-            if b.kd.iter().chain(b.ks.iter()).any(|v| *v < 0.0) {
-                return Err(RelumeError::invalid(what, "Kd and Ks must be ≥ 0"));
-            }
-            if b.ns <= 0.0 {
-                return Err(RelumeError::invalid(
-                    what,
-                    format!("ns = {} (must be > 0)", b.ns),
-                ));
-            }
-        }
-        MaterialSpec::Principled(pm) => {
-            pm.subsurface.validate(what)?;
-            let p = &pm.bsdf;
-            let c = p.base_color;
-            finite(
-                || what.to_string(),
-                &[
-                    c[0],
-                    c[1],
-                    c[2],
-                    p.metallic,
-                    p.roughness,
-                    p.ior,
-                    p.specular_ior_level,
-                ],
-            )?;
-        }
-    }
-    Ok(())
+    m.validate(what)
 }
 
 /// Checks a region's `subsurface` block; warns when a fixed region asks for translucency
@@ -292,12 +254,20 @@ fn validate_subsurface(region: &super::Region, report: &mut ValidationReport) ->
 fn validate_image(what: &str, img: &ImageRef) -> Result<()> {
     match img {
         ImageRef::Inline { width, height, rgb } => {
-            let expect = *width as usize * *height as usize * 3;
-            if *width == 0 || *height == 0 || rgb.len() != expect {
+            // Checked, in u64, against the values actually given: a claimed size whose
+            // product wraps would otherwise pass here and be allocated (or indexed) later.
+            let expect = (*width as u64)
+                .checked_mul(*height as u64)
+                .and_then(|n| n.checked_mul(3));
+            if *width == 0 || *height == 0 || expect != Some(rgb.len() as u64) {
+                let needs = match expect {
+                    Some(n) => n.to_string(),
+                    None => "more than 2⁶⁴".to_string(),
+                };
                 return Err(RelumeError::invalid(
                     what,
                     format!(
-                        "{width}×{height} needs {expect} RGB values, has {}",
+                        "{width}×{height}×3 needs {needs} RGB values, has {} (width and height must be ≥ 1 and match the values given)",
                         rgb.len()
                     ),
                 ));
@@ -441,6 +411,37 @@ fn validate_light(li: usize, light: &Light) -> Result<bool> {
         return Err(RelumeError::invalid(what(), "negative power or colour"));
     }
     Ok(power > 0.0 && color.iter().any(|c| *c > 0.0))
+}
+
+/// Light groups are edited by name (a materials file's `light_groups`, the add-on's
+/// sliders), so two groups of one name would make an edit ambiguous: refused, as is a group
+/// naming a light the scene does not have.
+fn validate_light_groups(scene: &Scene) -> Result<()> {
+    for (g, group) in scene.light_groups.iter().enumerate() {
+        if let Some(first) = scene.light_groups[..g]
+            .iter()
+            .position(|o| o.name == group.name)
+        {
+            return Err(RelumeError::invalid(
+                format!("light group {g} \"{}\"", group.name),
+                format!(
+                    "duplicate light group name: group {first} has the same name (names must be unique, edits pick a group by name)"
+                ),
+            ));
+        }
+        if let Some(&l) = group
+            .lights
+            .iter()
+            .find(|&&l| l as usize >= scene.lights.len())
+        {
+            return Err(RelumeError::IndexOutOfRange {
+                what: format!("light group {g} \"{}\" light", group.name),
+                index: l as u64,
+                len: scene.lights.len(),
+            });
+        }
+    }
+    Ok(())
 }
 
 fn validate_camera(scene: &Scene) -> Result<()> {

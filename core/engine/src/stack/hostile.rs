@@ -86,6 +86,21 @@ pub fn with_claimed_size(bytes: &[u8], width: u32, height: u32) -> Option<Vec<u8
     saw_header.then(|| join(bytes, &attrs, rest))
 }
 
+/// `bytes` (a stack file) with its Relume header JSON rewritten by `edit` (a header that
+/// claims a basis no build could afford, say); everything else as it was. `None` when
+/// `bytes` is not a single-part OpenEXR file with a Relume header.
+pub fn with_header_edit(
+    bytes: &[u8],
+    edit: impl FnOnce(&mut serde_json::Value),
+) -> Option<Vec<u8>> {
+    let (mut attrs, rest) = split(bytes)?;
+    let a = attrs.iter_mut().find(|a| a.name == b"relume/header")?;
+    let mut h: serde_json::Value = serde_json::from_slice(&a.value).ok()?;
+    edit(&mut h);
+    a.value = serde_json::to_vec(&h).ok()?;
+    Some(join(bytes, &attrs, rest))
+}
+
 #[cfg(test)]
 mod tests {
     #[test]

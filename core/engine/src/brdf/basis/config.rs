@@ -22,10 +22,15 @@ pub struct BasisConfig {
     /// Largest exponent (under the analytic Principled mapping roughness 0.32 ↔ 200 and
     /// 0.1 ↔ 20,000; the fitted mapping the core uses gives about 1.75× those below 0.5).
     pub ns_max: f32,
-    /// Specular lobes sampled for the PCA (the paper's `N_s − 1 = 200`).
+    /// Specular lobes sampled for the PCA (the paper's `N_s − 1 = 200`); at most
+    /// [`MAX_LOBES`], checked as a header is parsed.
+    #[serde(deserialize_with = "lobes_within_limits")]
     pub lobes: u32,
     /// (θi, θo, φ) grid the errors are measured on (and, when it resolves the lobes, the
-    /// PCA is run on): the paper's 30×30×60 is a 3° grid.
+    /// PCA is run on): the paper's 30×30×60 is a 3° grid. Each side at most
+    /// [`MAX_GRID_SIDE`], the product at most [`MAX_GRID_CELLS`], checked as a header is
+    /// parsed.
+    #[serde(deserialize_with = "grid_within_limits")]
     pub grid: [u32; 3],
     /// How many bases (`N_b`, diffuse included).
     pub count: BasisCount,
@@ -45,6 +50,62 @@ pub struct BasisConfig {
     /// Default `true` (module docs, "Constant in the fit"); see [`super::BrdfBasis::spec_constant`].
     #[serde(default = "default_constant_in_fit")]
     pub constant_in_fit: bool,
+}
+
+/// Most specular lobes a basis may sample. Every bake and preset uses 200 (the paper's);
+/// the build's Gram matrix grows with the square of the count (2048 lobes: 32 MiB and a
+/// few seconds), so 10× the real count still builds in seconds, while a stack header or a
+/// command line claiming billions would allocate tens of GB before any other check.
+pub const MAX_LOBES: u32 = 2048;
+/// Largest side of the (θi, θo, φ) error grid: the real grid is 30×30×60 (3°); 4096 cells
+/// of 0.02° along θ are far finer than any lobe the basis tables resolve.
+pub const MAX_GRID_SIDE: u32 = 4096;
+/// Most cells of the error grid (the product of its sides), which the build visits one by
+/// one: 2²⁶ ≈ 67 million holds a 300×300×600 grid (0.3°, 1000× the real 54 000 cells,
+/// about a second), while 3000×3000×6000 would loop for hours.
+pub const MAX_GRID_CELLS: u64 = 1 << 26;
+
+/// The limits on what a basis build allocates and loops over ([`MAX_LOBES`],
+/// [`MAX_GRID_SIDE`], [`MAX_GRID_CELLS`]): the one place they are checked, by the stack
+/// header's parser (a hostile file), [`super::BrdfBasis::build`] and the command line's
+/// `relume basis` alike, before anything of that size is allocated.
+pub fn check_basis_limits(lobes: u32, grid: [u32; 3]) -> Result<()> {
+    let e = |m: String| Err(RelumeError::Basis(m));
+    if lobes > MAX_LOBES {
+        return e(format!(
+            "{lobes} specular lobes exceed the limit of {MAX_LOBES} (bakes use 200)"
+        ));
+    }
+    if let Some(side) = grid.iter().find(|&&g| g > MAX_GRID_SIDE) {
+        return e(format!(
+            "grid side {side} (grid {}×{}×{}) exceeds the limit of {MAX_GRID_SIDE} (bakes use 30×30×60)",
+            grid[0], grid[1], grid[2]
+        ));
+    }
+    let cells = grid.iter().map(|&g| g as u64).product::<u64>();
+    if cells > MAX_GRID_CELLS {
+        return e(format!(
+            "grid {}×{}×{} has {cells} cells, above the limit of {MAX_GRID_CELLS} (bakes use 30×30×60 = 54000)",
+            grid[0], grid[1], grid[2]
+        ));
+    }
+    Ok(())
+}
+
+fn lobes_within_limits<'de, D: serde::Deserializer<'de>>(
+    d: D,
+) -> std::result::Result<u32, D::Error> {
+    let lobes = u32::deserialize(d)?;
+    check_basis_limits(lobes, [1; 3]).map_err(serde::de::Error::custom)?;
+    Ok(lobes)
+}
+
+fn grid_within_limits<'de, D: serde::Deserializer<'de>>(
+    d: D,
+) -> std::result::Result<[u32; 3], D::Error> {
+    let grid = <[u32; 3]>::deserialize(d)?;
+    check_basis_limits(0, grid).map_err(serde::de::Error::custom)?;
+    Ok(grid)
 }
 
 fn default_constant_in_fit() -> bool {
@@ -150,6 +211,7 @@ pub(super) fn check_config(cfg: &BasisConfig) -> Result<()> {
             cfg.lobes
         ));
     }
+    check_basis_limits(cfg.lobes, cfg.grid)?;
     if cfg.grid.contains(&0) {
         return e(format!("grid sizes must be ≥ 1, got {:?}", cfg.grid));
     }

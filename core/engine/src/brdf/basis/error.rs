@@ -6,6 +6,7 @@ use serde::Serialize;
 
 use super::config::BasisConfig;
 use super::pca::{Lobes, Pca};
+use crate::{RelumeError, Result};
 
 /// Counts the error report lists: `N_b = 2..=REPORT_MAX_COUNT`.
 pub(super) const REPORT_MAX_COUNT: usize = 20;
@@ -129,6 +130,34 @@ impl FitErrors {
             continuum_avg_rel_l2: cavg,
             continuum_max_rel_l2: cmax,
         }
+    }
+}
+
+/// Errors unless every sampled lobe has a non-zero norm on the error grid (lobe values `f`,
+/// atom-major, at the grid's atoms of weights `w`). A grid too coarse for the narrowest
+/// lobes sees them as zero at every cell, where a relative error is 0/0: it was reported as
+/// "inf %" (e.g. `--grid 2x2x2` with the bake's ns_max ≈ 35 000), which says nothing about
+/// the basis. Refused instead, naming the lobe and the grid.
+pub(super) fn check_lobes_measurable(
+    cfg: &BasisConfig,
+    ns: &[f64],
+    f: &[f64],
+    w: &[f64],
+) -> Result<()> {
+    let l = ns.len();
+    let mut norm = vec![0.0f64; l];
+    for (q, &wq) in w.iter().enumerate() {
+        for (j, n) in norm.iter_mut().enumerate() {
+            let x = f[q * l + j];
+            *n += wq * x * x;
+        }
+    }
+    match norm.iter().position(|n| !(*n > 0.0 && n.is_finite())) {
+        None => Ok(()),
+        Some(j) => Err(RelumeError::Basis(format!(
+            "the lobe ns = {:.4} is zero at every cell of the {}×{}×{} grid, so its relative error cannot be measured (it would read inf %): use a finer grid (bakes use 30×30×60) or a lower ns_max",
+            ns[j], cfg.grid[0], cfg.grid[1], cfg.grid[2]
+        ))),
     }
 }
 

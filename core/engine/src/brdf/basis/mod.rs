@@ -107,7 +107,10 @@ mod measure;
 mod pca;
 mod tables;
 
-pub use config::{BasisConfig, BasisCount, LobeSpacing, LobeWeighting, PcaMeasure};
+pub use config::{
+    check_basis_limits, BasisConfig, BasisCount, LobeSpacing, LobeWeighting, PcaMeasure,
+    MAX_GRID_CELLS, MAX_GRID_SIDE, MAX_LOBES,
+};
 pub use error::{BasisErrorReport, CountError};
 
 use config::{check_config, sample_ns};
@@ -177,6 +180,7 @@ impl BrdfBasis {
             continuum: measures.continuum.as_ref().map(|a| (&f_pca[..], &a.w[..])),
         };
 
+        error::check_lobes_measurable(cfg, &ns, error_measures.grid_f, error_measures.grid_w)?;
         let Fit { count, pca, errors } = fit(cfg, &lobes, &error_measures)?;
         let report = errors.report(cfg, &ns, count, pca.k);
 

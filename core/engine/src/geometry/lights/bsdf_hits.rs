@@ -17,9 +17,7 @@
 use glam::Vec3;
 use std::f32::consts::PI;
 
-use super::{
-    sun_cone_pdf, world_mixture_pdf, AreaPlane, AreaSampling, Emitter, LightSet, WorldSampling,
-};
+use super::{sun_cone_pdf, world_mixture_pdf, AreaPlane, Emitter, LightSet, WorldSampling};
 use crate::geometry::spherical_rect::SphericalRect;
 use crate::Rgb;
 
@@ -109,7 +107,7 @@ impl LightSet {
                     if !(*area > 0.0) || !shape.front_face_hit(origin, dir, t_end) {
                         continue;
                     }
-                    let pdf = if !shape.elliptic && self.area_sampling == AreaSampling::SolidAngle {
+                    let pdf = if shape.by_solid_angle(p, self.area_sampling) {
                         let ex = shape.u * (2.0 * shape.half_u);
                         let ey = shape.v * (2.0 * shape.half_v);
                         let corner = shape.centre - shape.u * shape.half_u - shape.v * shape.half_v;
