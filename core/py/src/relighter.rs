@@ -249,6 +249,9 @@ impl Relighter {
             self.stack.header.width as usize,
             self.stack.header.height as usize,
         );
+        // The core's last check on a relit image, as `relume relight` makes it: an image
+        // with a NaN or an infinity is an error naming where, never shown as if right.
+        relume_engine::relight::check_finite_image(&pixels, w as u32).py_err(py)?;
         let array = Array3::from_shape_vec((h, w, 4), pixels).map_err(|e| {
             new_err(
                 py,
