@@ -52,13 +52,12 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
     let rss_before_bake = relume_engine::memory::current_rss_bytes();
     let settings = args.options.settings(scene.resolution)?;
     if args.estimate_only {
-        let estimate = relume_engine::bake::estimate::estimate_bake(
-            &scene,
-            &settings,
-            args.passes as usize,
-            &relume_engine::bake::progress::Progress::new(),
-        )?;
         let budget = relume_engine::memory::budget_bytes(settings.memory_budget);
+        let passes = args.passes as usize;
+        // Under the same Ctrl-C handler as a bake: the forecast stops within an eye sample.
+        let estimate = with_progress("estimating", move |p| {
+            relume_engine::bake::estimate::estimate_bake(&scene, &settings, passes, &p)
+        })?;
         super::print_json(&json!({
             "command": "bake --estimate-only",
             "estimate": estimate,

@@ -17,6 +17,17 @@
 //! reaches (and which of them carry colour). Layers only a few pixels reach can be missed
 //! by the probe; the estimate is a forecast, not a bound, and its accuracy is measured
 //! (`tests/memory_estimate.rs`, docs/measurements.md).
+//!
+//! The probe is bounded whatever the scene and settings: it traces with at most
+//! [`PROBE_MAX_LIGHT_SAMPLES`] light samples and [`PROBE_MAX_INDIRECT_SAMPLES`] indirect
+//! directions per vertex, measures what an eye sample costs in rays and thins its grid so
+//! that it traces about [`PROBE_RAYS`] rays (a scene of many lights is probed at fewer
+//! pixels), checks the cancel before every eye sample, and keeps only the layers its paths
+//! reach (never a flag per possible layer: 300 editable regions make 3.3 million). The
+//! forecast is then arithmetic on what it found (`tests/forecast_bounds.rs`).
+
+use std::collections::{BTreeMap, HashMap, HashSet};
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use rayon::prelude::*;
 use serde::Serialize;
@@ -25,6 +36,7 @@ use super::context::BakeContext;
 use super::integrator::{trace_eye_sample, CountingTracer, PathSink};
 use super::vertex_brdf::BasisBrdf;
 use crate::options::Precision;
+use crate::progress::Progress;
 use crate::scene::{validate::ValidationReport, Scene};
 use crate::Rgb;
 
@@ -38,6 +50,27 @@ const PROBE_SAMPLES: u32 = 8;
 
 /// The probe's pixels spread their samples over this many first samples of the sequence.
 const PROBE_SAMPLE_SPAN: u64 = 64;
+
+/// Rays the probe plans to trace at most (about a second on the project's 2-core machine
+/// for a small scene; the assets scenes' full 16 384-pixel grid stays within it). A scene
+/// whose eye samples cost more rays (many lights, many bounces) is probed at fewer pixels,
+/// so the forecast's time does not grow with the light count or the sample counts; its
+/// layer counts then come from a sparser grid.
+const PROBE_RAYS: u64 = 1 << 22;
+
+/// Fewest pixels the probe plans to trace, however costly a sample (it stops at 1.5 ×
+/// [`PROBE_RAYS`] all the same).
+const PROBE_MIN_PIXELS: u64 = 64;
+
+/// Pixels the pilot traces (one sample each) to measure the rays an eye sample costs.
+const PROBE_PILOT_PIXELS: u64 = 64;
+
+/// Light samples and indirect directions the probe traces per path vertex at most: which
+/// layers a path reaches does not depend on how many samples share a vertex, and the
+/// presets use at most 4 (a larger count, up to [`crate::bake::settings`]' limits, would
+/// only make the probe slower).
+const PROBE_MAX_LIGHT_SAMPLES: u32 = 4;
+const PROBE_MAX_INDIRECT_SAMPLES: u32 = 4;
 
 /// A bake's forecast cost, printed before it starts (CLI `--json`, Python, the add-on).
 #[derive(Clone, Debug, Serialize, PartialEq)]
@@ -63,7 +96,8 @@ pub struct BakeEstimate {
     /// Bytes the prepared scene holds (geometry, BVH, textures, environment, subsurface).
     pub prepared_bytes: u64,
     /// Forecast peak of the bake's own allocations (accumulators, per-pixel features, tile
-    /// buffers, geometry, assembly and write copies), in bytes.
+    /// buffers, geometry and its BVH build, assembly and write copies) plus the scene it
+    /// reads ([`scene_bytes`]), in bytes.
     pub peak_bytes: u64,
     /// Forecast size of the stack in memory (layer samples at the stored precision: the
     /// tiled stack's entries for a streaming bake, full frames for the dense path); the
@@ -99,23 +133,29 @@ pub struct RegionBasisCost {
     pub max_rel_l2: f64,
 }
 
-/// Records which layers a probe pixel's paths reach and whether their values carry colour.
+/// Records which layers a probe pixel's paths reach and whether their values carry colour,
+/// sparsely (a layer index per contribution): a scene of many editable regions has millions
+/// of possible layers, of which one pixel reaches a few hundred at most, so nothing here is
+/// proportional to the layers possible.
 struct ProbeSink<'a> {
-    reached: &'a mut [bool],
-    rgb: &'a mut [bool],
+    /// Layers reached by the pixel's samples (with repeats; sorted and deduplicated after).
+    reached: &'a mut Vec<u32>,
+    rgb: &'a mut HashSet<u32>,
     layout: super::layout::DenseLayout,
     /// The eye regions the pixel's samples hit (the last entry: a sample that hit none).
-    eye_regions: &'a mut [bool],
+    eye_regions: &'a mut Vec<u32>,
     /// Whether the current sample hit a region.
     hit: bool,
+    /// The region index that stands for "no region" (the world).
+    no_region: u32,
 }
 
 impl ProbeSink<'_> {
     fn add(&mut self, layer: usize, v: Rgb) {
         if v != Rgb::ZERO {
-            self.reached[layer] = true;
+            self.reached.push(layer as u32);
             if v.x != v.y || v.y != v.z {
-                self.rgb[layer] = true;
+                self.rgb.insert(layer as u32);
             }
         }
     }
@@ -132,24 +172,36 @@ impl PathSink for ProbeSink<'_> {
         self.add(self.layout.bounce(group, eye, bounce), v);
     }
     fn eye_hit(&mut self, region: u32, _normal: glam::Vec3, _position: glam::Vec3) {
-        let last = self.eye_regions.len() - 1;
-        self.eye_regions[(region as usize).min(last)] = true;
+        self.eye_regions.push(region.min(self.no_region));
         self.hit = true;
     }
 }
 
-/// What one probe row found: per layer the probe pixels that reached it and whether it
-/// carried colour, its pixel count, and per tile it crossed the layers reached there.
+/// A set of layer (or region) indices, sorted, without repeats.
+type IndexSet = Vec<u32>;
+
+/// `a ∪ b` into `a` (both sorted, without repeats).
+fn union_into(a: &mut IndexSet, b: &[u32]) {
+    if b.is_empty() {
+        return;
+    }
+    a.extend_from_slice(b);
+    a.sort_unstable();
+    a.dedup();
+}
+
+/// What one probe row found: the layers its pixels reached and those that carried colour,
+/// its pixel count, and per tile it crossed the layers reached there.
 struct ProbeRow {
-    counts: Vec<u32>,
-    rgb: Vec<bool>,
+    reached: HashSet<u32>,
+    rgb: HashSet<u32>,
     pixels: u64,
     tile_row: u32,
-    tiles: std::collections::BTreeMap<u32, Vec<bool>>,
+    tiles: BTreeMap<u32, IndexSet>,
     /// Per tile it crossed, the eye regions its pixels hit.
-    tile_regions: std::collections::BTreeMap<u32, Vec<bool>>,
-    /// Per eye region, the layers reached by its pixels.
-    region_layers: Vec<Vec<bool>>,
+    tile_regions: BTreeMap<u32, IndexSet>,
+    /// Per eye region its pixels hit, the layers they reached.
+    region_layers: HashMap<u32, HashSet<u32>>,
 }
 
 /// The inputs of [`streaming_peak`].
@@ -215,23 +267,21 @@ fn streaming_peak(ctx: &BakeContext, c: &StreamingCosts) -> (u64, u64) {
 /// for the tile whose edge they cross, and a layer reached from two regions seen in a
 /// tile counts twice), so the forecast errs towards refusing.
 fn region_model_pairs(
-    tile_regions: &std::collections::BTreeMap<(u32, u32), Vec<bool>>,
-    region_layers: &[Vec<bool>],
-    rgb: &[bool],
+    tile_regions: &BTreeMap<(u32, u32), IndexSet>,
+    region_layers: &HashMap<u32, HashSet<u32>>,
+    rgb: &HashSet<u32>,
 ) -> (u64, u64) {
-    let per_region: Vec<(u64, u64)> = region_layers
+    let per_region: HashMap<u32, (u64, u64)> = region_layers
         .iter()
-        .map(|set| {
-            set.iter()
-                .zip(rgb)
-                .filter(|(r, _)| **r)
-                .fold((0, 0), |(n, c), (_, rgb)| (n + 1, c + u64::from(*rgb)))
+        .map(|(region, set)| {
+            let coloured = set.iter().filter(|l| rgb.contains(l)).count() as u64;
+            (*region, (set.len() as u64, coloured))
         })
         .collect();
     let (mut pairs, mut pairs_rgb) = (0u64, 0u64);
-    let mut seen = vec![false; region_layers.len()];
+    let mut seen: IndexSet = Vec::new();
     for &(ty, tx) in tile_regions.keys() {
-        seen.fill(false);
+        seen.clear();
         for dy in -1i64..=1 {
             for dx in -1i64..=1 {
                 let (y, x) = (ty as i64 + dy, tx as i64 + dx);
@@ -239,14 +289,14 @@ fn region_model_pairs(
                     continue;
                 }
                 if let Some(set) = tile_regions.get(&(y as u32, x as u32)) {
-                    for (a, b) in seen.iter_mut().zip(set) {
-                        *a |= *b;
-                    }
+                    seen.extend_from_slice(set);
                 }
             }
         }
-        for (region, (n, c)) in per_region.iter().enumerate() {
-            if seen[region] {
+        seen.sort_unstable();
+        seen.dedup();
+        for region in &seen {
+            if let Some((n, c)) = per_region.get(region) {
                 pairs += n;
                 pairs_rgb += c;
             }
@@ -267,170 +317,290 @@ const WRITE_CHUNK_ALLOWANCE: u64 = 4 * 16 * 4096 * 16;
 
 /// Bytes the scene's geometry and BVH take once prepared (positions, normals, UVs,
 /// triangles and the BVH's nodes): a per-triangle allowance.
-const BYTES_PER_TRIANGLE: u64 = 160;
+pub(crate) const BYTES_PER_TRIANGLE: u64 = 160;
+
+/// Bytes a BVH build holds per triangle beyond the prepared geometry, at its peak: the
+/// unordered triangles and shading records next to their BVH-ordered copies, and the
+/// builder's bounding boxes, Morton codes and binary tree (obvhs' PLOC). Set from the
+/// measured peak of building grids of 0.3–2.9 M triangles (`tests/forecast_bounds.rs`); a
+/// 2.9 M-triangle scene was forecast at 464 MiB without it and peaked at 1.5 GiB.
+pub(crate) const BVH_BUILD_BYTES_PER_TRIANGLE: u64 = 256;
+
+/// Bytes `scene` holds in memory (its meshes' arrays and inline images): resident for the
+/// whole bake, so part of its peak, and counted from the lengths without copying anything.
+pub fn scene_bytes(scene: &Scene) -> u64 {
+    let image = |img: &crate::scene::ImageRef| match img {
+        crate::scene::ImageRef::Inline { rgb, .. } => rgb.len() as u64 * 4,
+        _ => 0,
+    };
+    let meshes: u64 = scene
+        .meshes
+        .iter()
+        .map(|m| {
+            m.positions.len() as u64 * 12
+                + m.normals.as_ref().map_or(0, |n| n.len() as u64 * 12)
+                + m.uvs.as_ref().map_or(0, |u| u.len() as u64 * 8)
+                + m.indices.len() as u64 * 12
+                + m.triangle_regions
+                    .as_ref()
+                    .map_or(0, |r| r.len() as u64 * 4)
+        })
+        .sum();
+    let textures: u64 = scene
+        .regions
+        .iter()
+        .filter_map(|r| r.albedo_texture.as_ref())
+        .map(image)
+        .sum();
+    let world = match &scene.world {
+        crate::scene::World::Equirect { image: img, .. } => image(img),
+        _ => 0,
+    };
+    meshes + textures + world
+}
 
 /// Traces the probe over `ctx` and forecasts the bake's memory for `passes` progressive
 /// passes: one pass streams, several keep dense sums while they hand each pass's stack
 /// out. `prepared_bytes`: what preparing `ctx` took (geometry, BVH, textures,
 /// environment, subsurface samples), measured by the caller where the OS tells
-/// ([`prepare_measured`]); `None` falls back to a per-triangle allowance.
+/// ([`prepare_measured`]); `None` falls back to a per-triangle allowance. `ctx` is borrowed
+/// mutably only while the probe traces with its capped sample counts, and is left as it
+/// was. Stops with [`crate::RelumeError::Cancelled`] within an eye sample of a cancel.
 pub fn estimate(
-    ctx: &BakeContext,
+    ctx: &mut BakeContext,
     scene: &Scene,
     passes: usize,
     prepared_bytes: Option<u64>,
-) -> BakeEstimate {
-    estimate_path(ctx, scene, passes, passes <= 1, prepared_bytes)
+    progress: &Progress,
+) -> crate::Result<BakeEstimate> {
+    estimate_path(ctx, scene, passes, passes <= 1, prepared_bytes, progress)
 }
 
 /// [`estimate`] of the dense path whatever the passes (a farm partition: full-frame sums).
 pub fn estimate_dense(
-    ctx: &BakeContext,
+    ctx: &mut BakeContext,
     scene: &Scene,
     passes: usize,
     prepared_bytes: Option<u64>,
-) -> BakeEstimate {
-    estimate_path(ctx, scene, passes, false, prepared_bytes)
+    progress: &Progress,
+) -> crate::Result<BakeEstimate> {
+    estimate_path(ctx, scene, passes, false, prepared_bytes, progress)
 }
 
 fn estimate_path(
-    ctx: &BakeContext,
+    ctx: &mut BakeContext,
     scene: &Scene,
     passes: usize,
     streaming: bool,
     prepared_bytes: Option<u64>,
-) -> BakeEstimate {
+    progress: &Progress,
+) -> crate::Result<BakeEstimate> {
+    // The probe traces with its per-vertex sample counts capped (the layers a path reaches
+    // do not depend on how many samples share a vertex), then the settings are restored.
+    let settings = ctx.settings.clone();
+    ctx.settings.light_samples = settings.light_samples.min(PROBE_MAX_LIGHT_SAMPLES);
+    ctx.settings.indirect_samples = settings.indirect_samples.min(PROBE_MAX_INDIRECT_SAMPLES);
+    let probe = probe(ctx, progress);
+    ctx.settings = settings;
+    forecast(ctx, scene, passes, streaming, prepared_bytes, probe?)
+}
+
+/// What the probe found, merged over its rows.
+struct ProbeFindings {
+    probe_pixels: u64,
+    /// Layers any probe path reached.
+    reached: HashSet<u32>,
+    /// Of those, the layers whose samples carried colour.
+    rgb: HashSet<u32>,
+    /// The (tile, layer) pairs reached in each tile the probe visited.
+    tile_sets: BTreeMap<(u32, u32), IndexSet>,
+    /// Per visited tile, the eye regions its probe pixels hit.
+    tile_regions: BTreeMap<(u32, u32), IndexSet>,
+    /// Per eye region, the layers its probe pixels reached.
+    region_layers: HashMap<u32, HashSet<u32>>,
+}
+
+/// The probe pixels' grid stride for a frame of `pixels` when one eye sample costs
+/// `rays_per_sample` rays: the densest grid of at most [`PROBE_PIXELS`] pixels whose
+/// [`PROBE_SAMPLES`] samples each fit in [`PROBE_RAYS`] (at least [`PROBE_MIN_PIXELS`]).
+fn probe_stride(pixels: u64, rays_per_sample: f64) -> u32 {
+    let per_pixel = rays_per_sample.max(1.0) * PROBE_SAMPLES as f64;
+    let affordable =
+        (PROBE_RAYS as f64 / per_pixel).clamp(PROBE_MIN_PIXELS as f64, PROBE_PIXELS as f64);
+    ((pixels as f64 / affordable).sqrt().ceil() as u32).max(1)
+}
+
+/// Traces the probe: a pilot of one eye sample at a few pixels measures what one sample
+/// costs, then [`PROBE_SAMPLES`] samples at each pixel of the grid [`probe_stride`] picks.
+/// The probe stops tracing once it has spent 1.5 × [`PROBE_RAYS`] (the pilot's measure
+/// was too low), and checks `progress`'s cancel before every eye sample.
+fn probe(ctx: &BakeContext, progress: &Progress) -> crate::Result<ProbeFindings> {
     let res = ctx.resolution;
     let pixels = res.width as u64 * res.height as u64;
-    let layers = ctx.layer_count();
-    let mut counts = vec![0u32; layers];
-    let mut rgb = vec![false; layers];
-    let stride = ((pixels as f64 / PROBE_PIXELS as f64).sqrt().ceil() as u32).max(1);
     let brdf = BasisBrdf { ctx };
-    // Offset by half a stride so the grid samples the frame's inside, not its edge.
-    let rows: Vec<u32> = (stride / 2..res.height).step_by(stride as usize).collect();
-    let tile = super::tiles::TILE;
-    // Eye regions, and one more for samples that hit none (the world).
-    let regions = ctx.regions.len() + 1;
-    let per_row: Vec<ProbeRow> = rows
-        .par_iter()
-        .map(|&y| {
-            let mut counts = vec![0u32; layers];
-            let mut reached = vec![false; layers];
-            let mut rgb = vec![false; layers];
-            let mut tiles: std::collections::BTreeMap<u32, Vec<bool>> = Default::default();
-            let mut tile_regions: std::collections::BTreeMap<u32, Vec<bool>> = Default::default();
-            let mut region_layers = vec![vec![false; layers]; regions];
-            let mut eye_regions = vec![false; regions];
-            let mut tracer = CountingTracer::default();
-            let mut n = 0;
-            for x in (stride / 2..res.width).step_by(stride as usize) {
-                reached.fill(false);
-                eye_regions.fill(false);
+    let layout = super::layout::DenseLayout::of(ctx);
+    let no_region = ctx.regions.len() as u32;
+    let spent = AtomicU64::new(0);
+    let rays_per_sample = {
+        let pilot_stride =
+            ((pixels as f64 / PROBE_PILOT_PIXELS as f64).sqrt().ceil() as u32).max(1);
+        let mut tracer = CountingTracer::default();
+        let (mut reached, mut rgb, mut regions) = (Vec::new(), HashSet::new(), Vec::new());
+        let mut samples = 0u64;
+        'pilot: for y in (pilot_stride / 2..res.height).step_by(pilot_stride as usize) {
+            for x in (pilot_stride / 2..res.width).step_by(pilot_stride as usize) {
+                progress.check()?;
+                if tracer.rays > PROBE_RAYS / 8 {
+                    break 'pilot;
+                }
                 let mut sink = ProbeSink {
                     reached: &mut reached,
                     rgb: &mut rgb,
-                    layout: super::layout::DenseLayout::of(ctx),
+                    layout,
+                    eye_regions: &mut regions,
+                    hit: false,
+                    no_region,
+                };
+                trace_eye_sample(ctx, &brdf, &mut sink, &mut tracer, x, y, 0);
+                reached.clear();
+                regions.clear();
+                samples += 1;
+            }
+        }
+        spent.fetch_add(tracer.rays, Ordering::Relaxed);
+        tracer.rays as f64 / samples.max(1) as f64
+    };
+    let stride = probe_stride(pixels, rays_per_sample);
+    // Offset by half a stride so the grid samples the frame's inside, not its edge.
+    let rows: Vec<u32> = (stride / 2..res.height).step_by(stride as usize).collect();
+    let tile = super::tiles::TILE;
+    let per_row: Vec<crate::Result<ProbeRow>> = rows
+        .par_iter()
+        .map(|&y| {
+            let mut row = ProbeRow {
+                reached: HashSet::new(),
+                rgb: HashSet::new(),
+                pixels: 0,
+                tile_row: y / tile,
+                tiles: BTreeMap::new(),
+                tile_regions: BTreeMap::new(),
+                region_layers: HashMap::new(),
+            };
+            let (mut reached, mut eye_regions) = (Vec::new(), Vec::new());
+            for x in (stride / 2..res.width).step_by(stride as usize) {
+                if spent.load(Ordering::Relaxed) > PROBE_RAYS + PROBE_RAYS / 2 {
+                    break;
+                }
+                reached.clear();
+                eye_regions.clear();
+                let mut tracer = CountingTracer::default();
+                let mut sink = ProbeSink {
+                    reached: &mut reached,
+                    rgb: &mut row.rgb,
+                    layout,
                     eye_regions: &mut eye_regions,
                     hit: false,
+                    no_region,
                 };
                 // Pixels take turns through the first samples of the sequence: a layer that
                 // only some strata of the stratified numbers reach is still seen.
                 let cell = (x / stride) as u64 + 7919 * (y / stride) as u64;
                 for k in 0..PROBE_SAMPLES {
+                    progress.check()?;
                     let sample =
                         ((cell * PROBE_SAMPLES as u64 + k as u64) % PROBE_SAMPLE_SPAN) as u32;
                     sink.hit = false;
                     trace_eye_sample(ctx, &brdf, &mut sink, &mut tracer, x, y, sample);
                     if !sink.hit {
-                        sink.eye_regions[regions - 1] = true;
+                        sink.eye_regions.push(no_region);
                     }
                 }
-                for (c, r) in counts.iter_mut().zip(&reached) {
-                    *c += u32::from(*r);
+                spent.fetch_add(tracer.rays, Ordering::Relaxed);
+                reached.sort_unstable();
+                reached.dedup();
+                eye_regions.sort_unstable();
+                eye_regions.dedup();
+                row.reached.extend(reached.iter().copied());
+                union_into(row.tiles.entry(x / tile).or_default(), &reached);
+                union_into(row.tile_regions.entry(x / tile).or_default(), &eye_regions);
+                for region in &eye_regions {
+                    row.region_layers
+                        .entry(*region)
+                        .or_default()
+                        .extend(reached.iter().copied());
                 }
-                let in_tile = tiles.entry(x / tile).or_insert_with(|| vec![false; layers]);
-                for (t, r) in in_tile.iter_mut().zip(&reached) {
-                    *t |= *r;
-                }
-                let seen = tile_regions
-                    .entry(x / tile)
-                    .or_insert_with(|| vec![false; regions]);
-                for (region, hit) in eye_regions.iter().enumerate() {
-                    if *hit {
-                        seen[region] = true;
-                        for (a, r) in region_layers[region].iter_mut().zip(&reached) {
-                            *a |= *r;
-                        }
-                    }
-                }
-                n += 1;
+                row.pixels += 1;
             }
-            ProbeRow {
-                counts,
-                rgb,
-                pixels: n,
-                tile_row: y / tile,
-                tiles,
-                tile_regions,
-                region_layers,
-            }
+            Ok(row)
         })
         .collect();
-    let mut probe_pixels = 0u64;
-    // The (tile, layer) pairs reached in each tile the probe visited.
-    let mut tile_sets: std::collections::BTreeMap<(u32, u32), Vec<bool>> = Default::default();
-    let mut tile_regions: std::collections::BTreeMap<(u32, u32), Vec<bool>> = Default::default();
-    let mut region_layers = vec![vec![false; layers]; regions];
+    let mut found = ProbeFindings {
+        probe_pixels: 0,
+        reached: HashSet::new(),
+        rgb: HashSet::new(),
+        tile_sets: BTreeMap::new(),
+        tile_regions: BTreeMap::new(),
+        region_layers: HashMap::new(),
+    };
     for row in per_row {
+        let row = row?;
         for (tx, seen) in row.tile_regions {
-            let all = tile_regions
-                .entry((row.tile_row, tx))
-                .or_insert_with(|| vec![false; regions]);
-            for (a, b) in all.iter_mut().zip(seen) {
-                *a |= b;
-            }
+            union_into(
+                found.tile_regions.entry((row.tile_row, tx)).or_default(),
+                &seen,
+            );
         }
-        for (all, got) in region_layers.iter_mut().zip(row.region_layers) {
-            for (a, b) in all.iter_mut().zip(got) {
-                *a |= b;
-            }
+        for (region, got) in row.region_layers {
+            found.region_layers.entry(region).or_default().extend(got);
         }
-        probe_pixels += row.pixels;
-        for (a, b) in counts.iter_mut().zip(row.counts) {
-            *a += b;
-        }
-        for (a, b) in rgb.iter_mut().zip(row.rgb) {
-            *a |= b;
-        }
+        found.probe_pixels += row.pixels;
+        found.reached.extend(row.reached);
+        found.rgb.extend(row.rgb);
         for (tx, set) in row.tiles {
-            let all = tile_sets
-                .entry((row.tile_row, tx))
-                .or_insert_with(|| vec![false; layers]);
-            for (a, b) in all.iter_mut().zip(set) {
-                *a |= b;
-            }
+            union_into(found.tile_sets.entry((row.tile_row, tx)).or_default(), &set);
         }
     }
-    let (mut pairs, mut pairs_rgb) = (0u64, 0u64);
+    Ok(found)
+}
+
+/// The forecast from what the probe found: arithmetic on its counts, allocating nothing
+/// proportional to the layers or the pixels.
+fn forecast(
+    ctx: &BakeContext,
+    scene: &Scene,
+    passes: usize,
+    streaming: bool,
+    prepared_bytes: Option<u64>,
+    found: ProbeFindings,
+) -> crate::Result<BakeEstimate> {
+    let res = ctx.resolution;
+    let pixels = res.width as u64 * res.height as u64;
+    let layers = ctx.layer_count();
+    let ProbeFindings {
+        probe_pixels,
+        reached,
+        rgb,
+        tile_sets,
+        tile_regions,
+        region_layers,
+    } = found;
+    let mut pairs = 0u64;
+    let mut pairs_rgb = 0u64;
     for set in tile_sets.values() {
-        for (l, r) in set.iter().enumerate() {
-            if *r {
-                pairs += 1;
-                pairs_rgb += u64::from(rgb[l]);
-            }
-        }
+        pairs += set.len() as u64;
+        pairs_rgb += set.iter().filter(|l| rgb.contains(l)).count() as u64;
     }
     let (region_pairs, region_pairs_rgb) = region_model_pairs(&tile_regions, &region_layers, &rgb);
     let (pairs, pairs_rgb) = (pairs.max(region_pairs), pairs_rgb.max(region_pairs_rgb));
-    let all_tiles = super::tiles::tiles(res).len() as u64;
+    let tile = super::tiles::TILE;
+    let all_tiles = res.width.div_ceil(tile) as u64 * res.height.div_ceil(tile) as u64;
     let visited = tile_sets.len().max(1) as u64;
     let tile_entries = (pairs * all_tiles).div_ceil(visited);
     let tile_entries_rgb = (pairs_rgb * all_tiles).div_ceil(visited);
-    let layers_seen = counts.iter().filter(|c| **c > 0).count().max(1);
+    let layers_seen = reached.len().max(1);
     let layers_reached = layers_seen;
     // Layers the probe did not see take the seen layers' share of colour.
-    let rgb_seen = rgb.iter().filter(|r| **r).count();
+    let rgb_seen = reached.iter().filter(|l| rgb.contains(l)).count();
     let layers_rgb =
         ((rgb_seen as f64 / layers_seen as f64) * layers_reached as f64).round() as usize;
     let layers_grey = layers_reached - layers_rgb.min(layers_reached);
@@ -497,7 +667,11 @@ fn estimate_path(
     } else {
         (stack_bytes, peak_bytes)
     };
-    BakeEstimate {
+    // Building the BVH holds the unordered triangles and the builder's own arrays beside
+    // the prepared geometry; the scene itself stays resident throughout.
+    let build = scene.triangle_count() as u64 * BVH_BUILD_BYTES_PER_TRIANGLE;
+    let peak_bytes = peak_bytes.max(geometry + build) + scene_bytes(scene);
+    Ok(BakeEstimate {
         width: res.width,
         height: res.height,
         layers_possible: layers,
@@ -553,7 +727,7 @@ fn estimate_path(
                 _ => None,
             })
             .collect(),
-    }
+    })
 }
 
 /// The forecast of a bake of `scene` with `settings` in `passes` passes, without baking:
@@ -567,8 +741,8 @@ pub fn estimate_bake(
     progress: &crate::progress::Progress,
 ) -> crate::Result<BakeEstimate> {
     settings.validate()?;
-    let (ctx, _, prepared) = prepare_measured(scene, settings, progress)?;
-    Ok(estimate(&ctx, scene, passes.max(1), prepared))
+    let (mut ctx, _, prepared) = prepare_measured(scene, settings, progress)?;
+    estimate(&mut ctx, scene, passes.max(1), prepared, progress)
 }
 
 /// [`BakeContext::prepare`], and the growth of this process's resident memory while it ran
@@ -598,17 +772,19 @@ mod tests {
     /// least what the probe's own per-tile sets hold.
     #[test]
     fn the_region_model_counts_each_seen_region_s_layers_around_every_tile() {
-        let mut tiles = std::collections::BTreeMap::new();
-        tiles.insert((0, 0), vec![true, false]);
-        tiles.insert((0, 1), vec![true, true]);
-        tiles.insert((0, 2), vec![false, true]);
-        let region_layers = vec![vec![true, true, false], vec![false, false, true]];
-        let rgb = [false, true, false];
+        let mut tiles = BTreeMap::new();
+        tiles.insert((0, 0), vec![0]);
+        tiles.insert((0, 1), vec![0, 1]);
+        tiles.insert((0, 2), vec![1]);
+        let region_layers: HashMap<u32, HashSet<u32>> = [
+            (0, [0u32, 1].into_iter().collect()),
+            (1, [2u32].into_iter().collect()),
+        ]
+        .into_iter()
+        .collect();
+        let rgb: HashSet<u32> = [1u32].into_iter().collect();
         let (pairs, pairs_rgb) = region_model_pairs(&tiles, &region_layers, &rgb);
-        let per_tile = region_layers
-            .iter()
-            .map(|set| set.iter().filter(|r| **r).count() as u64)
-            .sum::<u64>();
+        let per_tile = region_layers.values().map(|s| s.len() as u64).sum::<u64>();
         assert_eq!(pairs, 3 * per_tile);
         assert_eq!(pairs_rgb, 3);
         // The probe's own sets: each tile holds only its own regions' layers.
@@ -616,12 +792,31 @@ mod tests {
             .values()
             .map(|seen| {
                 seen.iter()
-                    .zip(&region_layers)
-                    .filter(|(s, _)| **s)
-                    .map(|(_, set)| set.iter().filter(|r| **r).count() as u64)
+                    .map(|r| region_layers[r].len() as u64)
                     .sum::<u64>()
             })
             .sum();
         assert!(pairs >= own);
+    }
+
+    /// The probe's grid thins as an eye sample costs more rays, so its work stays within
+    /// its ray budget, down to its floor of pixels.
+    #[test]
+    fn the_probe_grid_thins_with_the_cost_of_a_sample() {
+        let pixels = 1920 * 1080;
+        let grid = |rays: f64| {
+            let s = probe_stride(pixels, rays) as u64;
+            (1920u64.div_ceil(s)) * (1080u64.div_ceil(s))
+        };
+        assert!(grid(1.0) <= PROBE_PIXELS * 11 / 10);
+        for rays in [10.0, 1e3, 1e5] {
+            let n = grid(rays);
+            assert!(
+                (n as f64) * rays * PROBE_SAMPLES as f64 <= 1.2 * PROBE_RAYS as f64
+                    || n <= 2 * PROBE_MIN_PIXELS,
+                "{rays} rays a sample: {n} pixels"
+            );
+            assert!(n >= PROBE_MIN_PIXELS / 2, "{rays}: {n}");
+        }
     }
 }

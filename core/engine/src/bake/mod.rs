@@ -172,7 +172,7 @@ fn run_passes(
     let (mut ctx, validation, prepared) = estimate::prepare_measured(scene, &settings, progress)?;
     // The forecast and the budget come before the guide pass and the trace, so a bake that
     // cannot fit is refused in a second, not after minutes of tracing.
-    let forecast = estimate::estimate(&ctx, scene, passes.len(), prepared);
+    let forecast = estimate::estimate(&mut ctx, scene, passes.len(), prepared, progress)?;
     crate::memory::check_budget(
         &format!(
             "this bake ({}×{}, {} of {} possible layers reached by a probe; stack ≈ {})",

@@ -91,7 +91,7 @@ pub fn bake_partition(
     let fingerprint = settings_fingerprint(settings);
     progress.set_stage(Stage::Setup);
     let (mut ctx, validation, prepared) = estimate::prepare_measured(scene, settings, progress)?;
-    let forecast = estimate::estimate_dense(&ctx, scene, 1, prepared);
+    let forecast = estimate::estimate_dense(&mut ctx, scene, 1, prepared, progress)?;
     crate::memory::check_budget(
         &format!(
             "this partition ({}×{}, {} of {} possible layers reached by a probe)",
@@ -337,6 +337,7 @@ pub fn merge_tiled(
         headers,
         |i| Ok(slots[i].take().expect("each part once")),
         threads,
+        None,
         progress,
     )
 }
@@ -362,6 +363,20 @@ pub fn merge_files_tiled(
     threads: usize,
     progress: &Progress,
 ) -> Result<(TiledStack, BakeReport)> {
+    merge_files_tiled_within(scene, paths, threads, None, progress)
+}
+
+/// [`merge_files_tiled`] within `memory_budget` bytes (`None`: the default budget,
+/// [`crate::memory::budget_bytes`]): the merge's peak is forecast from the parts' headers
+/// ([`merge_peak_bytes`]) and a merge over the budget is refused before any part's body is
+/// read.
+pub fn merge_files_tiled_within(
+    scene: &Scene,
+    paths: &[PathBuf],
+    threads: usize,
+    memory_budget: Option<u64>,
+    progress: &Progress,
+) -> Result<(TiledStack, BakeReport)> {
     let headers = paths
         .iter()
         .map(|p| Ok((p.clone(), crate::bake::partial::read_partial_header(p)?)))
@@ -371,8 +386,74 @@ pub fn merge_files_tiled(
         headers,
         |i| crate::bake::partial::read_partial(&paths[i]),
         threads,
+        memory_budget,
         progress,
     )
+}
+
+/// The merge's peak memory, forecast from the parts' headers alone (nothing of their
+/// bodies is read): the scene and its geometry (with the BVH build), then the larger of
+/// loading — the sums the store holds (at most ⌊log2 blocks⌋ + 1 blocks of every layer any
+/// part reached, in f32 RGB, with their features) and the part being read — and assembling
+/// — the folded sums, their averages and the stack at its precision, and the denoiser's
+/// weights and per-worker copies. Every layer counts three channels, so the forecast errs
+/// towards refusing.
+pub fn merge_peak_bytes(
+    scene: &Scene,
+    headers: &[(PathBuf, PartialHeader)],
+    threads: usize,
+) -> u64 {
+    let Some(h0) = headers.first().map(|(_, h)| h) else {
+        return 0;
+    };
+    let px = h0.width as u64 * h0.height as u64;
+    let feature = denoise::FEATURE_STRIDE as u64;
+    let layers = layers_in_parts(headers) as u64;
+    let block_bytes = |l: u64| px.saturating_mul(4 * (feature + 3 * l));
+    let largest_part = headers
+        .iter()
+        .map(|(_, h)| {
+            h.blocks
+                .iter()
+                .map(|b| block_bytes(b.layers.len() as u64))
+                .fold(0u64, u64::saturating_add)
+        })
+        .max()
+        .unwrap_or(0);
+    let blocks: u64 = headers.iter().map(|(_, h)| h.blocks.len() as u64).sum();
+    let held = (blocks.max(1).ilog2() as u64 + 1).saturating_mul(block_bytes(layers));
+    let loading = held.saturating_add(largest_part);
+    let sample = match h0.settings.precision {
+        crate::options::Precision::F16 => 2,
+        crate::options::Precision::F32 => 4,
+    };
+    let threads = if threads == 0 {
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    } else {
+        threads
+    } as u64;
+    let averaged = px.saturating_mul(layers).saturating_mul(12 + 3 * sample);
+    let denoise = px.saturating_mul(25 * 4 + threads * 12);
+    let assembling = block_bytes(layers)
+        .saturating_add(averaged)
+        .saturating_add(denoise);
+    let triangles = scene.triangle_count() as u64;
+    let geometry =
+        triangles * (estimate::BYTES_PER_TRIANGLE + estimate::BVH_BUILD_BYTES_PER_TRIANGLE);
+    estimate::scene_bytes(scene)
+        .saturating_add(geometry)
+        .saturating_add(loading.max(assembling))
+}
+
+/// Layers any block of any part reached.
+fn layers_in_parts(headers: &[(PathBuf, PartialHeader)]) -> usize {
+    let mut all: Vec<u32> = headers
+        .iter()
+        .flat_map(|(_, h)| h.blocks.iter().flat_map(|b| b.layers.iter().copied()))
+        .collect();
+    all.sort_unstable();
+    all.dedup();
+    all.len()
 }
 
 fn merge_with(
@@ -380,6 +461,7 @@ fn merge_with(
     headers: Vec<(PathBuf, PartialHeader)>,
     mut load: impl FnMut(usize) -> Result<PartialStack>,
     threads: usize,
+    memory_budget: Option<u64>,
     progress: &Progress,
 ) -> Result<(TiledStack, BakeReport)> {
     let start = Instant::now();
@@ -405,6 +487,19 @@ fn merge_with(
             "their settings do not match their own fingerprint (damaged header, or another engine build)",
         ));
     }
+    let h = &headers[0].1;
+    crate::memory::check_budget(
+        &format!(
+            "this merge ({} parts of {}×{}, {} of {} possible layers reached)",
+            headers.len(),
+            h.width,
+            h.height,
+            layers_in_parts(&headers),
+            h.layer_count
+        ),
+        merge_peak_bytes(scene, &headers, threads),
+        memory_budget,
+    )?;
     progress.set_stage(Stage::Setup);
     let (ctx, validation) = BakeContext::prepare(scene, &settings, progress)?;
     if ctx.layer_count() as u32 != h0.layer_count

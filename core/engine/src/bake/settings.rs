@@ -186,7 +186,8 @@ pub const MAX_DENOISE_ITERATIONS: u32 = 8;
 
 impl BakeSettings {
     /// The one set of rules every front end (command line, Python, add-on) applies, with
-    /// the same words: sample counts ≥ 1, bounces within [`MAX_BOUNCES`], threads within
+    /// the same words: sample counts ≥ 1 (light and indirect samples at most
+    /// [`MAX_VERTEX_SAMPLES`]), bounces within [`MAX_BOUNCES`], threads within
     /// [`MAX_THREADS`], a resolution override within [`Resolution::MAX_SIDE`], finite
     /// budgets. Scene-dependent checks (regions, lights) happen when the bake prepares.
     pub fn validate(&self) -> crate::Result<()> {
@@ -199,6 +200,19 @@ impl BakeSettings {
         ] {
             if v == 0 {
                 return bad(what, "must be ≥ 1, got 0".into());
+            }
+        }
+        for (what, v) in [
+            ("light samples", self.light_samples),
+            ("indirect samples", self.indirect_samples),
+        ] {
+            if v > MAX_VERTEX_SAMPLES {
+                return bad(
+                    what,
+                    format!(
+                        "{v} asked; at most {MAX_VERTEX_SAMPLES} per path vertex (one eye sample's work grows with it, and a bake checks its cancel between eye samples)"
+                    ),
+                );
             }
         }
         if self.bounces > MAX_BOUNCES {
@@ -271,6 +285,12 @@ impl BakeSettings {
         Ok(())
     }
 }
+
+/// Most light samples or indirect directions a path vertex may take: 256 times the final
+/// preset's 4, and the add-on's properties' maximum. One eye sample's work grows with their product (and the light count), and the
+/// bake and its forecast check the cancel between eye samples, so a count near `u32::MAX`
+/// is refused as no real bake rather than run for days without a way to stop it.
+pub const MAX_VERTEX_SAMPLES: u32 = 1024;
 
 /// Highest bounce count this build bakes (bounces beyond the first are the frozen tail, so
 /// the layer keys do not grow with it).
