@@ -322,6 +322,28 @@ fn big_mesh_child() {
     println!("RESULT {peak}");
 }
 
+/// A 2.9 M-triangle scene (the grid and the Cornell box) under a 600 MiB budget: refused from its triangle count before
+/// its BVH is built (before, the BVH build took the process to 1.5 GiB and then the forecast
+/// let the bake through at 464 MiB).
+#[test]
+fn a_mesh_whose_geometry_exceeds_the_budget_is_refused_before_its_bvh_is_built() {
+    let scene = big_mesh(1200, 32);
+    let settings = BakeSettings {
+        memory_budget: Some(600 << 20),
+        ..BakeSettings::default()
+    };
+    let t = Instant::now();
+    let Err(e) = bake_tiled(&scene, &settings, &Progress::new()) else {
+        panic!("not refused");
+    };
+    let text = e.to_string();
+    assert!(
+        text.contains("2880970 triangles") && text.contains("600.0 MiB is the memory budget"),
+        "{text}"
+    );
+    assert!(t.elapsed() < Duration::from_secs(2), "{:?}", t.elapsed());
+}
+
 fn two_parts(dir: &std::path::Path, scene: &Scene) -> Vec<std::path::PathBuf> {
     let settings = BakeSettings {
         spp: 2,

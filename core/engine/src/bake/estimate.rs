@@ -741,13 +741,41 @@ pub fn estimate_bake(
     progress: &crate::progress::Progress,
 ) -> crate::Result<BakeEstimate> {
     settings.validate()?;
-    let (mut ctx, _, prepared) = prepare_measured(scene, settings, progress)?;
+    // The estimate reports whether the bake fits rather than refusing it.
+    let (mut ctx, _, prepared) = prepare_and_measure(scene, settings, progress)?;
     estimate(&mut ctx, scene, passes.max(1), prepared, progress)
 }
 
 /// [`BakeContext::prepare`], and the growth of this process's resident memory while it ran
 /// (`None` where the OS does not tell, or when other threads freed more than it took).
+/// Refuses first, before anything is built, a scene whose geometry alone cannot fit the
+/// settings' budget ([`check_geometry_budget`]).
 pub fn prepare_measured(
+    scene: &Scene,
+    settings: &crate::bake::BakeSettings,
+    progress: &crate::progress::Progress,
+) -> crate::Result<(BakeContext, ValidationReport, Option<u64>)> {
+    check_geometry_budget(scene, settings.memory_budget)?;
+    prepare_and_measure(scene, settings, progress)
+}
+
+/// The part of the forecast known before anything is built: the scene's arrays, its
+/// prepared geometry and the BVH build's transient, per triangle. Over `budget` (`None`: the
+/// default budget) it is refused as [`crate::RelumeError::OutOfMemory`] naming the
+/// triangles, before the BVH build would take that memory.
+pub fn check_geometry_budget(scene: &Scene, budget: Option<u64>) -> crate::Result<()> {
+    let triangles = scene.triangle_count() as u64;
+    crate::memory::check_budget(
+        &format!(
+            "this scene's geometry ({triangles} triangles, their BVH build and the scene itself)"
+        ),
+        scene_bytes(scene)
+            .saturating_add(triangles * (BYTES_PER_TRIANGLE + BVH_BUILD_BYTES_PER_TRIANGLE)),
+        budget,
+    )
+}
+
+fn prepare_and_measure(
     scene: &Scene,
     settings: &crate::bake::BakeSettings,
     progress: &crate::progress::Progress,
