@@ -184,8 +184,8 @@ fn the_builder_stores_nan_inf_and_subnormals_finite_and_counts_them() {
         assert_eq!(value(0, 3), 0.0);
         assert_eq!(value(0, 7), 0.0);
         assert!((value(0, 0) - 1e-3).abs() < 1e-6, "{}", value(0, 0));
-        for i in 0..8 {
-            let want = subnormal[i] as f64;
+        for (i, &want) in subnormal.iter().enumerate().take(8) {
+            let want = want as f64;
             let got = value(1, i);
             assert!(
                 (got - want).abs() <= 0.02 * want,
