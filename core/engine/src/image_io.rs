@@ -458,3 +458,38 @@ pub fn compare_rgb(a: &[f32], b: &[f32], channels: usize) -> Result<ImageDiff> {
         pixels,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every writer goes through `write_atomic`, which asks the same rule: a FIFO stays a
+    /// FIFO and nothing is written.
+    #[cfg(unix)]
+    #[test]
+    fn the_atomic_write_refuses_a_fifo_and_leaves_it() {
+        use std::os::unix::fs::FileTypeExt;
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("pipe");
+        let made = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap();
+        assert!(made.success());
+        let mut called = false;
+        let e = write_atomic(&fifo, |_| {
+            called = true;
+            Ok(())
+        })
+        .unwrap_err();
+        assert!(e.to_string().contains("is a FIFO (named pipe)"), "{e}");
+        assert!(!called, "refused before writing");
+        let kind = std::fs::symlink_metadata(&fifo).unwrap().file_type();
+        assert!(kind.is_fifo());
+        assert_eq!(
+            std::fs::read_dir(dir.path()).unwrap().count(),
+            1,
+            "no temp file"
+        );
+    }
+}

@@ -71,7 +71,7 @@ fn non_regular_kind(path: &Path) -> Option<&'static str> {
 
 /// Refuses an existing `output` that is not a regular file, with
 /// [`RelumeError::OutputNotAFile`]: every file Relume writes is renamed over its target
-/// ([`crate::image_io::write_atomic`]), which would replace a device or FIFO with a regular
+/// (the atomic write of `image_io.rs`), which would replace a device or FIFO with a regular
 /// file. Refused rather than written through. The atomic write asks this too.
 pub fn refuse_non_regular_output(output: &Path) -> Result<()> {
     match non_regular_kind(output) {
@@ -159,36 +159,6 @@ mod tests {
         );
         let c = dir.path().join("x.png");
         check_outputs(&[(&a, "the image"), (&c, "the PNG")], &[]).unwrap();
-    }
-
-    /// Every writer goes through `write_atomic`, which asks the same rule: a FIFO stays a
-    /// FIFO and nothing is written.
-    #[cfg(unix)]
-    #[test]
-    fn the_atomic_write_refuses_a_fifo_and_leaves_it() {
-        use std::os::unix::fs::FileTypeExt;
-        let dir = tempfile::tempdir().unwrap();
-        let fifo = dir.path().join("pipe");
-        let made = std::process::Command::new("mkfifo")
-            .arg(&fifo)
-            .status()
-            .unwrap();
-        assert!(made.success());
-        let mut called = false;
-        let e = crate::image_io::write_atomic(&fifo, |_| {
-            called = true;
-            Ok(())
-        })
-        .unwrap_err();
-        assert!(e.to_string().contains("is a FIFO (named pipe)"), "{e}");
-        assert!(!called, "refused before writing");
-        let kind = std::fs::symlink_metadata(&fifo).unwrap().file_type();
-        assert!(kind.is_fifo());
-        assert_eq!(
-            std::fs::read_dir(dir.path()).unwrap().count(),
-            1,
-            "no temp file"
-        );
     }
 
     #[test]
