@@ -99,7 +99,9 @@ fn resolve_image(img: &mut ImageRef, dir: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Writes `scene` as a version-3 scene file (atomically: temp file + rename).
+/// Writes `scene` as a version-3 scene file, atomically and by the same rules as every
+/// other file Relume writes ([`crate::image_io::write_atomic`]: temp file, fsync, rename;
+/// an existing output that is not a regular file is refused, never replaced).
 pub fn save_scene(path: &Path, scene: &Scene) -> Result<()> {
     let file = SceneFile {
         format: SCENE_FORMAT.into(),
@@ -110,7 +112,37 @@ pub fn save_scene(path: &Path, scene: &Scene) -> Result<()> {
         path: path.to_path_buf(),
         message: e.to_string(),
     })?;
-    let tmp = path.with_extension("json.tmp");
-    std::fs::write(&tmp, text).map_err(|e| RelumeError::io(&tmp, e))?;
-    std::fs::rename(&tmp, path).map_err(|e| RelumeError::io(path, e))
+    crate::image_io::write_atomic(path, |w| {
+        use std::io::Write as _;
+        w.write_all(text.as_bytes())
+            .map_err(|e| RelumeError::io(path, e))
+    })
+    .map(|_| ())
+}
+
+#[cfg(test)]
+mod tests {
+    /// A scene saved over a FIFO is refused and the FIFO stays (the rename would have
+    /// replaced it with a regular file).
+    #[cfg(unix)]
+    #[test]
+    fn saving_a_scene_over_a_fifo_is_refused() {
+        use std::os::unix::fs::FileTypeExt;
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("scene.json");
+        let made = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap();
+        assert!(made.success());
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../assets/cornell.scene.json");
+        let scene = super::load_scene(&path).unwrap();
+        let e = super::save_scene(&fifo, &scene).unwrap_err();
+        assert!(e.to_string().contains("FIFO"), "{e}");
+        assert!(std::fs::symlink_metadata(&fifo)
+            .unwrap()
+            .file_type()
+            .is_fifo());
+    }
 }
