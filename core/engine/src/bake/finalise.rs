@@ -839,4 +839,42 @@ mod tests {
         assert_eq!(v[4].to_f32(), 0.0);
         assert_eq!(v[1].to_f32() * scale, 0.25);
     }
+
+    /// The lattice fit stage: a layer whose least-squares fit overflows f32 (values at
+    /// f32's limit, rising steeply towards the tile's edge, which the bilinear lattice
+    /// overshoots) is not stored as lattice
+    /// coefficients; it is counted and stays exact, per pixel.
+    #[test]
+    fn a_lattice_fit_that_overflows_keeps_the_layer_exact() {
+        let rect = crate::stack::tiled::tile_rect(16, 16, 0);
+        let plan = LatticePlan {
+            step: 4,
+            tolerance: 1.0,
+            eligible: vec![true],
+            weight_floor: 0.0,
+        };
+        let surfaces = vec![Some((0u32, [0.0f32, 0.0, 1.0])); 256];
+        let data: Vec<f32> = (0..256)
+            .map(|p| f32::MAX * ((p % 16) as f32 / 15.0).powi(3))
+            .collect();
+        let image: Vec<f64> = data.iter().flat_map(|v| [*v as f64; 3]).collect();
+        let image_sumsq = image.iter().map(|v| v * v).sum();
+        let kept = [TileInput {
+            layer: 0,
+            channels: 1,
+            data,
+        }];
+        let (_, fits, refused) = compress_tile(
+            &plan,
+            rect,
+            &surfaces,
+            &kept,
+            &image,
+            image_sumsq,
+            &[Rgb::ONE],
+        )
+        .expect("the refused fit is reported");
+        assert!(fits.is_empty());
+        assert_eq!(refused, 1);
+    }
 }
