@@ -314,9 +314,11 @@ fn sizes_counts_and_threads_out_of_range_are_refused() {
     fails_saying(&bake(&["--spp", "0"]), "spp: must be ≥ 1");
     fails_saying(&bake(&["--passes", "0"]), "passes");
     fails_saying(&bake(&["--threads", "100000"]), "threads");
+    // At 1 MiB the scene's own geometry is already over the budget: refused before its BVH
+    // is built, with the same words as a bake over it.
     fails_saying(
         &bake(&["--memory-budget-mb", "1"]),
-        "not enough memory for this bake",
+        "not enough memory for this scene's geometry",
     );
     assert!(!out_path.exists(), "a refused bake wrote a file");
 }
