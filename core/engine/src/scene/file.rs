@@ -23,7 +23,11 @@ pub const SCENE_VERSION: u32 = 3;
 /// The oldest scene file version this build reads.
 pub const SCENE_VERSION_MIN: u32 = 1;
 
-#[derive(Serialize, Deserialize)]
+/// What [`save_scene`] writes. Reading goes through [`Probe`] and then [`Scene`] itself:
+/// serde's `flatten` buffers the whole document as generic values first, which for a
+/// scene of millions of triangles held several times the file's size before any memory
+/// forecast could run.
+#[derive(Serialize)]
 struct SceneFile {
     format: String,
     version: u32,
@@ -77,8 +81,8 @@ pub fn parse_scene(text: &str, path: &Path, dir: &Path) -> Result<Scene> {
         }
         None => return Err(fail("no \"version\" key".into())),
     }
-    let file: SceneFile = serde_json::from_str(text).map_err(|e| fail(e.to_string()))?;
-    let mut scene = file.scene;
+    // `format` and `version` were read above; `Scene` ignores them.
+    let mut scene: Scene = serde_json::from_str(text).map_err(|e| fail(e.to_string()))?;
     for region in &mut scene.regions {
         if let Some(img) = &mut region.albedo_texture {
             resolve_image(img, dir)?;
