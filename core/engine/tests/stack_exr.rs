@@ -667,12 +667,16 @@ fn unwritable_places_give_io_and_keep_the_old_file() {
     std::fs::write(&file, "x").unwrap();
     let r = write_stack(&file.join("s.exr"), &s);
     assert!(matches!(r, Err(RelumeError::Io { .. })), "{r:?}");
-    // Target is a directory: the temp file is written, the rename fails, the temp is removed.
+    // Target is a directory: refused before anything is written (the rename would fail,
+    // or replace an empty one), nothing inside it touched, no temp file left.
     let target = dir.path().join("taken.exr");
     std::fs::create_dir(&target).unwrap();
     std::fs::write(target.join("inside"), "keep").unwrap();
     let r = write_stack(&target, &s);
-    assert!(matches!(r, Err(RelumeError::Io { .. })), "{r:?}");
+    assert!(
+        matches!(&r, Err(RelumeError::OutputNotAFile { kind, .. }) if kind == "a directory"),
+        "{r:?}"
+    );
     assert_eq!(
         std::fs::read_to_string(target.join("inside")).unwrap(),
         "keep"
