@@ -208,7 +208,12 @@ def test_a_stack_claiming_huge_pixels_raises_and_the_interpreter_lives(tmp_path,
 
 def test_a_bake_over_budget_is_refused_before_tracing(tmp_path, small_cornell):
     assert issubclass(relume.OutOfMemoryError, MemoryError)
+    # At half a MiB the scene's geometry alone is over the budget: refused before its BVH
+    # is built; with room for the geometry, the layer probe's forecast refuses the bake.
     settings = relume.BakeSettings(spp=1, light_samples=1, memory_budget_mb=0.5)
+    with pytest.raises(relume.OutOfMemoryError, match="this scene's geometry"):
+        relume.bake(small_cornell, settings, str(tmp_path / "s.relume.exr"))
+    settings = relume.BakeSettings(spp=1, light_samples=1, memory_budget_mb=12.0)
     with pytest.raises(relume.OutOfMemoryError, match="layers reached by a probe"):
         relume.bake(small_cornell, settings, str(tmp_path / "s.relume.exr"))
     assert not (tmp_path / "s.relume.exr").exists()
