@@ -224,30 +224,7 @@ fn grazing_camera() {
 
 /// The Cornell box scaled by `s` in length with light power scaled by s² (same radiance).
 fn scaled(s: f32) -> Scene {
-    let mut scene = common::cornell(24);
-    for mesh in &mut scene.meshes {
-        for p in &mut mesh.positions {
-            p.iter_mut().for_each(|c| *c *= s);
-        }
-    }
-    for light in &mut scene.lights {
-        if let Light::Area {
-            position,
-            size_x,
-            power,
-            ..
-        } = light
-        {
-            position.iter_mut().for_each(|c| *c *= s);
-            *size_x *= s;
-            *power *= s * s;
-        }
-    }
-    for row in &mut scene.camera.matrix_world[..3] {
-        row[3] *= s;
-    }
-    scene.camera.clip_start *= s;
-    scene
+    common::cornell_scaled(24, s)
 }
 
 #[test]

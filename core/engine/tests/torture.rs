@@ -62,32 +62,9 @@ fn point(position: [f32; 3], power: f32) -> Light {
     }
 }
 
-/// The Cornell box of the tests with everything scaled by `s` (walls, light, camera; the
-/// light's power by s², so the image stays the same).
+/// The Cornell box scaled by `s`, its clip range too.
 fn box_scaled(s: f32) -> Scene {
-    let mut scene = common::cornell(12);
-    for mesh in &mut scene.meshes {
-        for p in &mut mesh.positions {
-            p.iter_mut().for_each(|c| *c *= s);
-        }
-    }
-    for light in &mut scene.lights {
-        if let Light::Area {
-            position,
-            size_x,
-            power,
-            ..
-        } = light
-        {
-            position.iter_mut().for_each(|c| *c *= s);
-            *size_x *= s;
-            *power *= s * s;
-        }
-    }
-    for row in &mut scene.camera.matrix_world[..3] {
-        row[3] *= s;
-    }
-    scene.camera.clip_start *= s;
+    let mut scene = common::cornell_scaled(12, s);
     scene.camera.clip_end *= s;
     scene
 }

@@ -273,3 +273,32 @@ pub fn relight_at_bake_materials(stack: &TransferStack, scene: &Scene) -> Vec<f3
         .unwrap()
         .to_vec()
 }
+
+/// [`cornell`] at `size` scaled by `s` in length (walls, light, camera position and clip
+/// start) with the light's power scaled by s², so the image stays the same.
+pub fn cornell_scaled(size: u32, s: f32) -> Scene {
+    let mut scene = cornell(size);
+    for mesh in &mut scene.meshes {
+        for p in &mut mesh.positions {
+            p.iter_mut().for_each(|c| *c *= s);
+        }
+    }
+    for light in &mut scene.lights {
+        if let Light::Area {
+            position,
+            size_x,
+            power,
+            ..
+        } = light
+        {
+            position.iter_mut().for_each(|c| *c *= s);
+            *size_x *= s;
+            *power *= s * s;
+        }
+    }
+    for row in &mut scene.camera.matrix_world[..3] {
+        row[3] *= s;
+    }
+    scene.camera.clip_start *= s;
+    scene
+}
