@@ -244,14 +244,8 @@ impl BakeOptions {
         if let Some(v) = self.denoise_bounce {
             s.denoise.bounce_iterations = v;
         }
-        if let Some(mb) = self.memory_budget_mb {
-            if !(mb.is_finite() && mb > 0.0) {
-                return Err(RelumeError::invalid(
-                    "--memory-budget-mb",
-                    format!("{mb} (MiB, must be > 0)"),
-                ));
-            }
-            s.memory_budget = Some((mb * 1024.0 * 1024.0) as u64);
+        if self.memory_budget_mb.is_some() {
+            s.memory_budget = budget_from_mib(self.memory_budget_mb)?;
         }
         if let Some(v) = self.sampling {
             s.sampling = match v {
@@ -510,5 +504,18 @@ mod tests {
             e.contains("draft") && e.contains("preview") && e.contains("final"),
             "{e}"
         );
+    }
+}
+
+/// `--memory-budget-mb` in bytes (`None`: the default budget), refused unless finite and > 0;
+/// one reading for every command that takes it.
+pub fn budget_from_mib(mib: Option<f64>) -> Result<Option<u64>, RelumeError> {
+    match mib {
+        None => Ok(None),
+        Some(mb) if mb.is_finite() && mb > 0.0 => Ok(Some((mb * 1024.0 * 1024.0) as u64)),
+        Some(mb) => Err(RelumeError::invalid(
+            "--memory-budget-mb",
+            format!("{mb} (MiB, must be > 0)"),
+        )),
     }
 }

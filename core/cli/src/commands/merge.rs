@@ -1,14 +1,16 @@
 //! `relume merge PART_0 … PART_N-1 -o STACK`: the last task of a farm bake. Checks that the
 //! partial stacks belong to one bake and cover its samples once, sums them in the bake's
 //! canonical order, finalises (average, grey detection, denoiser, layer dropping, header)
-//! and writes the stack atomically: bit-identical to a one-machine bake (docs/farm.md).
+//! and writes the stack atomically in the tiled format `relume bake` writes (docs/farm.md).
+//! Its peak memory is forecast from the parts' headers and held to `--memory-budget-mb`
+//! before any part's body is read, as a bake's is.
 
 use std::path::PathBuf;
 
 use relume_engine::bake::partial::read_partial_header;
-use relume_engine::bake::partition::merge_files;
+use relume_engine::bake::partition::merge_files_tiled_within;
 use relume_engine::scene::file::load_scene;
-use relume_engine::stack::exr_file::write_stack_cancellable;
+use relume_engine::stack::tiled::file::write_tiled_cancellable;
 use relume_engine::RelumeError;
 use serde_json::json;
 
@@ -29,6 +31,11 @@ pub struct Args {
     /// Worker threads (0: all cores); the result does not depend on it.
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
+    /// Memory the merge may plan to use at its peak, in MiB; a merge whose forecast (from
+    /// the parts' headers) exceeds it is refused before any part is read [default: 80 % of
+    /// the available memory].
+    #[arg(long)]
+    pub memory_budget_mb: Option<f64>,
     /// Print one JSON summary on stdout.
     #[arg(long)]
     pub json: bool,
@@ -47,6 +54,7 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
     }
     // The parts first (before any is read), then the scene files they record.
     check_outputs(&output, &inputs)?;
+    let budget = crate::options::budget_from_mib(args.memory_budget_mb)?;
     let headers = args
         .parts
         .iter()
@@ -71,8 +79,8 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
     let count = args.parts.len();
     let paths = args.parts.clone();
     let (stack, report, bytes) = with_progress("merging", move |p| {
-        let (stack, report) = merge_files(&scene, &paths, threads, &p)?;
-        let bytes = write_stack_cancellable(&output, &stack, &p)?;
+        let (stack, report) = merge_files_tiled_within(&scene, &paths, threads, budget, &p)?;
+        let bytes = write_tiled_cancellable(&output, &stack, &p)?;
         Ok::<_, RelumeError>((stack, report, bytes))
     })?;
     if args.json {
