@@ -327,6 +327,19 @@ pub fn parse_resolution(s: &str) -> Result<Resolution, RelumeError> {
     Ok(r)
 }
 
+/// `--memory-budget-mb` in bytes (`None`: the default budget), refused unless finite and > 0;
+/// one reading for every command that takes it.
+pub fn budget_from_mib(mib: Option<f64>) -> Result<Option<u64>, RelumeError> {
+    match mib {
+        None => Ok(None),
+        Some(mb) if mb.is_finite() && mb > 0.0 => Ok(Some((mb * 1024.0 * 1024.0) as u64)),
+        Some(mb) => Err(RelumeError::invalid(
+            "--memory-budget-mb",
+            format!("{mb} (MiB, must be > 0)"),
+        )),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -504,18 +517,5 @@ mod tests {
             e.contains("draft") && e.contains("preview") && e.contains("final"),
             "{e}"
         );
-    }
-}
-
-/// `--memory-budget-mb` in bytes (`None`: the default budget), refused unless finite and > 0;
-/// one reading for every command that takes it.
-pub fn budget_from_mib(mib: Option<f64>) -> Result<Option<u64>, RelumeError> {
-    match mib {
-        None => Ok(None),
-        Some(mb) if mb.is_finite() && mb > 0.0 => Ok(Some((mb * 1024.0 * 1024.0) as u64)),
-        Some(mb) => Err(RelumeError::invalid(
-            "--memory-budget-mb",
-            format!("{mb} (MiB, must be > 0)"),
-        )),
     }
 }
