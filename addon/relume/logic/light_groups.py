@@ -8,8 +8,9 @@ The core's "scene" grouping (`LightGrouping::Scene`, core/engine/src/geometry/li
 puts the lights the scene file's `light_groups` do not list — and the world, unless a group
 says `"world": true` — into one more group named "default", which every such stack has (even
 when it holds nothing). A Blender light group literally named "default" is therefore the
-same group as "no light group": it is not written as a group of its own, which would give
-the stack two groups of one name.
+same group as "no light group": it is not written as a group of its own (and the core, for
+any scene file that does list one, uses it as the default group rather than adding a second
+group of that name).
 """
 
 from __future__ import annotations

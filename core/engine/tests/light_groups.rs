@@ -117,6 +117,53 @@ fn scene_groups_and_the_default_group() {
         .any(|l| l.key.layer_name().starts_with("G1_")));
 }
 
+/// A scene light group named "default" is the default group, not a second group of that
+/// name: its lights, the ungrouped ones and the world share it, and edits by name stay
+/// unambiguous.
+#[test]
+fn a_scene_group_named_default_is_the_default_group() {
+    let mut scene = two_lights();
+    let group_names = |scene: &Scene| -> Vec<String> {
+        let (stack, _) = bake(
+            scene,
+            &BakeSettings {
+                spp: 1,
+                light_grouping: LightGrouping::Scene,
+                ..Default::default()
+            },
+            &Progress::new(),
+        )
+        .unwrap();
+        assert!(stack.layers.iter().all(|l| l.key.light_group >= 1
+            && (l.key.light_group as usize) <= stack.header.light_groups.len()));
+        stack
+            .header
+            .light_groups
+            .iter()
+            .map(|g| g.name.clone())
+            .collect()
+    };
+    scene.light_groups = vec![LightGroupSpec {
+        name: "default".into(),
+        lights: vec![0],
+        world: false,
+    }];
+    assert_eq!(group_names(&scene), ["default"]);
+    scene.light_groups = vec![
+        LightGroupSpec {
+            name: "default".into(),
+            lights: vec![1],
+            world: true,
+        },
+        LightGroupSpec {
+            name: "key".into(),
+            lights: vec![0],
+            world: false,
+        },
+    ];
+    assert_eq!(group_names(&scene), ["default", "key"]);
+}
+
 #[test]
 fn materials_files_edit_light_groups_by_name() {
     use relume_engine::materials::{parse_materials, resolve_light_gains};

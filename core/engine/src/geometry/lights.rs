@@ -277,6 +277,9 @@ pub struct LightGroup {
     pub tint: Rgb,
 }
 
+/// The name of the group holding the lights (and the world) that no scene light group lists.
+pub const DEFAULT_LIGHT_GROUP: &str = "default";
+
 /// Which group each light and the world fall in, with the groups' names.
 fn group_membership(scene: &Scene, grouping: LightGrouping) -> (Vec<String>, Vec<usize>, usize) {
     match grouping {
@@ -304,8 +307,15 @@ fn group_membership(scene: &Scene, grouping: LightGrouping) -> (Vec<String>, Vec
         LightGrouping::Scene => {
             let mut names: Vec<String> =
                 scene.light_groups.iter().map(|g| g.name.clone()).collect();
-            let default = names.len();
-            names.push("default".into());
+            // A group the scene itself names "default" is that group (as the add-on maps
+            // Blender's group of that name): a second one would make edits by name ambiguous.
+            let default = match names.iter().position(|n| n == DEFAULT_LIGHT_GROUP) {
+                Some(g) => g,
+                None => {
+                    names.push(DEFAULT_LIGHT_GROUP.into());
+                    names.len() - 1
+                }
+            };
             let mut member = vec![default; scene.lights.len()];
             let mut world = default;
             for (g, spec) in scene.light_groups.iter().enumerate() {
