@@ -54,8 +54,8 @@ echo "== import graph: no circle in core/engine or addon/relume, nothing below t
 "$PYTHON" scripts/import_graph.py || status=1
 echo "== cargo test (workspace)"
 cargo test --workspace --no-fail-fast 2>&1 || status=1
-echo "== fuzzing: stack reader, scene and materials parsers, 60 s each (scripts/fuzz.sh)"
-bash scripts/fuzz.sh 60 || status=1
+echo "== fuzzing: stack reader, scene and materials parsers, 30 s each (scripts/fuzz.sh)"
+bash scripts/fuzz.sh 30 || status=1
 echo "== the relume wheel and the Blender extension zip"
 bash scripts/build_addon.sh
 echo "== the wheel's platform tag and the release workflow (scripts/check_release.py)"
@@ -65,5 +65,5 @@ rm -rf build/py
 echo "== Python bindings (core/py/tests)"
 PYTHONPATH="$PWD/build/py" "$PYTHON" -m pytest -q -p no:cacheprovider core/py/tests || status=1
 echo "== Blender add-on (blender_tests, bpy $("$PYTHON" -c 'import importlib.metadata as m; print(m.version("bpy"))'))"
-"$PYTHON" -m pytest -q -p no:cacheprovider -W ignore::DeprecationWarning blender_tests || status=1
+"$PYTHON" -m pytest -q -p no:cacheprovider --durations=15 -W ignore::DeprecationWarning blender_tests || status=1
 exit $status
