@@ -66,6 +66,26 @@ impl MetalCurves {
         }
     }
 
+    /// Curves over `[r_min, 1]` from the values [`Self::parts`] gave (the disk cache).
+    pub(crate) fn from_parts(
+        r_min: f64,
+        slots: usize,
+        e_avg: Vec<f64>,
+        values: Vec<f64>,
+    ) -> MetalCurves {
+        MetalCurves {
+            ln_r_min: r_min.ln(),
+            slots,
+            e_avg,
+            values,
+        }
+    }
+
+    /// `Eavg` at every node and the tabulated projections, for the disk cache.
+    pub(crate) fn parts(&self) -> (&[f64], &[f64]) {
+        (&self.e_avg, &self.values)
+    }
+
     /// Per slot and channel, the coefficients of a metal with `f0` per channel at
     /// `roughness`; `roughness` outside the range is clamped to it and reported (`true`).
     pub(crate) fn coefficients(&self, f0: [f64; 3], roughness: f64) -> (Vec<[f64; 3]>, bool) {

@@ -54,7 +54,6 @@ impl Family {
 /// One roughness value with what every lobe at it shares: α and the albedo table `E(μo)`.
 #[derive(Clone, Debug)]
 pub(crate) struct Roughness {
-    pub roughness: f64,
     pub alpha: f64,
     pub energy: MuTable,
     pub e_avg: f64,
@@ -66,7 +65,6 @@ impl Roughness {
         let energy = single_scatter_albedo(alpha);
         let e_avg = energy.cosine_mean();
         Roughness {
-            roughness,
             alpha,
             energy,
             e_avg,

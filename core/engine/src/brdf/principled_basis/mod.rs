@@ -35,6 +35,7 @@
 //! projection, milliseconds per IOR and roughness), the diffuse base's `1 − albedo(μo)` weight
 //! under a dielectric, f16 tables, and the bake's sampling of these lobes.
 
+mod cache;
 mod curves;
 mod lobes;
 mod lune;
@@ -42,7 +43,7 @@ pub mod material;
 mod pca;
 mod quadrature;
 
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 use std::time::Instant;
 
 use rayon::prelude::*;
@@ -140,7 +141,7 @@ impl PrincipledBasisConfig {
 }
 
 /// What a build measured: the training lobes' errors and the tables' own error.
-#[derive(Clone, Debug, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct PrincipledBasisReport {
     /// Slots, the constant included.
     pub bases: usize,
@@ -155,6 +156,10 @@ pub struct PrincipledBasisReport {
     pub quadrature_total: f64,
     pub quadrature_nodes: usize,
     pub build_seconds: f64,
+    /// Whether this process read the basis from the disk cache (the other figures are the
+    /// build's that wrote it) instead of building it.
+    #[serde(default)]
+    pub from_cache: bool,
 }
 
 /// Relative L2 errors of a lobe rebuilt from the basis (each over the lobe's norm).
@@ -172,8 +177,12 @@ pub struct RebuildErrors {
 /// values at the quadrature nodes (for projections).
 pub struct PrincipledBasis {
     config: PrincipledBasisConfig,
-    lobes: LobeSet,
-    gram: LobeGram,
+    /// The training lobes; made again on first use by a basis read from the cache (only
+    /// exact evaluation needs them).
+    lobes: OnceLock<LobeSet>,
+    /// `‖f_j‖` and `⟨f_j/‖f_j‖, 1⟩` of every training lobe.
+    norm: Vec<f64>,
+    mean: Vec<f64>,
     nspec: usize,
     /// `φ_k = Σ_j coef[j·nspec + k]·(f_j/‖f_j‖ − ⟨f_j/‖f_j‖, 1⟩)`.
     coef: Vec<f64>,
@@ -198,8 +207,9 @@ impl PrincipledBasis {
         let nspec = pca.nspec;
         let mut basis = PrincipledBasis {
             config: config.clone(),
-            lobes,
-            gram,
+            lobes: OnceLock::from(lobes),
+            norm: gram.norm,
+            mean: gram.mean,
             nspec,
             coef: pca.coef,
             lobe_errors: pca.errors,
@@ -222,6 +232,7 @@ impl PrincipledBasis {
                 quadrature_total,
                 quadrature_nodes: 0,
                 build_seconds: 0.0,
+                from_cache: false,
             },
         };
         basis.at_nodes = basis
@@ -255,20 +266,123 @@ impl PrincipledBasis {
             quadrature_total,
             quadrature_nodes: basis.nodes.len(),
             build_seconds: start.elapsed().as_secs_f64(),
+            from_cache: false,
         };
         Ok(basis)
     }
 
-    /// The basis of `config`, built once per process and shared: a build takes seconds, and
-    /// every bake and every stack load of the same configuration needs the same basis (the
-    /// build is deterministic).
+    /// The array lengths `config` implies, for the cache's checks.
+    fn cache_shape(config: &PrincipledBasisConfig, nodes: usize) -> cache::Shape {
+        cache::Shape {
+            lobes: config.roughness_nodes * default_families().len(),
+            nodes,
+            table_nodes: config.table.nodes(),
+            curve_nodes: curves::CURVE_NODES,
+            curve_parts: curves::PARTS,
+        }
+    }
+
+    /// The basis of `config` from the cache in `dir`, or `None` when it holds none that can
+    /// be trusted ([`cache`]).
+    fn load_cached(
+        dir: &std::path::Path,
+        config: &PrincipledBasisConfig,
+    ) -> Option<PrincipledBasis> {
+        config.check().ok()?;
+        let (nodes, _) = quadrature::nodes(config.quadrature);
+        let stored = cache::load(dir, config, &Self::cache_shape(config, nodes.len()))?;
+        let mut report: PrincipledBasisReport = serde_json::from_slice(&stored.report).ok()?;
+        report.from_cache = true;
+        let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
+        if !(finite(&stored.coef)
+            && finite(&stored.norm)
+            && finite(&stored.mean)
+            && finite(&stored.at_nodes)
+            && finite(&stored.curve_values)
+            && stored.table.iter().all(|x| x.is_finite()))
+        {
+            return None;
+        }
+        let nspec = stored.nspec;
+        Some(PrincipledBasis {
+            config: config.clone(),
+            lobes: OnceLock::new(),
+            norm: stored.norm,
+            mean: stored.mean,
+            nspec,
+            coef: stored.coef,
+            lobe_errors: stored.lobe_errors,
+            nodes,
+            at_nodes: stored.at_nodes,
+            table: LuneTable {
+                size: config.table,
+                coords: LuneCoords::new(config.roughness_min.powi(2)),
+                nspec,
+                values: stored.table,
+            },
+            curves: Some(MetalCurves::from_parts(
+                config.roughness_min,
+                1 + nspec,
+                stored.curve_e_avg,
+                stored.curve_values,
+            )),
+            report,
+        })
+    }
+
+    /// Writes this basis into the cache in `dir` ([`cache`]).
+    fn store_cached(&self, dir: &std::path::Path) -> std::io::Result<()> {
+        let curves = self
+            .curves
+            .as_ref()
+            .expect("curves are built with the basis");
+        let (e_avg, values) = curves.parts();
+        cache::store(
+            dir,
+            &self.config,
+            &cache::Stored {
+                nspec: self.nspec,
+                coef: self.coef.clone(),
+                lobe_errors: self.lobe_errors.clone(),
+                norm: self.norm.clone(),
+                mean: self.mean.clone(),
+                at_nodes: self.at_nodes.clone(),
+                table: self.table.values.clone(),
+                curve_e_avg: e_avg.to_vec(),
+                curve_values: values.to_vec(),
+                report: serde_json::to_vec(&self.report).unwrap_or_default(),
+            },
+        )
+    }
+
+    /// The basis of `config` from the cache in `dir` when it holds one, else built and
+    /// written there (a cache that cannot be written costs only the next process a build).
+    pub fn cached_in(
+        dir: &std::path::Path,
+        config: &PrincipledBasisConfig,
+    ) -> Result<PrincipledBasis> {
+        if let Some(b) = Self::load_cached(dir, config) {
+            return Ok(b);
+        }
+        let b = PrincipledBasis::build(config)?;
+        let _ = b.store_cached(dir);
+        Ok(b)
+    }
+
+    /// The basis of `config`, made once per process and shared: every bake and every stack
+    /// load of the same configuration needs the same basis (the build is deterministic).
+    /// Across processes it comes from the disk cache ([`cache`]; built and written there the
+    /// first time), so loading a stack builds nothing.
     pub fn shared(config: &PrincipledBasisConfig) -> Result<Arc<PrincipledBasis>> {
         static BUILT: Mutex<Vec<Arc<PrincipledBasis>>> = Mutex::new(Vec::new());
         let mut built = BUILT.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(b) = built.iter().find(|b| &b.config == config) {
             return Ok(b.clone());
         }
-        let b = Arc::new(PrincipledBasis::build(config)?);
+        let b = Arc::new(match cache::default_dir() {
+            Some(dir) => PrincipledBasis::cached_in(&dir, config)?,
+            None => PrincipledBasis::build(config)?,
+        });
         built.push(b.clone());
         Ok(b)
     }
@@ -288,7 +402,14 @@ impl PrincipledBasis {
 
     /// The training roughness values.
     pub fn roughness(&self) -> Vec<f64> {
-        self.lobes.roughness.iter().map(|r| r.roughness).collect()
+        roughness_nodes(self.config.roughness_min, self.config.roughness_nodes)
+    }
+
+    fn lobes(&self) -> &LobeSet {
+        self.lobes.get_or_init(|| {
+            let rs = roughness_nodes(self.config.roughness_min, self.config.roughness_nodes);
+            LobeSet::new(&rs, &default_families())
+        })
     }
 
     /// Every slot's value at `c` from the tables (slot 0 the constant `1/π`).
@@ -305,12 +426,12 @@ impl PrincipledBasis {
     }
 
     fn eval_exact_specular(&self, c: Cosines, out: &mut [f64]) {
-        let l = self.lobes.len();
-        let mut f = vec![0.0; l];
-        self.lobes.eval(c, &mut f);
+        let lobes = self.lobes();
+        let mut f = vec![0.0; lobes.len()];
+        lobes.eval(c, &mut f);
         out[..self.nspec].fill(0.0);
         for (j, fj) in f.iter().enumerate() {
-            let r = fj / self.gram.norm[j] - self.gram.mean[j];
+            let r = fj / self.norm[j] - self.mean[j];
             let row = &self.coef[j * self.nspec..(j + 1) * self.nspec];
             for (o, b) in out.iter_mut().zip(row) {
                 *o += r * b;

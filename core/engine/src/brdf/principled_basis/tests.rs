@@ -267,3 +267,96 @@ fn metal_curves_give_the_direct_projection() {
         "roughness 0.05 is below the range and must be reported"
     );
 }
+
+/// The disk cache gives back the basis the build made, bit for bit, and trusts nothing else:
+/// a damaged, truncated or foreign file is ignored and the basis built (and the file
+/// replaced).
+#[test]
+fn the_disk_cache_restores_the_built_basis_and_refuses_damaged_files() {
+    let dir = tempfile::tempdir().unwrap();
+    // Smaller than small(): the test builds it three times.
+    let config = PrincipledBasisConfig {
+        roughness_nodes: 6,
+        bases: 6,
+        quadrature: QuadratureSize {
+            theta_h: 32,
+            theta_d: 8,
+            phi_d: 12,
+        },
+        table: TableSize {
+            theta_h: 9,
+            s: 5,
+            eta: 5,
+        },
+        ..small_config()
+    };
+    let built = PrincipledBasis::cached_in(dir.path(), &config).unwrap();
+    assert!(!built.report().from_cache);
+    let file = cache::path(dir.path(), &config);
+    assert!(file.is_file(), "the build is written to the cache");
+    let loaded = PrincipledBasis::cached_in(dir.path(), &config).unwrap();
+    assert!(loaded.report().from_cache, "the second process reads it");
+
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&built.coef), bits(&loaded.coef));
+    assert_eq!(bits(&built.at_nodes), bits(&loaded.at_nodes));
+    assert_eq!(built.table.values, loaded.table.values);
+    assert_eq!(built.nodes.len(), loaded.nodes.len());
+    for (r, f0) in [
+        (0.1, [1.0, 0.8, 0.3]),
+        (0.37, [0.04, 0.5, 0.9]),
+        (1.0, [0.2; 3]),
+    ] {
+        assert_eq!(
+            built.metal_coefficients(f0, r),
+            loaded.metal_coefficients(f0, r)
+        );
+        let lobe = PrincipledBasis::lobe(Family::Dielectric { ior: 1.45 }, r);
+        let (a, ea) = built.project(&lobe);
+        let (b, eb) = loaded.project(&lobe);
+        assert_eq!((bits(&a), ea.to_bits()), (bits(&b), eb.to_bits()));
+    }
+    for n in built.nodes.iter().step_by(101) {
+        let (mut a, mut b) = (vec![0.0; built.count()], vec![0.0; built.count()]);
+        built.eval(n.c, &mut a);
+        loaded.eval(n.c, &mut b);
+        assert_eq!(bits(&a), bits(&b), "tabled");
+        built.eval_exact(n.c, &mut a);
+        loaded.eval_exact(n.c, &mut b);
+        assert_eq!(bits(&a), bits(&b), "exact (the lobes made again)");
+    }
+
+    let good = std::fs::read(&file).unwrap();
+    let mut flipped = good.clone();
+    let middle = flipped.len() / 2;
+    flipped[middle] ^= 0x40;
+    let damaged: [(&str, Vec<u8>); 4] = [
+        ("a flipped byte", flipped),
+        ("truncated", good[..good.len() - 9].to_vec()),
+        ("empty", vec![]),
+        ("grown", [good.as_slice(), &[0u8; 64]].concat()),
+    ];
+    for (what, bytes) in damaged {
+        std::fs::write(&file, &bytes).unwrap();
+        assert!(
+            PrincipledBasis::load_cached(dir.path(), &config).is_none(),
+            "{what}: refused"
+        );
+    }
+    let again = PrincipledBasis::cached_in(dir.path(), &config).unwrap();
+    assert!(!again.report().from_cache, "a damaged file: built");
+    assert_eq!(bits(&again.coef), bits(&built.coef));
+    // (Not byte for byte: the report holds the build's time.)
+    assert!(
+        PrincipledBasis::load_cached(dir.path(), &config).is_some(),
+        "the damaged file replaced by a good one"
+    );
+    // Another configuration's file under this one's name is foreign (its key differs).
+    let other = PrincipledBasisConfig {
+        bases: 5,
+        ..config.clone()
+    };
+    PrincipledBasis::cached_in(dir.path(), &other).unwrap();
+    std::fs::copy(cache::path(dir.path(), &other), &file).unwrap();
+    assert!(PrincipledBasis::load_cached(dir.path(), &config).is_none());
+}
