@@ -12,7 +12,7 @@ cd "$(dirname "$0")/.."
 export XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-/tmp/relume-runtime-$(id -u)}"
 mkdir -p -m 700 "$XDG_RUNTIME_DIR"
 command -v cargo >/dev/null || { echo "test: needs the Rust toolchain (cargo) on PATH" >&2; exit 1; }
-# A test run writes its build folders beside the sources (the README gives their size);
+# A test run writes its build folders beside the sources (about 6 GiB from a clean clone);
 # a full disk shows up as a linker or rustc I/O error far into the run, so say it at the start.
 # Incremental artefacts only help repeated local builds, so the run does without them.
 export CARGO_INCREMENTAL="${CARGO_INCREMENTAL:-0}"

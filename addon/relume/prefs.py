@@ -33,7 +33,7 @@ class RelumePreferences(bpy.types.AddonPreferences):
     bl_idname = ADDON_ID
 
     preset: EnumProperty(name="Preset", items=PRESET_ITEMS, default="preview",
-                         description="Quality preset; README lists each one's measured error and time")
+                         description="Quality preset; docs/measurements.md lists each one's measured error and time")
     spp: IntProperty(name="Eye Samples", min=1, max=65536, default=16,
                      description="Samples per pixel (custom preset)")
     light_samples: IntProperty(name="Light Samples", min=1, max=1024, default=4)

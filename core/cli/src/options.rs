@@ -76,7 +76,7 @@ pub const DEFAULT_BASES: u32 = 6;
 pub struct BakeOptions {
     /// Quality preset: sets --spp, --light-samples, --indirect-samples, --sampling,
     /// --tolerance and a resolution scale (draft: ½ of the scene's resolution); explicit
-    /// flags override the preset's values. The README's preset table says what each costs.
+    /// flags override the preset's values. docs/measurements.md#presets-measured says what each costs.
     #[arg(long, value_enum)]
     pub preset: Option<PresetArg>,
     /// Eye samples per pixel [default: 16, or the preset's].

@@ -1,6 +1,6 @@
 """Relume: bake a scene's global illumination into a transfer stack once, then relight it
 for any material in milliseconds. The classes and functions come from the Rust core
-(``relume._core``); see core/py/README.md for the API."""
+(``relume._core``); docs/addon.md ("Python without Blender") describes the API."""
 
 from ._core import (  # exceptions, scene / bake / stack / relight, images: see __all__
     BakeJob,

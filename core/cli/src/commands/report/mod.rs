@@ -84,7 +84,7 @@ pub struct Args {
     #[arg(long)]
     pub keep_stacks: bool,
     /// Bake nothing: redraw OUT/presets.md and the chart from an existing OUT/presets.json
-    /// (the README's: `--redraw --out docs/report --chart docs/images/presets.png`).
+    /// (docs/measurements.md's: `--redraw --out docs/report --chart docs/images/presets.png`).
     #[arg(long)]
     pub redraw: bool,
     /// Print the JSON report on stdout.
