@@ -6,7 +6,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use indicatif::{ProgressBar, ProgressStyle};
-use relume_engine::bake::progress::Progress;
+use relume_engine::progress::Progress;
 
 /// Runs `work` with a shared [`Progress`], drawing a bar labelled `label` meanwhile.
 pub fn with_progress<T: Send + 'static>(

@@ -18,11 +18,8 @@ fn main() {
     }
     let b = bench_bake(&scene, &settings).expect("bench");
     println!("{}", serde_json::to_string_pretty(&b).unwrap());
-    let (_, r) = relume_engine::bake::bake(
-        &scene,
-        &settings,
-        &relume_engine::bake::progress::Progress::new(),
-    )
-    .unwrap();
+    let (_, r) =
+        relume_engine::bake::bake(&scene, &settings, &relume_engine::progress::Progress::new())
+            .unwrap();
     println!("{}", serde_json::to_string(&r).unwrap());
 }

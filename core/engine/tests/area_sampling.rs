@@ -9,12 +9,12 @@ use std::time::Instant;
 
 use glam::Vec3;
 use relume_engine::bake::context::BakeContext;
-use relume_engine::bake::progress::Progress;
 use relume_engine::bake::reference::{render_with_context, ReferenceBrdf};
 use relume_engine::bake::{BakeSettings, LightGrouping};
 use relume_engine::brdf::BlinnPhong;
 use relume_engine::geometry::lights::{AreaSampling, LightSet};
 use relume_engine::geometry::sampling::mix64;
+use relume_engine::progress::Progress;
 use relume_engine::scene::file::load_scene;
 use relume_engine::scene::{AreaShape, Light, Resolution, Scene};
 

@@ -2,7 +2,8 @@
 
 use std::path::Path;
 
-use relume_engine::bake::{bake, progress::Progress, BakeSettings};
+use relume_engine::bake::{bake, BakeSettings};
+use relume_engine::progress::Progress;
 use relume_engine::scene::{file::load_scene, validate::validate_scene, Resolution};
 
 fn assets() -> std::path::PathBuf {
@@ -47,7 +48,7 @@ fn committed_scenes_load_validate_and_bake() {
 
 #[test]
 fn translucent_scene_bakes_subsurface_layers_that_survive_the_stack_file() {
-    use relume_engine::bake::signature::PathVertex;
+    use relume_engine::layer_key::PathVertex;
     use relume_engine::relight::CpuRelighter;
     use relume_engine::stack::bases::StackBases;
     use relume_engine::stack::exr_file::{read_stack, write_stack};

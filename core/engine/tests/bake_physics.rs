@@ -5,8 +5,9 @@ mod common;
 use std::sync::Arc;
 
 use relume_engine::bake::reference::{render_reference, ReferenceBrdf};
-use relume_engine::bake::{bake, progress::Progress, BakeSettings, IndirectSampling};
+use relume_engine::bake::{bake, BakeSettings, IndirectSampling};
 use relume_engine::brdf::{BlinnPhong, MaterialSpec};
+use relume_engine::progress::Progress;
 use relume_engine::RelumeError;
 
 /// The red channel of the pixels well inside the furnace's sphere.

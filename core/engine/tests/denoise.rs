@@ -2,8 +2,9 @@
 //! bake, touches only the layers it is asked to, and the header says it ran.
 mod common;
 
-use relume_engine::bake::{bake, progress::Progress, BakeSettings, Denoise};
+use relume_engine::bake::{bake, BakeSettings, Denoise};
 use relume_engine::image_io::compare_rgb;
+use relume_engine::progress::Progress;
 use relume_engine::stack::TransferStack;
 
 fn relight(stack: &TransferStack, scene: &relume_engine::scene::Scene) -> Vec<f32> {

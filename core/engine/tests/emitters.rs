@@ -4,7 +4,8 @@
 //! floor); what the camera sees of an emitter is constant light that follows its group's gain.
 mod common;
 
-use relume_engine::bake::{bake, progress::Progress, BakeSettings, LightGrouping};
+use relume_engine::bake::{bake, BakeSettings, LightGrouping};
+use relume_engine::progress::Progress;
 use relume_engine::scene::{AreaShape, Light, Scene, World};
 use relume_engine::Rgb;
 

@@ -7,7 +7,6 @@ use std::time::Instant;
 
 use glam::Vec3;
 use relume_engine::bake::context::BakeContext;
-use relume_engine::bake::progress::Progress;
 use relume_engine::bake::reference::{render_with_context, ReferenceBrdf};
 use relume_engine::bake::{BakeSettings, LightGrouping};
 use relume_engine::brdf::BlinnPhong;
@@ -15,6 +14,7 @@ use relume_engine::geometry::env_sampling::EnvSampler;
 use relume_engine::geometry::lights::{LightSet, WorldSampling};
 use relume_engine::geometry::sampling::mix64;
 use relume_engine::geometry::texture::Texture;
+use relume_engine::progress::Progress;
 use relume_engine::scene::file::load_scene;
 use relume_engine::scene::{ImageRef, Resolution, Scene, World};
 

@@ -7,11 +7,12 @@ mod common;
 use std::sync::Arc;
 
 use relume_engine::bake::reference::{render_reference, ReferenceBrdf};
-use relume_engine::bake::{bake, progress::Progress, BakeSettings};
+use relume_engine::bake::{bake, BakeSettings};
 use relume_engine::brdf::{
     principled_to_blinn_phong, BasisConfig, BasisCount, BlinnPhong, MaterialSpec, Principled,
 };
 use relume_engine::image_io::compare_rgb;
+use relume_engine::progress::Progress;
 use relume_engine::relight::CpuRelighter;
 use relume_engine::scene::{Light, Scene};
 use relume_engine::stack::bases::StackBases;

@@ -9,9 +9,8 @@ use relume_engine::bake::guide_file::{build_guide, read_guide, write_guide};
 use relume_engine::bake::partial::{read_partial, write_partial, PartialStack};
 use relume_engine::bake::partition::{bake_partition, merge, Partition};
 use relume_engine::bake::presets::Preset;
-use relume_engine::bake::{
-    bake, bake_progressive, progress::Progress, BakeSettings, LightGrouping,
-};
+use relume_engine::bake::{bake, bake_progressive, BakeSettings, LightGrouping};
+use relume_engine::progress::Progress;
 use relume_engine::scene::{Scene, World};
 use relume_engine::stack::exr_file::{read_stack, write_stack};
 use relume_engine::stack::{LayerSamples, TransferStack};

@@ -14,9 +14,10 @@ mod common;
 use std::sync::Arc;
 
 use relume_engine::bake::reference::{render_reference, ReferenceBrdf};
-use relume_engine::bake::{bake, progress::Progress, BakeSettings, IndirectSampling};
+use relume_engine::bake::{bake, BakeSettings, IndirectSampling};
 use relume_engine::brdf::{BlinnPhong, MaterialSpec};
 use relume_engine::image_io::compare_rgb;
+use relume_engine::progress::Progress;
 use relume_engine::relight::CpuRelighter;
 use relume_engine::scene::*;
 use relume_engine::stack::{bases::StackBases, Precision};

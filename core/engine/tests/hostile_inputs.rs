@@ -7,10 +7,11 @@ mod common;
 use std::f64::consts::PI;
 
 use glam::Vec3;
-use relume_engine::bake::{bake, progress::Progress, BakeSettings, LightGrouping};
+use relume_engine::bake::{bake, BakeSettings, LightGrouping};
 use relume_engine::brdf::{BasisConfig, BasisCount, BrdfBasis, MaterialSpec, Principled};
 use relume_engine::geometry::lights::{AreaSampling, LightSet};
 use relume_engine::materials::{parse_materials, resolve_light_gains};
+use relume_engine::progress::Progress;
 use relume_engine::scene::validate::validate_scene;
 use relume_engine::scene::{AreaShape, ImageRef, Light, LightGroupSpec, Scene, World};
 use relume_engine::stack::exr_file::{read_stack_header, write_stack};

@@ -4,8 +4,9 @@ mod common;
 
 use std::sync::Arc;
 
-use relume_engine::bake::{bake, progress::Progress, BakeSettings};
+use relume_engine::bake::{bake, BakeSettings};
 use relume_engine::brdf::{BlinnPhong, MaterialSpec};
+use relume_engine::progress::Progress;
 use relume_engine::relight::CpuRelighter;
 use relume_engine::stack::bases::StackBases;
 use relume_engine::stack::TransferStack;

@@ -5,8 +5,9 @@ mod common;
 
 use std::sync::Arc;
 
-use relume_engine::bake::{bake, progress::Progress, BakeSettings, LightGrouping};
+use relume_engine::bake::{bake, BakeSettings, LightGrouping};
 use relume_engine::image_io::compare_rgb;
+use relume_engine::progress::Progress;
 use relume_engine::relight::CpuRelighter;
 use relume_engine::scene::{Light, LightGroupSpec, Scene, World};
 use relume_engine::stack::TransferStack;

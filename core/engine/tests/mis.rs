@@ -17,13 +17,12 @@ mod common;
 
 use relume_engine::bake::context::BakeContext;
 use relume_engine::bake::reference::{render_with_context, ReferenceBrdf};
-use relume_engine::bake::{
-    bake, progress::Progress, BakeSettings, IndirectSampling, LightGrouping,
-};
+use relume_engine::bake::{bake, BakeSettings, IndirectSampling, LightGrouping};
 use relume_engine::brdf::principled::roughness_to_ns;
 use relume_engine::brdf::BlinnPhong;
 use relume_engine::geometry::lights::{AreaSampling, LightSet, WorldSampling};
 use relume_engine::geometry::sampling::mix64;
+use relume_engine::progress::Progress;
 use relume_engine::Rgb;
 
 use relume_engine::scene::{AreaShape, ImageRef, Light, Resolution, Scene, World};

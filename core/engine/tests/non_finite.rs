@@ -8,11 +8,11 @@ mod common;
 
 use std::sync::Arc;
 
-use relume_engine::bake::progress::Progress;
 use relume_engine::bake::to_file::bake_to_file;
 use relume_engine::bake::{BakeSettings, Denoise};
 use relume_engine::layer_key::{LayerKey, PathVertex};
 use relume_engine::options::Precision;
+use relume_engine::progress::Progress;
 use relume_engine::relight::CpuRelighter;
 use relume_engine::scene::{Light, Resolution, Scene};
 use relume_engine::stack::tiled::file::{read_tiled, write_tiled};

@@ -9,9 +9,10 @@ mod common;
 
 use std::sync::Arc;
 
-use relume_engine::bake::{bake, progress::Progress, BakeSettings};
+use relume_engine::bake::{bake, BakeSettings};
 use relume_engine::brdf::principled_basis::{PrincipledBasisConfig, QuadratureSize, TableSize};
 use relume_engine::brdf::{MaterialSpec, Principled, PrincipledMaterial};
+use relume_engine::progress::Progress;
 use relume_engine::relight::CpuRelighter;
 use relume_engine::scene::Scene;
 use relume_engine::stack::bases::StackBases;

@@ -2,10 +2,9 @@
 //! the noise estimate follows the true error.
 mod common;
 
-use relume_engine::bake::{
-    bake, bake_progressive, doubling_passes, progress::Progress, BakeSettings,
-};
+use relume_engine::bake::{bake, bake_progressive, doubling_passes, BakeSettings};
 use relume_engine::image_io::compare_rgb;
+use relume_engine::progress::Progress;
 use relume_engine::stack::TransferStack;
 
 fn relight(stack: &TransferStack, scene: &relume_engine::scene::Scene) -> Vec<f32> {

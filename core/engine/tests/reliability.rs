@@ -11,10 +11,10 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use common::*;
-use relume_engine::bake::progress::{Progress, Stage};
 use relume_engine::bake::to_file::bake_to_file;
 use relume_engine::bake::{bake, BakeSettings, Denoise};
 use relume_engine::brdf::{BasisConfig, BasisCount};
+use relume_engine::progress::{Progress, Stage};
 use relume_engine::stack::exr_file::{read_stack, write_stack};
 use relume_engine::stack::hostile::with_claimed_size;
 use relume_engine::RelumeError;

@@ -5,7 +5,7 @@ mod common;
 use std::sync::Arc;
 
 use common::synthetic_stack::*;
-use relume_engine::bake::signature::{LayerKey, PathVertex};
+use relume_engine::layer_key::{LayerKey, PathVertex};
 use relume_engine::relight::{layer_weight, CpuRelighter, FULL_RESUM_EVERY};
 use relume_engine::stack::{Layer, LayerSamples, Precision, TransferStack};
 use relume_engine::{RelumeError, Rgb};

@@ -16,11 +16,11 @@ use std::path::Path;
 use std::time::Instant;
 
 use relume_engine::bake::context::BakeContext;
-use relume_engine::bake::progress::Progress;
 use relume_engine::bake::reference::{render_with_context, ReferenceBrdf};
 use relume_engine::bake::{BakeSettings, IndirectSampling};
 use relume_engine::brdf::BlinnPhong;
 use relume_engine::geometry::lights::{AreaSampling, WorldSampling};
+use relume_engine::progress::Progress;
 use relume_engine::scene::file::load_scene;
 use relume_engine::scene::{Resolution, Scene};
 

@@ -3,7 +3,8 @@ mod common;
 
 use std::path::Path;
 
-use relume_engine::bake::{bake, progress::Progress, BakeSettings};
+use relume_engine::bake::{bake, BakeSettings};
+use relume_engine::progress::Progress;
 use relume_engine::scene::file::parse_scene;
 use relume_engine::scene::validate::validate_scene;
 use relume_engine::scene::{Light, Resolution, World};

@@ -5,7 +5,7 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use exr::prelude::{self as x, ReadChannels as _, ReadLayers as _, WritableImage as _};
-use relume_engine::bake::signature::{LayerKey, PathVertex};
+use relume_engine::layer_key::{LayerKey, PathVertex};
 use relume_engine::scene::{Camera, Light, Projection, SensorFit};
 use relume_engine::stack::exr_file::{
     check_scene_hash, read_stack, read_stack_header, write_stack,

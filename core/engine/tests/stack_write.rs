@@ -6,8 +6,9 @@ use std::path::Path;
 use std::time::Instant;
 
 use relume_engine::bake::presets::Preset;
-use relume_engine::bake::{bake_tiled, progress::Progress, BakeSettings};
+use relume_engine::bake::{bake_tiled, BakeSettings};
 use relume_engine::options::Precision;
+use relume_engine::progress::Progress;
 use relume_engine::scene::file::load_scene;
 use relume_engine::scene::Resolution;
 use relume_engine::stack::tiled::file::{

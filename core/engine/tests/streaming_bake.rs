@@ -10,10 +10,10 @@ use relume_engine::bake::partition::{bake_partition, merge_tiled, Partition};
 use relume_engine::bake::presets::Preset;
 use relume_engine::bake::to_file::bake_to_file;
 use relume_engine::bake::{
-    bake_progressive_tiled, bake_tiled, bake_tiled_banded, progress::Progress, BakeSettings,
-    Denoise,
+    bake_progressive_tiled, bake_tiled, bake_tiled_banded, BakeSettings, Denoise,
 };
 use relume_engine::options::Precision;
+use relume_engine::progress::Progress;
 use relume_engine::scene::{Resolution, Scene};
 use relume_engine::stack::tiled::{TileValues, TiledStack};
 use relume_engine::RelumeError;

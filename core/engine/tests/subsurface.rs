@@ -10,11 +10,11 @@ use std::sync::Arc;
 
 use common::*;
 use relume_engine::bake::context::BakeContext;
-use relume_engine::bake::progress::Progress;
 use relume_engine::bake::{bake, BakeSettings};
 use relume_engine::brdf::{MaterialSpec, Principled, PrincipledMaterial, Subsurface};
 use relume_engine::bssrdf::dipole::fresnel_transmittance;
 use relume_engine::geometry::sampling::SampleStream;
+use relume_engine::progress::Progress;
 use relume_engine::relight::CpuRelighter;
 use relume_engine::scene::{Light, Resolution, Scene, SubsurfaceSettings, World};
 use relume_engine::stack::bases::StackBases;

@@ -6,7 +6,8 @@ use std::path::Path;
 use std::sync::{Arc, OnceLock};
 
 use relume_engine::bake::presets::Preset;
-use relume_engine::bake::{bake, progress::Progress, BakeSettings};
+use relume_engine::bake::{bake, BakeSettings};
+use relume_engine::progress::Progress;
 use relume_engine::relight::tiled_sum::{full, incremental, layer_weights};
 use relume_engine::relight::{group_factors, CpuRelighter};
 use relume_engine::scene::file::load_scene;

@@ -18,11 +18,11 @@ use std::sync::Arc;
 
 use common::{bp, quad, region, sphere};
 use relume_engine::bake::presets::Preset;
-use relume_engine::bake::progress::Progress;
 use relume_engine::bake::to_file::bake_to_file;
 use relume_engine::bake::BakeSettings;
 use relume_engine::brdf::MaterialSpec;
 use relume_engine::options::Precision;
+use relume_engine::progress::Progress;
 use relume_engine::relight::CpuRelighter;
 use relume_engine::scene::{AreaShape, Light, Resolution, Scene};
 use relume_engine::stack::bases::StackBases;

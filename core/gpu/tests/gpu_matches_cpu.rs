@@ -79,8 +79,9 @@ fn incremental_edits_across_the_full_resum() {
 /// per-light groups. GPU and CPU agree within 1e-6, full and incremental.
 #[test]
 fn extremes_stacks_agree_full_and_incremental() {
-    use relume_engine::bake::{bake_tiled, progress::Progress, BakeSettings, LightGrouping};
+    use relume_engine::bake::{bake_tiled, BakeSettings, LightGrouping};
     use relume_engine::brdf::{BasisConfig, BasisCount};
+    use relume_engine::progress::Progress;
     use relume_engine::scene::{file::load_scene, Light, Resolution};
     let Some(adapter) = gpu_or_skip("extremes_stacks_agree_full_and_incremental") else {
         return;

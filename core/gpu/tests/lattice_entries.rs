@@ -10,8 +10,9 @@ mod common;
 use std::sync::Arc;
 
 use common::*;
+use relume_engine::bake::bake_tiled;
 use relume_engine::bake::presets::Preset;
-use relume_engine::bake::{bake_tiled, progress::Progress};
+use relume_engine::progress::Progress;
 use relume_engine::stack::tiled::lattice::nodes_along;
 use relume_engine::stack::tiled::validate::validate;
 use relume_engine::stack::tiled::{TileLattice, TileValues, TiledStack};

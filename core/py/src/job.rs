@@ -15,8 +15,8 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use relume_engine::bake::doubling_passes;
-use relume_engine::bake::progress::Progress;
 use relume_engine::bake::to_file::bake_to_file;
+use relume_engine::progress::Progress;
 use relume_engine::RelumeError;
 use serde_json::{json, Value};
 

@@ -16,8 +16,8 @@ use super::context::BakeContext;
 use super::farm_file;
 use super::guide::GuideField;
 use super::guide_tree::DirectionTree;
-use super::progress::Progress;
 use super::settings::{settings_fingerprint, BakeSettings};
+use crate::progress::Progress;
 use crate::scene::{hash::scene_hash, Scene};
 use crate::{RelumeError, Result};
 

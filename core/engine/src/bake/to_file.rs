@@ -12,8 +12,8 @@
 use std::path::Path;
 use std::time::Instant;
 
-use super::progress::Progress;
 use super::{bake_progressive_tiled, doubling_passes, BakeReport, BakeSettings, PassReport};
+use crate::progress::Progress;
 use crate::scene::Scene;
 use crate::stack::tiled::file::write_tiled_cancellable;
 use crate::stack::tiled::TiledStack;
@@ -63,7 +63,7 @@ pub fn bake_to_file(
     let (stack, report, passes) =
         bake_progressive_tiled(scene, settings, &counts, progress, |stack, _, pass| {
             let t = Instant::now();
-            progress.set_stage(super::progress::Stage::Writing);
+            progress.set_stage(crate::progress::Stage::Writing);
             file_bytes = write_tiled_cancellable(path, stack, progress)?;
             write_seconds = t.elapsed().as_secs_f64();
             stacks_written += 1;

@@ -11,7 +11,7 @@
 //! which keeps the drift below ≈ 64 · 6·10⁻⁸ ≈ 4·10⁻⁶ of the pixel's terms — a hundred times
 //! under the f16 quantisation of the layers themselves (2⁻¹¹ ≈ 4.9·10⁻⁴).
 
-use crate::bake::signature::LayerKey;
+use crate::layer_key::LayerKey;
 use crate::stack::tiled::TiledStack;
 use crate::stack::{StackHeader, TransferStack};
 use crate::{RelumeError, Result, Rgb};

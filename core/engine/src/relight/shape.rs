@@ -5,7 +5,7 @@
 //! the other refuses too, in the same words. (Sample finiteness is checked where each
 //! relighter reads the samples: its span scan on the CPU, its packing on the GPU.)
 
-use crate::bake::signature::LayerKey;
+use crate::layer_key::LayerKey;
 use crate::stack::tiled::TiledStack;
 use crate::stack::{StackHeader, TransferStack};
 use crate::{RelumeError, Result, Rgb};

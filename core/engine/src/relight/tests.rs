@@ -5,8 +5,8 @@ use std::sync::Arc;
 
 use super::kernels::Kernels;
 use super::*;
-use crate::bake::signature::{LayerKey, PathVertex};
 use crate::brdf::{BlinnPhong, MaterialSpec};
+use crate::layer_key::{LayerKey, PathVertex};
 use crate::stack::{
     Layer, Precision, RegionInfo, StackHeader, TransferStack, STACK_FORMAT_VERSION,
 };

@@ -3,13 +3,13 @@
 //! functions are the whole of the relight's arithmetic on weights; the CPU and the GPU
 //! relighters both use them (through [`super::RelightBookkeeping`]).
 
-use crate::bake::signature::LayerKey;
+use crate::layer_key::LayerKey;
 use crate::stack::{StackHeader, TransferStack};
 use crate::{RelumeError, Result, Rgb};
 
 /// The weight of a layer: the product of the coefficients along its path, per RGB channel.
-/// A [`crate::bake::signature::PathVertex::Fixed`] vertex contributes 1 (its BRDF was baked in), and the empty path
-/// (the world seen directly, layer `World`) has weight 1. A [`crate::bake::signature::PathVertex::Subsurface`] vertex
+/// A [`crate::layer_key::PathVertex::Fixed`] vertex contributes 1 (its BRDF was baked in), and the empty path
+/// (the world seen directly, layer `World`) has weight 1. A [`crate::layer_key::PathVertex::Subsurface`] vertex
 /// weighs like an editable one: its `basis` is the region's coefficient slot. The light group is not part of
 /// the weight (see [`group_factors`]).
 ///

@@ -1,7 +1,7 @@
 //! Synthetic transfer stacks for the relight tests: random layers, any mix of precision,
 //! channels and path signatures, built by hand (no bake involved).
 
-use relume_engine::bake::signature::{LayerKey, PathVertex};
+use relume_engine::layer_key::{LayerKey, PathVertex};
 use relume_engine::stack::{Layer, LayerSamples, Precision, StackHeader, TransferStack};
 use relume_engine::Rgb;
 

@@ -8,9 +8,10 @@ use std::path::Path;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 
-use relume_engine::bake::{bake, bake_tiled, progress::Progress, BakeSettings};
+use relume_engine::bake::{bake, bake_tiled, BakeSettings};
 use relume_engine::brdf::{BlinnPhong, MaterialSpec};
 use relume_engine::materials::{resolve_materials, MaterialsFile};
+use relume_engine::progress::Progress;
 use relume_engine::scene::{file::load_scene, Resolution};
 use relume_engine::stack::tiled::TiledStack;
 use relume_engine::stack::{bases::StackBases, Precision, StackHeader, TransferStack};
