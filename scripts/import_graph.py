@@ -10,7 +10,8 @@ Prints who imports whom, at the granularity of top-level folders and of files, a
   ../shared/STACK_NOTES.md): the design is docs/design.md.
 
 Rust: a file is a module (`x.rs` or `x/mod.rs`); an import is a `use` of `crate::`,
-`super::`, `self::` or a child module, or a `crate::a::b` path written in the code. A path to
+`super::`, `self::` or a child module, or a `crate::a::b` path written in the code (not the
+path of a visibility, `pub(in crate::a)`). A path to
 a name that a module only re-exports (`pub use`) leads to the file that defines it. Comments
 and string literals are ignored (doc links are not imports).
 
@@ -288,6 +289,8 @@ def inline_modules(code: str) -> list[tuple[int, int, str]]:
 
 PATH_RE = re.compile(r"(?<![A-Za-z0-9_:])((?:crate|super|self|[a-z_][a-z0-9_]*)(?:::[A-Za-z_][A-Za-z0-9_]*)+)")
 USE_RE = re.compile(r"\b(pub(?:\([^)]*\))?\s+)?use\s+([^;]+);")
+# A visibility restricted to a path (`pub(in crate::bake)`) names a module but imports nothing.
+VIS_IN_RE = re.compile(r"\bpub\s*\(\s*in\s+[^)]*\)")
 DEF_RE = re.compile(r"\b(?:struct|enum|fn|const|static|type|trait|union|mod|macro_rules!)\s+([A-Za-z_][A-Za-z0-9_]*)")
 
 
@@ -378,7 +381,7 @@ class RustCrate:
             for absolute, _, _ in self.uses[key]:
                 targets.add(self.resolve([p for p in absolute if p != "*"]))
             # Paths in the code: crate::…, super::…, self::…, child::….
-            use_spans = list(USE_RE.finditer(code))
+            use_spans = list(USE_RE.finditer(code)) + list(VIS_IN_RE.finditer(code))
             for m in PATH_RE.finditer(code):
                 if any(u.start() <= m.start() < u.end() for u in use_spans):
                     continue
