@@ -1,5 +1,6 @@
 //! `relume bench bake SCENE` and `relume bench relight STACK.exr`: figures, as JSON.
 
+mod bake;
 mod gpu_relight;
 
 use std::path::PathBuf;
@@ -7,7 +8,6 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use clap::Subcommand;
-use relume_engine::bake::bench::bench_bake;
 use relume_engine::materials::{resolve_materials, MaterialsFile};
 use relume_engine::relight::{bandwidth::measure_read_bandwidth, CpuRelighter};
 use relume_engine::scene::file::load_scene;
@@ -20,6 +20,7 @@ use relume_gpu::{DeviceKind, GpuOptions, Relighter};
 use serde_json::json;
 
 use super::relight::{device_error, Device};
+use bake::bench_bake;
 
 use crate::options::BakeOptions;
 

@@ -13,7 +13,6 @@
 
 pub mod assemble;
 pub mod band;
-pub mod bench;
 pub mod blocks;
 pub mod bounce_budget;
 pub mod bounces;

@@ -11,15 +11,15 @@ use rayon::prelude::*;
 use serde::Serialize;
 use std::time::Instant;
 
-use crate::bake::context::BakeContext;
-use crate::bake::integrator::{trace_eye_sample, PathSink, Tracer};
-use crate::bake::settings::BakeSettings;
-use crate::bake::tiles::tiles;
-use crate::bake::vertex_brdf::BasisBrdf;
-use crate::geometry::bvh::SurfaceHit;
-use crate::progress::Progress;
-use crate::scene::Scene;
-use crate::{Result, Rgb};
+use relume_engine::bake::context::BakeContext;
+use relume_engine::bake::integrator::{trace_eye_sample, PathSink, Tracer};
+use relume_engine::bake::settings::BakeSettings;
+use relume_engine::bake::tiles::tiles;
+use relume_engine::bake::vertex_brdf::BasisBrdf;
+use relume_engine::geometry::bvh::SurfaceHit;
+use relume_engine::progress::Progress;
+use relume_engine::scene::Scene;
+use relume_engine::{Result, Rgb};
 
 /// Figures of one bench run.
 #[derive(Clone, Debug, Serialize)]
@@ -95,7 +95,7 @@ impl PathSink for NullSink {
 /// Runs the bench.
 pub fn bench_bake(scene: &Scene, settings: &BakeSettings) -> Result<BakeBench> {
     let progress = Progress::new();
-    let (stack, report) = crate::bake::bake(scene, settings, &progress)?;
+    let (stack, report) = relume_engine::bake::bake(scene, settings, &progress)?;
     let (ctx, _) = BakeContext::new(scene, settings)?;
     let brdf = BasisBrdf { ctx: &ctx };
     let mut tracer = RecordingTracer { rays: Vec::new() };
@@ -120,7 +120,7 @@ pub fn bench_bake(scene: &Scene, settings: &BakeSettings) -> Result<BakeBench> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(settings.threads)
         .build()
-        .map_err(|e| crate::RelumeError::invalid("threads", e.to_string()))?;
+        .map_err(|e| relume_engine::RelumeError::invalid("threads", e.to_string()))?;
     let threads = pool.current_num_threads();
     let geometry = &ctx.geometry;
     let t0 = Instant::now();
