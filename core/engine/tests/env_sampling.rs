@@ -6,7 +6,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use glam::Vec3;
-use relume_engine::bake::context::BakeContext;
+use relume_engine::bake::prepare::context::BakeContext;
 use relume_engine::bake::reference::{render_with_context, ReferenceBrdf};
 use relume_engine::bake::{BakeSettings, LightGrouping};
 use relume_engine::brdf::BlinnPhong;

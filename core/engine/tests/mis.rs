@@ -15,7 +15,7 @@
 //! `cargo test -p relume-engine --test mis -- --nocapture` prints the figures.
 mod common;
 
-use relume_engine::bake::context::BakeContext;
+use relume_engine::bake::prepare::context::BakeContext;
 use relume_engine::bake::reference::{render_with_context, ReferenceBrdf};
 use relume_engine::bake::{bake, BakeSettings, IndirectSampling, LightGrouping};
 use relume_engine::brdf::principled::roughness_to_ns;

@@ -161,7 +161,7 @@ fn roughness_below_the_principled_range_is_reported_and_blinn_phong_values_refus
 fn regions_the_principled_basis_cannot_take_keep_blinn_phong_with_a_warning() {
     let scene = common::furnace(common::bp(0.5, 0.3, 40.0), true, SIZE);
     let (ctx, report) =
-        relume_engine::bake::context::BakeContext::new(&scene, &settings()).unwrap();
+        relume_engine::bake::prepare::context::BakeContext::new(&scene, &settings()).unwrap();
     assert!(matches!(
         ctx.editable_bases()[0],
         relume_engine::brdf::RegionBasis::BlinnPhong(_)

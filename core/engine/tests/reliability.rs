@@ -139,9 +139,13 @@ fn the_translucent_header_round_trips_for_every_sample_count() {
     let mut failures = Vec::new();
     for samples in 1_000..=4_194_304u32 {
         settings.subsurface_samples = samples;
-        let (cfg, _) =
-            relume_engine::bake::subsurface::basis_config(&scene, 1, &scene.regions[1], &settings)
-                .unwrap();
+        let (cfg, _) = relume_engine::bake::prepare::subsurface::basis_config(
+            &scene,
+            1,
+            &scene.regions[1],
+            &settings,
+        )
+        .unwrap();
         let json = serde_json::to_string(&cfg).unwrap();
         let back: relume_engine::bssrdf::basis::SssBasisConfig =
             serde_json::from_str(&json).unwrap();

@@ -15,7 +15,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use relume_engine::bake::context::BakeContext;
+use relume_engine::bake::prepare::context::BakeContext;
 use relume_engine::bake::reference::{render_with_context, ReferenceBrdf};
 use relume_engine::bake::{BakeSettings, IndirectSampling};
 use relume_engine::brdf::BlinnPhong;

@@ -9,7 +9,7 @@ mod common;
 use std::sync::Arc;
 
 use common::*;
-use relume_engine::bake::context::BakeContext;
+use relume_engine::bake::prepare::context::BakeContext;
 use relume_engine::bake::{bake, BakeSettings};
 use relume_engine::brdf::{MaterialSpec, Principled, PrincipledMaterial, Subsurface};
 use relume_engine::bssrdf::dipole::fresnel_transmittance;

@@ -323,7 +323,7 @@ pub fn estimate_bake<'py>(
         let passes = settings.passes as usize;
         let estimate = py
             .detach(|| {
-                relume_engine::bake::estimate::estimate_bake(
+                relume_engine::bake::prepare::estimate::estimate_bake(
                     &scene,
                     &engine_settings,
                     passes,

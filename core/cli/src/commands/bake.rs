@@ -56,7 +56,7 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
         let passes = args.passes as usize;
         // Under the same Ctrl-C handler as a bake: the forecast stops within an eye sample.
         let estimate = with_progress("estimating", move |p| {
-            relume_engine::bake::estimate::estimate_bake(&scene, &settings, passes, &p)
+            relume_engine::bake::prepare::estimate::estimate_bake(&scene, &settings, passes, &p)
         })?;
         super::print_json(&json!({
             "command": "bake --estimate-only",

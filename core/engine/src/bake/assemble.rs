@@ -6,7 +6,6 @@ use rayon::prelude::*;
 use std::sync::Mutex;
 use std::time::Instant;
 
-use super::context::{basis_config_for, BakeContext, RegionModel};
 use super::denoise::EyeFeatures;
 use super::drop::RawLayer;
 use super::finalise::{
@@ -14,6 +13,7 @@ use super::finalise::{
     StackTally,
 };
 use super::layout::layer_key;
+use super::prepare::context::{basis_config_for, BakeContext, RegionModel};
 use super::report::BakeReport;
 use super::settings::BakeSettings;
 use crate::brdf::RegionBasis;

@@ -1,6 +1,6 @@
 //! How the streaming bake ([`super::stream`]) walks the frame: the tile rows its denoiser
 //! reads around the row it finalises, and how many rows it traces at once. Shared with the
-//! memory forecast ([`super::estimate`]).
+//! memory forecast ([`super::prepare::estimate`]).
 
 use super::denoise::footprint_radius;
 use super::settings::Denoise;

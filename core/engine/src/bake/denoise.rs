@@ -21,8 +21,8 @@ use std::ops::Range;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::bake::context::BakeContext;
 use crate::bake::drop::RawLayer;
+use crate::bake::prepare::context::BakeContext;
 
 /// Floats per pixel of the records gathered while tracing: see [`EyeFeatures::EMPTY`].
 pub const FEATURE_STRIDE: usize = 9;

@@ -14,7 +14,7 @@
 
 use serde::Serialize;
 
-use crate::bake::context::{BakeContext, RegionModel};
+use crate::bake::prepare::context::{BakeContext, RegionModel};
 use crate::brdf::RegionBasis;
 use crate::bssrdf::region_slot_coefficients;
 use crate::layer_key::{LayerKey, PathVertex};

@@ -17,10 +17,10 @@
 //! statistics above — the drop decisions' norms and the bake-time image — are taken from
 //! the uncompressed values, so dropping does not depend on the compression.
 
-use crate::bake::context::BakeContext;
 use crate::bake::denoise::EyeFeatures;
 use crate::bake::drop::{self, DropReport, LayerNorm};
 use crate::bake::non_finite::{zero_non_finite, NonFiniteReport};
+use crate::bake::prepare::context::BakeContext;
 use crate::bake::settings::BounceCompression;
 use crate::layer_key::LayerKey;
 use crate::layer_key::PathVertex;

@@ -6,7 +6,7 @@
 use glam::{Vec2, Vec3};
 use std::f32::consts::FRAC_1_PI;
 
-use crate::bake::context::{BakeContext, PreparedRegion};
+use crate::bake::prepare::context::{BakeContext, PreparedRegion};
 use crate::brdf::{blinn_phong::lobe, BlinnPhong};
 use crate::Rgb;
 

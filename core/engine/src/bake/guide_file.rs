@@ -12,10 +12,10 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use super::context::BakeContext;
 use super::farm_file;
 use super::guide::GuideField;
 use super::guide_tree::DirectionTree;
+use super::prepare::context::BakeContext;
 use super::settings::{settings_fingerprint, BakeSettings};
 use crate::progress::Progress;
 use crate::scene::{hash::scene_hash, Scene};

@@ -44,13 +44,13 @@
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
 
-use crate::bake::context::BakeContext;
 use crate::bake::guide::GUIDE_WEIGHT;
 use crate::bake::guide_tree::DirectionTree;
 use crate::bake::mis::{
     emission_along, indirect_pdf, power_heuristic, traces_bsdf_ray, BsdfStrategy,
 };
 use crate::bake::mixture::DirectionMixture;
+use crate::bake::prepare::context::BakeContext;
 use crate::geometry::bvh::SurfaceHit;
 use crate::geometry::sampling::{cosine_hemisphere, to_world, uniform_hemisphere, SampleStream};
 use crate::options::{IndirectSampling, MAX_BASES, MAX_GROUPS};
@@ -314,7 +314,13 @@ fn trace_path<B: VertexBrdf, S: PathSink, T: Tracer>(
             let k_count = t.basis.count();
             let mut acc = [Rgb::ZERO; MAX_GROUPS * crate::bssrdf::MAX_SSS_BASES];
             let acc = &mut acc[..groups * k_count];
-            crate::bake::subsurface::gather_at(t, hit.position, hit.shading_normal, wo, acc);
+            crate::bake::prepare::subsurface::gather_at(
+                t,
+                hit.position,
+                hit.shading_normal,
+                wo,
+                acc,
+            );
             for g in 0..groups {
                 for (k, v) in acc[g * k_count..(g + 1) * k_count].iter().enumerate() {
                     if *v != Rgb::ZERO {

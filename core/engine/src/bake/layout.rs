@@ -1,7 +1,7 @@
 //! Where each path signature sits among a bake's dense layer indices, and back: the one
 //! index arithmetic that the bake's tiles, the memory probe and the assembly share.
 
-use crate::bake::context::BakeContext;
+use crate::bake::prepare::context::BakeContext;
 use crate::layer_key::LayerKey;
 use crate::options::LightGrouping;
 

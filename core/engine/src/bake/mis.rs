@@ -38,10 +38,10 @@
 use glam::Vec3;
 use std::f32::consts::PI;
 
-use crate::bake::context::BakeContext;
 use crate::bake::guide::GUIDE_WEIGHT;
 use crate::bake::guide_tree::DirectionTree;
 use crate::bake::mixture::DirectionMixture;
+use crate::bake::prepare::context::BakeContext;
 use crate::geometry::bvh::SurfaceHit;
 use crate::geometry::lights::bsdf_hits::RayEnd;
 use crate::options::IndirectSampling;

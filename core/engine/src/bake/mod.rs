@@ -14,19 +14,14 @@
 pub mod assemble;
 pub mod band;
 pub mod blocks;
-pub mod bounce_budget;
-pub mod bounces;
-pub mod context;
 pub mod denoise;
 pub mod denoise_sparse;
 pub mod drop;
-pub mod estimate;
 pub mod farm_file;
 pub mod finalise;
 pub mod frozen;
 pub mod guide;
 pub mod guide_file;
-pub mod guide_pass;
 pub mod guide_tree;
 pub mod integrator;
 pub mod layout;
@@ -35,14 +30,12 @@ pub mod mixture;
 pub mod non_finite;
 pub mod partial;
 pub mod partition;
+pub mod prepare;
 pub mod presets;
 pub mod reference;
 pub mod report;
 pub mod settings;
-pub mod setup;
 pub mod stream;
-pub mod subsurface;
-pub mod subsurface_light;
 pub mod surface_brdf;
 pub mod tiles;
 pub mod to_file;
@@ -166,10 +159,11 @@ fn run_passes(
     progress.set_stage(Stage::Setup);
     let mut settings = settings.clone();
     settings.spp = *passes.last().unwrap_or(&1);
-    let (mut ctx, validation, prepared) = estimate::prepare_measured(scene, &settings, progress)?;
+    let (mut ctx, validation, prepared) =
+        prepare::estimate::prepare_measured(scene, &settings, progress)?;
     // The forecast and the budget come before the guide pass and the trace, so a bake that
     // cannot fit is refused in a second, not after minutes of tracing.
-    let forecast = estimate::estimate(&mut ctx, scene, passes.len(), prepared, progress)?;
+    let forecast = prepare::estimate::estimate(&mut ctx, scene, passes.len(), prepared, progress)?;
     crate::memory::check_budget(
         &format!(
             "this bake ({}×{}, {} of {} possible layers reached by a probe; stack ≈ {})",

@@ -16,10 +16,10 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use super::blocks::BlockStore;
-use super::context::BakeContext;
 use super::guide_file::GuideFile;
+use super::prepare::context::BakeContext;
 use super::settings::{BakeSettings, IndirectSampling};
-use super::{assemble, denoise, estimate, tiles, trace_range, BakeReport};
+use super::{assemble, denoise, prepare::estimate, tiles, trace_range, BakeReport};
 use crate::bake::partial::{BlockInfo, PartialHeader, PartialStack, PARTIAL_FORMAT_VERSION};
 use crate::progress::{Progress, Stage};
 use crate::scene::{hash::scene_hash, Scene};

@@ -55,7 +55,7 @@ pub struct PresetValues {
     pub denoise: Denoise,
     /// Share of the image's light the bounces past the baked count may leave out: the bake
     /// measures what each bounce adds and bakes as many as that needs, up to the caller's
-    /// `bounces` ([`crate::bake::bounces`]).
+    /// `bounces` ([`crate::bake::prepare::bounces`]).
     pub bounce_budget: f32,
     /// Lattice compression of the bounce layers: an approximation whose error the bake
     /// measures and reports.

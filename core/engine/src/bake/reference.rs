@@ -5,8 +5,8 @@
 
 use std::sync::Mutex;
 
-use crate::bake::context::BakeContext;
 use crate::bake::integrator::{trace_eye_sample, CountingTracer, PathSink};
+use crate::bake::prepare::context::BakeContext;
 use crate::bake::settings::BakeSettings;
 use crate::bake::tiles::{run_tiles, tiles};
 use crate::bake::vertex_brdf::MaterialBrdf;

@@ -3,7 +3,11 @@
 
 use serde::Serialize;
 
-use super::{bounce_budget, drop, estimate, NonFiniteReport};
+use super::{
+    drop,
+    prepare::{bounce_budget, estimate},
+    NonFiniteReport,
+};
 
 /// What a bake did, for the command line's JSON and the add-on's status.
 #[derive(Clone, Debug, Serialize)]

@@ -20,7 +20,7 @@ pub struct BakeSettings {
     /// indirect bounce (the paper, exact under edits), n > 1 adds bounces 2..n as a "frozen
     /// tail" traced with the bake-time materials and folded into the one-bounce layers
     /// ([`crate::bake::integrator`]). With `bounce_budget > 0` this is the cap, and the bake
-    /// measures how many the scene needs ([`crate::bake::bounces`]). At most [`MAX_BOUNCES`].
+    /// measures how many the scene needs ([`crate::bake::prepare::bounces`]). At most [`MAX_BOUNCES`].
     pub bounces: u32,
     /// Relative share of the image's light that bounces beyond the chosen count may leave
     /// out (e.g. 0.005); 0 bakes exactly `bounces`. The presets set it.
@@ -63,7 +63,7 @@ pub struct BakeSettings {
     pub denoise: Denoise,
     /// Bytes the bake may plan to use at its peak; `None`: a share of the machine's
     /// available memory ([`crate::memory::budget_bytes`]). A bake whose estimate
-    /// ([`crate::bake::estimate`]) exceeds it is refused before tracing.
+    /// ([`crate::bake::prepare::estimate`]) exceeds it is refused before tracing.
     #[serde(default)]
     pub memory_budget: Option<u64>,
     /// How the bounce layers are stored: per pixel, or where it stays within its tolerance

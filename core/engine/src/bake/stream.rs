@@ -21,13 +21,13 @@ use std::time::Instant;
 
 use super::assemble::stack_header;
 use super::band::apron_rows;
-use super::context::BakeContext;
 use super::denoise::{footprint_radius, EyeFeatures, FEATURE_STRIDE};
 use super::denoise_sparse::{SparseScratch, SparseTiles};
 use super::finalise::{
     builder_for, finalise_tile, finish_stack, layer_weights, tile_surfaces, Finished, LatticePlan,
     LayerFacts, StackTally, TileInput, TileTally,
 };
+use super::prepare::context::BakeContext;
 use super::settings::BakeSettings;
 use super::tiles::{self, TILE};
 use super::traced_tile::{trace_sparse, TracedLayer, TracedTile};

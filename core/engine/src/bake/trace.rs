@@ -5,10 +5,10 @@
 use std::sync::Mutex;
 
 use super::blocks;
-use super::context::BakeContext;
 use super::denoise;
 use super::integrator::{trace_eye_sample, CountingTracer, PathSink};
 use super::layout::DenseLayout;
+use super::prepare::context::BakeContext;
 use super::tiles;
 use super::vertex_brdf::BasisBrdf;
 use crate::progress::Progress;

@@ -5,8 +5,8 @@
 //! each pixel, which equals the other two) in a third of the bytes; the tiles in flight
 //! are most of the bake's memory besides the stack.
 
-use super::context::BakeContext;
 use super::denoise::FEATURE_STRIDE;
+use super::prepare::context::BakeContext;
 use super::tiles::Tile;
 use super::trace::trace_tile_records;
 use super::vertex_brdf::BasisBrdf;

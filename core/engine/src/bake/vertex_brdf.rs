@@ -3,10 +3,10 @@
 
 use glam::{Vec2, Vec3};
 
-use crate::bake::context::{BakeContext, RegionModel};
 use crate::bake::frozen::{albedo_at, cos_half_angle};
 pub use crate::bake::frozen::{blinn_phong_value, frozen_value};
 use crate::bake::integrator::VertexBrdf;
+use crate::bake::prepare::context::{BakeContext, RegionModel};
 use crate::brdf::{BlinnPhong, RegionBasis};
 use crate::options::MAX_BASES;
 use crate::{RelumeError, Result, Rgb};

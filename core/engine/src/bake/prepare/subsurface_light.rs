@@ -5,8 +5,8 @@
 
 use rayon::prelude::*;
 
-use crate::bake::context::BakeContext;
-use crate::bake::subsurface::TranslucentRegion;
+use crate::bake::prepare::context::BakeContext;
+use crate::bake::prepare::subsurface::TranslucentRegion;
 use crate::bssrdf::dipole::fresnel_transmittance;
 use crate::bssrdf::samples::sample_region;
 use crate::bssrdf::tree::ScatterTree;

@@ -2,7 +2,7 @@
 //! will reach (found by a small probe trace), the bytes of its accumulators at their peak,
 //! and the size of the stack it will write.
 //!
-//! A one-pass bake streams ([`super::stream`]): its memory is the tiled stack it builds
+//! A one-pass bake streams ([`crate::bake::stream`]): its memory is the tiled stack it builds
 //! (per 16×16 tile only the layers non-zero there) plus the tile rows in flight, so the
 //! forecast needs how many (tile, layer) pairs are non-zero: the probe counts them in the
 //! tiles it visits, and since a few probe pixels per tile miss layers there, it also
@@ -33,8 +33,8 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::context::BakeContext;
-use super::integrator::{trace_eye_sample, CountingTracer, PathSink};
-use super::vertex_brdf::BasisBrdf;
+use crate::bake::integrator::{trace_eye_sample, CountingTracer, PathSink};
+use crate::bake::vertex_brdf::BasisBrdf;
 use crate::options::Precision;
 use crate::progress::Progress;
 use crate::scene::{validate::ValidationReport, Scene};
@@ -141,7 +141,7 @@ struct ProbeSink<'a> {
     /// Layers reached by the pixel's samples (with repeats; sorted and deduplicated after).
     reached: &'a mut Vec<u32>,
     rgb: &'a mut HashSet<u32>,
-    layout: super::layout::DenseLayout,
+    layout: crate::bake::layout::DenseLayout,
     /// The eye regions the pixel's samples hit (the last entry: a sample that hit none).
     eye_regions: &'a mut Vec<u32>,
     /// Whether the current sample hit a region.
@@ -222,19 +222,21 @@ struct StreamingCosts {
 /// geometry; writing holds the stack and the file's encoded copy.
 fn streaming_peak(ctx: &BakeContext, c: &StreamingCosts) -> (u64, u64) {
     let res = ctx.resolution;
-    let tile_px = (super::tiles::TILE * super::tiles::TILE) as u64;
+    let tile_px = (crate::bake::tiles::TILE * crate::bake::tiles::TILE) as u64;
     let grey = c.entries - c.entries_rgb.min(c.entries);
     let stack = tile_px * (grey + 3 * c.entries_rgb) * c.sample;
-    let tiles_x = super::super::stack::tiled::tiles_along(res.width) as u64;
-    let tiles_y = super::super::stack::tiled::tiles_along(res.height).max(1) as u64;
-    let apron = super::band::apron_rows(&ctx.settings.denoise) as u64;
-    let band = super::band::default_band_rows(res.width, c.threads as usize, apron as usize) as u64;
+    let tiles_x = crate::stack::tiled::tiles_along(res.width) as u64;
+    let tiles_y = crate::stack::tiled::tiles_along(res.height).max(1) as u64;
+    let apron = crate::bake::band::apron_rows(&ctx.settings.denoise) as u64;
+    let band =
+        crate::bake::band::default_band_rows(res.width, c.threads as usize, apron as usize) as u64;
     let rows_held = (band + 2 * apron + 1).min(tiles_y);
     // f32 values per tile: a pixel's grey entry holds one, a coloured one three.
     let values_per_tile = (grey + 3 * c.entries_rgb).div_ceil(c.tiles.max(1)) * tile_px;
-    let per_tile_traced = values_per_tile * 4 + tile_px * super::denoise::FEATURE_STRIDE as u64 * 4;
+    let per_tile_traced =
+        values_per_tile * 4 + tile_px * crate::bake::denoise::FEATURE_STRIDE as u64 * 4;
     let traced = rows_held * tiles_x * per_tile_traced;
-    let window_px = res.width as u64 * ((2 * apron + band) * super::tiles::TILE as u64);
+    let window_px = res.width as u64 * ((2 * apron + band) * crate::bake::tiles::TILE as u64);
     let window = if apron > 0 {
         // Each worker's two scratch windows, the weights of every filter step, the
         // window's features (and their records while built).
@@ -438,7 +440,7 @@ fn probe(ctx: &BakeContext, progress: &Progress) -> crate::Result<ProbeFindings>
     let res = ctx.resolution;
     let pixels = res.width as u64 * res.height as u64;
     let brdf = BasisBrdf { ctx };
-    let layout = super::layout::DenseLayout::of(ctx);
+    let layout = crate::bake::layout::DenseLayout::of(ctx);
     let no_region = ctx.regions.len() as u32;
     let spent = AtomicU64::new(0);
     let rays_per_sample = {
@@ -473,7 +475,7 @@ fn probe(ctx: &BakeContext, progress: &Progress) -> crate::Result<ProbeFindings>
     let stride = probe_stride(pixels, rays_per_sample);
     // Offset by half a stride so the grid samples the frame's inside, not its edge.
     let rows: Vec<u32> = (stride / 2..res.height).step_by(stride as usize).collect();
-    let tile = super::tiles::TILE;
+    let tile = crate::bake::tiles::TILE;
     let per_row: Vec<crate::Result<ProbeRow>> = rows
         .par_iter()
         .map(|&y| {
@@ -592,7 +594,7 @@ fn forecast(
     }
     let (region_pairs, region_pairs_rgb) = region_model_pairs(&tile_regions, &region_layers, &rgb);
     let (pairs, pairs_rgb) = (pairs.max(region_pairs), pairs_rgb.max(region_pairs_rgb));
-    let tile = super::tiles::TILE;
+    let tile = crate::bake::tiles::TILE;
     let all_tiles = res.width.div_ceil(tile) as u64 * res.height.div_ceil(tile) as u64;
     let visited = tile_sets.len().max(1) as u64;
     let tile_entries = (pairs * all_tiles).div_ceil(visited);
@@ -613,8 +615,8 @@ fn forecast(
     let px = pixels;
     let reached_u = layers_reached as u64;
     let accumulator_bytes = px.saturating_mul(reached_u).saturating_mul(12);
-    let features = px * super::denoise::FEATURE_STRIDE as u64 * 4;
-    let tile_px = (super::tiles::TILE * super::tiles::TILE) as u64;
+    let features = px * crate::bake::denoise::FEATURE_STRIDE as u64 * 4;
+    let tile_px = (crate::bake::tiles::TILE * crate::bake::tiles::TILE) as u64;
     let tile_buffers = threads * layers as u64 * tile_px * 12;
     let geometry =
         (scene.triangle_count() as u64 * BYTES_PER_TRIANGLE).max(prepared_bytes.unwrap_or(0));

@@ -9,8 +9,8 @@ use std::sync::Arc;
 
 use crate::bake::guide::GuideField;
 use crate::bake::mixture::DirectionMixture;
+use crate::bake::prepare::subsurface::{self, TranslucentRegion};
 use crate::bake::settings::BakeSettings;
-use crate::bake::subsurface::{self, TranslucentRegion};
 use crate::bake::surface_brdf::SurfaceBrdf;
 use crate::brdf::principled_basis::PrincipledBasis;
 use crate::brdf::{BasisConfig, BrdfBasis, MaterialSpec, RegionBasis};
@@ -70,8 +70,8 @@ pub struct BakeContext {
     /// eye-diffuse slot when translucent, its first slot otherwise.
     pub eye_diffuse_slot: Vec<u32>,
     /// What the bounce pre-pass measured when the settings asked for the bounce count the
-    /// scene needs ([`crate::bake::bounces`]); `None` when the count was taken as given.
-    pub bounce_estimate: Option<crate::bake::bounce_budget::BounceEstimate>,
+    /// scene needs ([`crate::bake::prepare::bounces`]); `None` when the count was taken as given.
+    pub bounce_estimate: Option<crate::bake::prepare::bounce_budget::BounceEstimate>,
     /// What the bake's threads kept finite so far ([`crate::bake::non_finite`]).
     pub non_finite: crate::bake::non_finite::NonFiniteCounter,
 }

@@ -14,11 +14,11 @@
 
 use rayon::prelude::*;
 
-use crate::bake::bounce_budget::{choose, BounceEstimate};
-use crate::bake::context::BakeContext;
 use crate::bake::frozen::frozen_value;
 use crate::bake::integrator::Tracer;
 use crate::bake::integrator::{continuation, direct_light, CountingTracer};
+use crate::bake::prepare::bounce_budget::{choose, BounceEstimate};
+use crate::bake::prepare::context::BakeContext;
 use crate::bake::vertex_brdf::BasisBrdf;
 use crate::geometry::sampling::SampleStream;
 use crate::options::{MAX_BASES, MAX_GROUPS};
