@@ -1,4 +1,4 @@
-//! Bounces beyond the first (the "frozen tail", `bake::integrator`): physics and the
+//! Bounces beyond the first (the "frozen tail", `bake::path::integrator`): physics and the
 //! approximation's measured error under material edits.
 //!
 //! Inside a closed diffuse sphere the light of every bounce after the first is uniform

@@ -13,8 +13,8 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use super::farm_file;
-use super::guide::GuideField;
-use super::guide_tree::DirectionTree;
+use super::path::guide::GuideField;
+use super::path::guide_tree::DirectionTree;
 use super::prepare::context::BakeContext;
 use super::settings::{settings_fingerprint, BakeSettings};
 use crate::progress::Progress;

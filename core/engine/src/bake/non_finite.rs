@@ -16,7 +16,7 @@ pub struct NonFiniteCounter {
 }
 
 impl NonFiniteCounter {
-    /// Adds path contributions discarded by [`super::integrator::trace_eye_sample`].
+    /// Adds path contributions discarded by [`super::path::integrator::trace_eye_sample`].
     pub fn add_path_contributions(&self, n: u64) {
         if n > 0 {
             self.path_contributions.fetch_add(n, Ordering::Relaxed);

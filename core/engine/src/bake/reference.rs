@@ -5,11 +5,11 @@
 
 use std::sync::Mutex;
 
-use crate::bake::integrator::{trace_eye_sample, CountingTracer, PathSink};
+use crate::bake::path::integrator::{trace_eye_sample, CountingTracer, PathSink};
+use crate::bake::path::vertex_brdf::MaterialBrdf;
 use crate::bake::prepare::context::BakeContext;
 use crate::bake::settings::BakeSettings;
 use crate::bake::tiles::{run_tiles, tiles};
-use crate::bake::vertex_brdf::MaterialBrdf;
 use crate::brdf::BlinnPhong;
 use crate::progress::Progress;
 use crate::scene::Scene;

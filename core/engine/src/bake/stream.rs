@@ -27,11 +27,11 @@ use super::finalise::{
     builder_for, finalise_tile, finish_stack, layer_weights, tile_surfaces, Finished, LatticePlan,
     LayerFacts, StackTally, TileInput, TileTally,
 };
+use super::path::vertex_brdf::BasisBrdf;
 use super::prepare::context::BakeContext;
 use super::settings::BakeSettings;
 use super::tiles::{self, TILE};
 use super::traced_tile::{trace_sparse, TracedLayer, TracedTile};
-use super::vertex_brdf::BasisBrdf;
 use crate::progress::{Progress, Stage};
 use crate::scene::Scene;
 use crate::stack::tiled::{tiles_along, TileRect, TiledStackBuilder};

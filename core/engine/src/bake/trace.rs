@@ -6,11 +6,11 @@ use std::sync::Mutex;
 
 use super::blocks;
 use super::denoise;
-use super::integrator::{trace_eye_sample, CountingTracer, PathSink};
 use super::layout::DenseLayout;
+use super::path::integrator::{trace_eye_sample, CountingTracer, PathSink};
+use super::path::vertex_brdf::BasisBrdf;
 use super::prepare::context::BakeContext;
 use super::tiles;
-use super::vertex_brdf::BasisBrdf;
 use crate::progress::Progress;
 use crate::{Result, Rgb};
 

@@ -6,10 +6,10 @@
 //! are most of the bake's memory besides the stack.
 
 use super::denoise::FEATURE_STRIDE;
+use super::path::vertex_brdf::BasisBrdf;
 use super::prepare::context::BakeContext;
 use super::tiles::Tile;
 use super::trace::trace_tile_records;
-use super::vertex_brdf::BasisBrdf;
 use crate::progress::Progress;
 use crate::stack::tiled::TileRect;
 use crate::{RelumeError, Result};

@@ -11,11 +11,11 @@ use rayon::prelude::*;
 use serde::Serialize;
 use std::time::Instant;
 
-use relume_engine::bake::integrator::{trace_eye_sample, PathSink, Tracer};
+use relume_engine::bake::path::integrator::{trace_eye_sample, PathSink, Tracer};
+use relume_engine::bake::path::vertex_brdf::BasisBrdf;
 use relume_engine::bake::prepare::context::BakeContext;
 use relume_engine::bake::settings::BakeSettings;
 use relume_engine::bake::tiles::tiles;
-use relume_engine::bake::vertex_brdf::BasisBrdf;
 use relume_engine::geometry::bvh::SurfaceHit;
 use relume_engine::progress::Progress;
 use relume_engine::scene::Scene;

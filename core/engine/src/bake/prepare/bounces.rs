@@ -14,12 +14,12 @@
 
 use rayon::prelude::*;
 
-use crate::bake::frozen::frozen_value;
-use crate::bake::integrator::Tracer;
-use crate::bake::integrator::{continuation, direct_light, CountingTracer};
+use crate::bake::path::frozen::frozen_value;
+use crate::bake::path::integrator::Tracer;
+use crate::bake::path::integrator::{continuation, direct_light, CountingTracer};
+use crate::bake::path::vertex_brdf::BasisBrdf;
 use crate::bake::prepare::bounce_budget::{choose, BounceEstimate};
 use crate::bake::prepare::context::BakeContext;
-use crate::bake::vertex_brdf::BasisBrdf;
 use crate::geometry::sampling::SampleStream;
 use crate::options::{MAX_BASES, MAX_GROUPS};
 use crate::Rgb;
@@ -133,7 +133,7 @@ fn row(ctx: &BakeContext, cap: u32, gx: u32, gy: u32, y: u32) -> Vec<f64> {
 /// The bake-time BRDF as a one-slot vertex BRDF (for [`direct_light`]).
 struct FrozenOnly<'a>(&'a BasisBrdf<'a>);
 
-impl crate::bake::integrator::VertexBrdf for FrozenOnly<'_> {
+impl crate::bake::path::integrator::VertexBrdf for FrozenOnly<'_> {
     fn eval(
         &self,
         region: u32,

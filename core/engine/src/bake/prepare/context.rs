@@ -7,11 +7,11 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use crate::bake::guide::GuideField;
-use crate::bake::mixture::DirectionMixture;
+use crate::bake::path::guide::GuideField;
+use crate::bake::path::mixture::DirectionMixture;
+use crate::bake::path::surface_brdf::SurfaceBrdf;
 use crate::bake::prepare::subsurface::{self, TranslucentRegion};
 use crate::bake::settings::BakeSettings;
-use crate::bake::surface_brdf::SurfaceBrdf;
 use crate::brdf::principled_basis::PrincipledBasis;
 use crate::brdf::{BasisConfig, BrdfBasis, MaterialSpec, RegionBasis};
 use crate::bssrdf::{SssBasis, SubsurfaceInfo};
@@ -44,7 +44,7 @@ pub struct PreparedRegion {
     /// uniform sampling; always used beyond the first bounce).
     pub mixture: DirectionMixture,
     /// Its bake-time material: what the bake evaluates at path vertices beyond the first
-    /// bounce (the "frozen tail", see [`crate::bake::integrator`]), editable regions included
+    /// bounce (the "frozen tail", see [`crate::bake::path::integrator`]), editable regions included
     /// (theirs as the mapped Blinn–Phong, see [`SurfaceBrdf`]).
     pub frozen: SurfaceBrdf,
 }

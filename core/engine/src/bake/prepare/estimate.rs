@@ -33,8 +33,8 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::context::BakeContext;
-use crate::bake::integrator::{trace_eye_sample, CountingTracer, PathSink};
-use crate::bake::vertex_brdf::BasisBrdf;
+use crate::bake::path::integrator::{trace_eye_sample, CountingTracer, PathSink};
+use crate::bake::path::vertex_brdf::BasisBrdf;
 use crate::options::Precision;
 use crate::progress::Progress;
 use crate::scene::{validate::ValidationReport, Scene};

@@ -1,16 +1,16 @@
 //! The guide pass: the short first trace that builds a guided bake's [`GuideField`] (see
-//! [`crate::bake::guide`] for what it records and how the bake samples it). Apart from the guide
+//! [`crate::bake::path::guide`] for what it records and how the bake samples it). Apart from the guide
 //! itself because it traces paths: the guide is data the bake context holds, the pass
 //! calls the integrator, which reads the context.
 
 use rayon::prelude::*;
 use std::time::Instant;
 
-use crate::bake::guide::{guide_samples, guide_tile, GuideField};
-use crate::bake::guide_tree::DirectionTree;
-use crate::bake::integrator::{guide_sample, CountingTracer};
+use crate::bake::path::guide::{guide_samples, guide_tile, GuideField};
+use crate::bake::path::guide_tree::DirectionTree;
+use crate::bake::path::integrator::{guide_sample, CountingTracer};
+use crate::bake::path::vertex_brdf::MaterialBrdf;
 use crate::bake::prepare::context::BakeContext;
-use crate::bake::vertex_brdf::MaterialBrdf;
 use crate::brdf::BlinnPhong;
 use crate::Result;
 

@@ -10,7 +10,7 @@
 //! the guide pass. [`BakeContext::new`] runs them all, for callers that trace with the
 //! context directly (the reference render, the benches).
 
-use crate::bake::guide::GuideField;
+use crate::bake::path::guide::GuideField;
 use crate::bake::prepare::context::BakeContext;
 use crate::bake::settings::BakeSettings;
 use crate::options::IndirectSampling;

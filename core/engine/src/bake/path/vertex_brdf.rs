@@ -3,9 +3,9 @@
 
 use glam::{Vec2, Vec3};
 
-use crate::bake::frozen::{albedo_at, cos_half_angle};
-pub use crate::bake::frozen::{blinn_phong_value, frozen_value};
-use crate::bake::integrator::VertexBrdf;
+use crate::bake::path::frozen::{albedo_at, cos_half_angle};
+pub use crate::bake::path::frozen::{blinn_phong_value, frozen_value};
+use crate::bake::path::integrator::VertexBrdf;
 use crate::bake::prepare::context::{BakeContext, RegionModel};
 use crate::brdf::{BlinnPhong, RegionBasis};
 use crate::options::MAX_BASES;

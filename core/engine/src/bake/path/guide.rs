@@ -10,7 +10,7 @@
 //! light is concentrated (a caustic, the bright patch under a lamp), sampled by hierarchical
 //! sample warping with an exact pdf.
 //!
-//! In the bake ([`IndirectSampling::Guided`](super::settings::IndirectSampling)) the indirect
+//! In the bake ([`IndirectSampling::Guided`](crate::bake::settings::IndirectSampling)) the indirect
 //! direction comes from a defensive one-sample mixture: [`GUIDE_WEIGHT`] of the tile's tree,
 //! the rest the region's cosine-and-lobes [`super::mixture::DirectionMixture`]. The pdf of the
 //! whole mixture is evaluated for every direction, so the estimate is unbiased whatever the
@@ -19,13 +19,13 @@
 //! The tree is built from the bake-time materials: editing a region's material afterwards
 //! leaves the guide slightly off for the new material — still unbiased, a little noisier.
 //!
-//! This file holds the guide itself; the pass that builds it is [`super::prepare::guide_pass`].
+//! This file holds the guide itself; the pass that builds it is [`crate::bake::prepare::guide_pass`].
 //!
 //! The pass is deterministic (one task per tile, pixels in order, its own random stream), so
 //! a reference render with the same settings builds the same guide and traces the same paths
 //! as the bake.
 
-use crate::bake::guide_tree::DirectionTree;
+use crate::bake::path::guide_tree::DirectionTree;
 use crate::bake::settings::BakeSettings;
 
 /// Fewest guide paths per pixel (3 rays each: eye, indirect, one shadow ray per light).
@@ -62,10 +62,10 @@ pub const GUIDE_WEIGHT: f32 = 0.5;
 #[derive(Clone, Debug)]
 pub struct GuideField {
     /// Tile side, pixels ([`guide_tile`]).
-    pub(super) side: u32,
-    pub(super) tiles_x: u32,
-    pub(super) tiles_y: u32,
-    pub(super) trees: Vec<Option<DirectionTree>>,
+    pub(in crate::bake) side: u32,
+    pub(in crate::bake) tiles_x: u32,
+    pub(in crate::bake) tiles_y: u32,
+    pub(in crate::bake) trees: Vec<Option<DirectionTree>>,
     /// Rays the guide pass traced.
     pub rays: u64,
     /// Wall time of the guide pass, seconds.

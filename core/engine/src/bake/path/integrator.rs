@@ -28,7 +28,7 @@
 //! estimation, per emitter and light group), and the BSDF-sampled rays a vertex traces
 //! collect the light they meet — an area light's front face, an emissive surface, a point
 //! or spot light's disk, a sun's cone, the world they escape to — both weighted by multiple importance sampling
-//! ([`crate::bake::mis`]): the eye's light goes to its direct layers, a bounce vertex's to
+//! ([`crate::bake::path::mis`]): the eye's light goes to its direct layers, a bounce vertex's to
 //! the one-bounce layers. The weights use the pdfs of the sampling strategies, fixed before
 //! the bake, never those of the edited materials, so the layers stay linear. A path's last
 //! vertex traces a ray for this alone only where its region has a lobe; the paper's uniform
@@ -44,12 +44,12 @@
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
 
-use crate::bake::guide::GUIDE_WEIGHT;
-use crate::bake::guide_tree::DirectionTree;
-use crate::bake::mis::{
+use crate::bake::path::guide::GUIDE_WEIGHT;
+use crate::bake::path::guide_tree::DirectionTree;
+use crate::bake::path::mis::{
     emission_along, indirect_pdf, power_heuristic, traces_bsdf_ray, BsdfStrategy,
 };
-use crate::bake::mixture::DirectionMixture;
+use crate::bake::path::mixture::DirectionMixture;
 use crate::bake::prepare::context::BakeContext;
 use crate::geometry::bvh::SurfaceHit;
 use crate::geometry::sampling::{cosine_hemisphere, to_world, uniform_hemisphere, SampleStream};
@@ -450,7 +450,7 @@ fn trace_path<B: VertexBrdf, S: PathSink, T: Tracer>(
 /// light group and slot into `light[group · MAX_BASES + slot]` (cleared first). Returns the
 /// vertex's first slot and slot count (count 0 when no sample arrived). Takes one branch of
 /// `stream` per emitter, whose children are the light samples, always. With `bsdf` (the
-/// vertex also traces BSDF rays that collect light, [`crate::bake::mis`]) each light sample
+/// vertex also traces BSDF rays that collect light, [`crate::bake::path::mis`]) each light sample
 /// an emitter can also be met by carries its multiple-importance weight against that
 /// strategy; with `None` every light sample has full weight.
 #[allow(clippy::too_many_arguments)]
@@ -578,7 +578,7 @@ fn frozen_tail<B: VertexBrdf, T: Tracer>(
 /// vertices at bounces 2..=`ctx.settings.bounces` evaluated with [`VertexBrdf::tail`]
 /// (next-event estimation at each, mixture continuation, Russian roulette from
 /// [`RR_START`] driven by the bake-time throughput). The last vertex traces one more
-/// segment, for emitters only, where its region has a lobe ([`crate::bake::mis`]). Adds
+/// segment, for emitters only, where its region has a lobe ([`crate::bake::path::mis`]). Adds
 /// into `out` (one entry per group); returns whether anything arrived.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
@@ -658,7 +658,7 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
         };
         let w = cos / next_pdf;
         throughput *= brdf.tail(hit.region, hit.uv, n, wi, wo) * w;
-        frozen *= crate::bake::frozen::frozen_value(ctx, hit.region, hit.uv, n, wi, wo) * w;
+        frozen *= crate::bake::path::frozen::frozen_value(ctx, hit.region, hit.uv, n, wi, wo) * w;
         bounce += 1;
         if bounce >= RR_START && bounce <= max_bounce {
             let q = crate::luminance(frozen).clamp(RR_MIN_SURVIVAL, 1.0);
@@ -741,7 +741,7 @@ pub fn sample_indirect(
     Some((wi, indirect_pdf(sampling, mixture, guide, n, wo, wi)))
 }
 
-/// One sample of the guide pass ([`crate::bake::guide`]) for pixel (`px`, `py`): a
+/// One sample of the guide pass ([`crate::bake::path::guide`]) for pixel (`px`, `py`): a
 /// cosine-distributed indirect direction at the eye hit and the luminance of the radiance
 /// that comes back along it (direct light reflected at the secondary hit by `brdf`, each
 /// light group's tint applied) times the cosine at the eye hit over the direction's pdf,

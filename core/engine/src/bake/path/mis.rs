@@ -38,9 +38,9 @@
 use glam::Vec3;
 use std::f32::consts::PI;
 
-use crate::bake::guide::GUIDE_WEIGHT;
-use crate::bake::guide_tree::DirectionTree;
-use crate::bake::mixture::DirectionMixture;
+use crate::bake::path::guide::GUIDE_WEIGHT;
+use crate::bake::path::guide_tree::DirectionTree;
+use crate::bake::path::mixture::DirectionMixture;
 use crate::bake::prepare::context::BakeContext;
 use crate::geometry::bvh::SurfaceHit;
 use crate::geometry::lights::bsdf_hits::RayEnd;
@@ -75,8 +75,8 @@ impl<'a> BsdfStrategy<'a> {
     }
 }
 
-/// The solid-angle pdf with which [`crate::bake::integrator::sample_indirect`] draws `wi` (what multiple importance
-/// sampling weighs light samples against, [`crate::bake::mis`]).
+/// The solid-angle pdf with which [`crate::bake::path::integrator::sample_indirect`] draws `wi` (what multiple importance
+/// sampling weighs light samples against, [`crate::bake::path::mis`]).
 #[inline]
 pub(crate) fn indirect_pdf(
     sampling: IndirectSampling,
