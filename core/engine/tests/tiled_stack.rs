@@ -135,7 +135,7 @@ fn random_coefs(relighter: &CpuRelighter, rng: &mut Rng) -> Vec<Vec<Rgb>> {
 
 #[test]
 fn stack_tile_is_the_bake_tile() {
-    assert_eq!(STACK_TILE, relume_engine::bake::tiles::TILE);
+    assert_eq!(STACK_TILE, relume_engine::bake::schedule::tiles::TILE);
 }
 
 #[test]

@@ -12,10 +12,7 @@
 //! is stored with one channel, an all-zero layer is dropped, and the rest are RGB.
 
 pub mod assemble;
-pub mod band;
-pub mod blocks;
 pub mod denoise;
-pub mod denoise_sparse;
 pub mod drop;
 pub mod farm_file;
 pub mod finalise;
@@ -29,12 +26,9 @@ pub mod prepare;
 pub mod presets;
 pub mod reference;
 pub mod report;
+pub mod schedule;
 pub mod settings;
-pub mod stream;
-pub mod tiles;
 pub mod to_file;
-pub mod trace;
-mod traced_tile;
 
 use std::time::Instant;
 
@@ -48,7 +42,6 @@ pub use layout::layer_key;
 pub use non_finite::NonFiniteReport;
 pub use report::{BakeReport, PassReport};
 pub use settings::{BakeSettings, Denoise, IndirectSampling, LightGrouping};
-pub(crate) use trace::trace_range;
 
 /// Bakes `scene` into a dense transfer stack: [`bake_tiled`] expanded with
 /// [`TiledStack::to_dense`] (every layer a full frame: for tests and small bakes).
@@ -172,9 +165,9 @@ fn run_passes(
     ctx.build_guide(scene, progress)?;
     let setup_seconds = start.elapsed().as_secs_f64();
     let res = ctx.resolution;
-    let mut store = blocks::BlockStore::default();
+    let mut store = schedule::blocks::BlockStore::default();
     let rays = std::sync::atomic::AtomicU64::new(0);
-    let tile_count = tiles::tiles(res).len() as u64;
+    let tile_count = schedule::tiles::tiles(res).len() as u64;
     progress.set_stage(Stage::Tracing);
     progress.start(tile_count * settings.spp as u64);
     let pool = rayon::ThreadPoolBuilder::new()
@@ -197,15 +190,15 @@ fn run_passes(
     if passes.len() == 1 {
         let band = band_rows.unwrap_or_else(|| {
             pool.install(|| {
-                band::default_band_rows(
+                schedule::band::default_band_rows(
                     res.width,
                     settings.threads,
-                    band::apron_rows(&settings.denoise),
+                    schedule::band::apron_rows(&settings.denoise),
                 )
             })
         });
         let streamed =
-            stream::bake_streaming(&ctx, scene, &settings, band, &pool, progress, &rays)?;
+            schedule::stream::bake_streaming(&ctx, scene, &settings, band, &pool, progress, &rays)?;
         progress.set_stage(Stage::Finishing);
         let (stack, mut report) = assemble::layer_report(
             &ctx,
@@ -235,7 +228,7 @@ fn run_passes(
         progress.set_stage(Stage::Tracing);
         let last_pass = pass + 1 == passes.len();
         // A one-pass bake keeps only its tree's root per pixel (one image per layer).
-        trace_range(
+        schedule::trace::trace_range(
             &ctx,
             &mut store,
             from,

@@ -1,6 +1,6 @@
 //! A partial stack: what one partition of a farm bake hands to the merge — per layer the
 //! *sums* of its eye samples (not averages), in the aligned sample blocks of the canonical
-//! summation tree ([`crate::bake::blocks`]), with the denoiser's per-pixel feature sums and
+//! summation tree ([`crate::bake::schedule::blocks`]), with the denoiser's per-pixel feature sums and
 //! everything the merge checks: scene hash, settings fingerprint, seed, the sample range, the
 //! guide it was traced with and the engine version.
 //!
@@ -14,9 +14,9 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::bake::blocks::Block;
 use crate::bake::denoise::FEATURE_STRIDE;
 use crate::bake::farm_file;
+use crate::bake::schedule::blocks::Block;
 use crate::bake::settings::BakeSettings;
 use crate::{RelumeError, Result};
 

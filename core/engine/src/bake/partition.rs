@@ -4,7 +4,7 @@
 //! counter-based stream indexed by (seed, pixel, sample) ([`crate::geometry::sampling`]), so
 //! partition `i` of `N` traces samples `[i·spp/N, (i+1)·spp/N)` exactly as a one-machine bake
 //! traces them. It writes a partial stack ([`crate::bake::partial`]): per layer the sums of
-//! its samples in the aligned blocks of the canonical summation tree ([`super::blocks`]).
+//! its samples in the aligned blocks of the canonical summation tree ([`super::schedule::blocks`]).
 //! Work that needs the whole frame runs once: the guide pass before the partitions
 //! ([`super::guide_file`]), and in [`merge`] the sum, the average, grey detection, the
 //! denoiser, layer dropping and the header — the same code as a one-machine bake, on the same
@@ -15,11 +15,12 @@ use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use super::blocks::BlockStore;
 use super::guide_file::GuideFile;
 use super::prepare::context::BakeContext;
+use super::schedule::blocks::BlockStore;
+use super::schedule::trace::trace_range;
 use super::settings::{BakeSettings, IndirectSampling};
-use super::{assemble, denoise, prepare::estimate, tiles, trace_range, BakeReport};
+use super::{assemble, denoise, prepare::estimate, schedule::tiles, BakeReport};
 use crate::bake::partial::{BlockInfo, PartialHeader, PartialStack, PARTIAL_FORMAT_VERSION};
 use crate::progress::{Progress, Stage};
 use crate::scene::{hash::scene_hash, Scene};

@@ -2,7 +2,7 @@
 //! will reach (found by a small probe trace), the bytes of its accumulators at their peak,
 //! and the size of the stack it will write.
 //!
-//! A one-pass bake streams ([`crate::bake::stream`]): its memory is the tiled stack it builds
+//! A one-pass bake streams ([`crate::bake::schedule::stream`]): its memory is the tiled stack it builds
 //! (per 16×16 tile only the layers non-zero there) plus the tile rows in flight, so the
 //! forecast needs how many (tile, layer) pairs are non-zero: the probe counts them in the
 //! tiles it visits, and since a few probe pixels per tile miss layers there, it also
@@ -222,21 +222,25 @@ struct StreamingCosts {
 /// geometry; writing holds the stack and the file's encoded copy.
 fn streaming_peak(ctx: &BakeContext, c: &StreamingCosts) -> (u64, u64) {
     let res = ctx.resolution;
-    let tile_px = (crate::bake::tiles::TILE * crate::bake::tiles::TILE) as u64;
+    let tile_px = (crate::bake::schedule::tiles::TILE * crate::bake::schedule::tiles::TILE) as u64;
     let grey = c.entries - c.entries_rgb.min(c.entries);
     let stack = tile_px * (grey + 3 * c.entries_rgb) * c.sample;
     let tiles_x = crate::stack::tiled::tiles_along(res.width) as u64;
     let tiles_y = crate::stack::tiled::tiles_along(res.height).max(1) as u64;
-    let apron = crate::bake::band::apron_rows(&ctx.settings.denoise) as u64;
-    let band =
-        crate::bake::band::default_band_rows(res.width, c.threads as usize, apron as usize) as u64;
+    let apron = crate::bake::schedule::band::apron_rows(&ctx.settings.denoise) as u64;
+    let band = crate::bake::schedule::band::default_band_rows(
+        res.width,
+        c.threads as usize,
+        apron as usize,
+    ) as u64;
     let rows_held = (band + 2 * apron + 1).min(tiles_y);
     // f32 values per tile: a pixel's grey entry holds one, a coloured one three.
     let values_per_tile = (grey + 3 * c.entries_rgb).div_ceil(c.tiles.max(1)) * tile_px;
     let per_tile_traced =
         values_per_tile * 4 + tile_px * crate::bake::denoise::FEATURE_STRIDE as u64 * 4;
     let traced = rows_held * tiles_x * per_tile_traced;
-    let window_px = res.width as u64 * ((2 * apron + band) * crate::bake::tiles::TILE as u64);
+    let window_px =
+        res.width as u64 * ((2 * apron + band) * crate::bake::schedule::tiles::TILE as u64);
     let window = if apron > 0 {
         // Each worker's two scratch windows, the weights of every filter step, the
         // window's features (and their records while built).
@@ -475,7 +479,7 @@ fn probe(ctx: &BakeContext, progress: &Progress) -> crate::Result<ProbeFindings>
     let stride = probe_stride(pixels, rays_per_sample);
     // Offset by half a stride so the grid samples the frame's inside, not its edge.
     let rows: Vec<u32> = (stride / 2..res.height).step_by(stride as usize).collect();
-    let tile = crate::bake::tiles::TILE;
+    let tile = crate::bake::schedule::tiles::TILE;
     let per_row: Vec<crate::Result<ProbeRow>> = rows
         .par_iter()
         .map(|&y| {
@@ -594,7 +598,7 @@ fn forecast(
     }
     let (region_pairs, region_pairs_rgb) = region_model_pairs(&tile_regions, &region_layers, &rgb);
     let (pairs, pairs_rgb) = (pairs.max(region_pairs), pairs_rgb.max(region_pairs_rgb));
-    let tile = crate::bake::tiles::TILE;
+    let tile = crate::bake::schedule::tiles::TILE;
     let all_tiles = res.width.div_ceil(tile) as u64 * res.height.div_ceil(tile) as u64;
     let visited = tile_sets.len().max(1) as u64;
     let tile_entries = (pairs * all_tiles).div_ceil(visited);
@@ -616,7 +620,7 @@ fn forecast(
     let reached_u = layers_reached as u64;
     let accumulator_bytes = px.saturating_mul(reached_u).saturating_mul(12);
     let features = px * crate::bake::denoise::FEATURE_STRIDE as u64 * 4;
-    let tile_px = (crate::bake::tiles::TILE * crate::bake::tiles::TILE) as u64;
+    let tile_px = (crate::bake::schedule::tiles::TILE * crate::bake::schedule::tiles::TILE) as u64;
     let tile_buffers = threads * layers as u64 * tile_px * 12;
     let geometry =
         (scene.triangle_count() as u64 * BYTES_PER_TRIANGLE).max(prepared_bytes.unwrap_or(0));

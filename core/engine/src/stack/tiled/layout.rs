@@ -5,7 +5,7 @@ use super::lattice::TileLattice;
 use crate::layer_key::LayerKey;
 use crate::stack::{Precision, StackHeader};
 
-/// Tile edge in pixels: the bake's tile (`bake::tiles::TILE`, equal by a test), so a bake can hand
+/// Tile edge in pixels: the bake's tile (`bake::schedule::tiles::TILE`, equal by a test), so a bake can hand
 /// over each of its tiles as it finishes.
 pub const STACK_TILE: u32 = 16;
 

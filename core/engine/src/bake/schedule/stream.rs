@@ -6,8 +6,8 @@
 //! allocator's free pages are handed back after each window
 //! ([`crate::memory::release_free_memory`]), so what is resident follows what is held.
 //!
-//! The denoiser ([`super::denoise`]) is a fixed linear operator whose weights depend only
-//! on the eye features, with a footprint of [`super::denoise::footprint_radius`] pixels. A
+//! The denoiser ([`crate::bake::denoise`]) is a fixed linear operator whose weights depend only
+//! on the eye features, with a footprint of [`crate::bake::denoise::footprint_radius`] pixels. A
 //! tile row is filtered on a window of `apron` tile rows above and below it
 //! ([`super::band`]; `apron · 16` ≥ that radius), whose cut edges are treated like the image's: the row's output is then exactly what the
 //! whole-frame filter gives (errors from a cut edge travel at most the radius inwards), so
@@ -19,19 +19,19 @@
 use rayon::prelude::*;
 use std::time::Instant;
 
-use super::assemble::stack_header;
 use super::band::apron_rows;
-use super::denoise::{footprint_radius, EyeFeatures, FEATURE_STRIDE};
 use super::denoise_sparse::{SparseScratch, SparseTiles};
-use super::finalise::{
+use super::tiles::{self, TILE};
+use super::traced_tile::{trace_sparse, TracedLayer, TracedTile};
+use crate::bake::assemble::stack_header;
+use crate::bake::denoise::{footprint_radius, EyeFeatures, FEATURE_STRIDE};
+use crate::bake::finalise::{
     builder_for, finalise_tile, finish_stack, layer_weights, tile_surfaces, Finished, LatticePlan,
     LayerFacts, StackTally, TileInput, TileTally,
 };
-use super::path::vertex_brdf::BasisBrdf;
-use super::prepare::context::BakeContext;
-use super::settings::BakeSettings;
-use super::tiles::{self, TILE};
-use super::traced_tile::{trace_sparse, TracedLayer, TracedTile};
+use crate::bake::path::vertex_brdf::BasisBrdf;
+use crate::bake::prepare::context::BakeContext;
+use crate::bake::settings::BakeSettings;
 use crate::progress::{Progress, Stage};
 use crate::scene::Scene;
 use crate::stack::tiled::{tiles_along, TileRect, TiledStackBuilder};
@@ -84,7 +84,7 @@ pub(crate) fn bake_streaming(
         coloured: vec![false; layer_count],
     };
     let path_len: Vec<usize> = (0..layer_count)
-        .map(|i| super::layout::layer_key(ctx, i).path.len())
+        .map(|i| crate::bake::layout::layer_key(ctx, i).path.len())
         .collect();
     let brdf = BasisBrdf { ctx };
     let plan = LatticePlan::new(ctx, settings.compression, &weights);

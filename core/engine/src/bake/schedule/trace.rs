@@ -1,16 +1,16 @@
 //! Tracing a range of eye samples of every pixel into the bake's sample blocks: tiles in
 //! parallel, each pixel's samples summed in the canonical tree of [`super::blocks`] and
-//! kept densely per layer ([`super::layout`]). Shared by the bake and a farm's partitions.
+//! kept densely per layer ([`crate::bake::layout`]). Shared by the bake and a farm's partitions.
 
 use std::sync::Mutex;
 
 use super::blocks;
-use super::denoise;
-use super::layout::DenseLayout;
-use super::path::integrator::{trace_eye_sample, CountingTracer, PathSink};
-use super::path::vertex_brdf::BasisBrdf;
-use super::prepare::context::BakeContext;
 use super::tiles;
+use crate::bake::denoise;
+use crate::bake::layout::DenseLayout;
+use crate::bake::path::integrator::{trace_eye_sample, CountingTracer, PathSink};
+use crate::bake::path::vertex_brdf::BasisBrdf;
+use crate::bake::prepare::context::BakeContext;
 use crate::progress::Progress;
 use crate::{Result, Rgb};
 

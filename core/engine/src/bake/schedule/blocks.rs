@@ -39,7 +39,7 @@
 //! each pixel's tree in the tile and keeps no store ([`super::stream`]: the tree's root is
 //! all it needs). The store of the dense path keeps one full-frame image per block:
 //! popcount(samples so far) blocks between the passes of a progressive bake
-//! ([`super::doubling_passes`] of a power-of-two `spp` keeps one), a partition's blocks.
+//! ([`crate::bake::doubling_passes`] of a power-of-two `spp` keeps one), a partition's blocks.
 
 use std::ops::Range;
 use std::sync::Mutex;

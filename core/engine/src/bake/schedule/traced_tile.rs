@@ -5,11 +5,11 @@
 //! each pixel, which equals the other two) in a third of the bytes; the tiles in flight
 //! are most of the bake's memory besides the stack.
 
-use super::denoise::FEATURE_STRIDE;
-use super::path::vertex_brdf::BasisBrdf;
-use super::prepare::context::BakeContext;
 use super::tiles::Tile;
 use super::trace::trace_tile_records;
+use crate::bake::denoise::FEATURE_STRIDE;
+use crate::bake::path::vertex_brdf::BasisBrdf;
+use crate::bake::prepare::context::BakeContext;
 use crate::progress::Progress;
 use crate::stack::tiled::TileRect;
 use crate::{RelumeError, Result};

@@ -1,10 +1,10 @@
 //! How the streaming bake ([`super::stream`]) walks the frame: the tile rows its denoiser
 //! reads around the row it finalises, and how many rows it traces at once. Shared with the
-//! memory forecast ([`super::prepare::estimate`]).
+//! memory forecast ([`crate::bake::prepare::estimate`]).
 
-use super::denoise::footprint_radius;
-use super::settings::Denoise;
 use super::tiles::TILE;
+use crate::bake::denoise::footprint_radius;
+use crate::bake::settings::Denoise;
 use crate::stack::tiled::tiles_along;
 
 /// Tile rows the denoiser needs on each side of the row it finalises (0: no denoising).

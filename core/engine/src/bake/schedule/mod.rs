@@ -1,0 +1,25 @@
+//! Stage 3, the schedule: which eye samples of which pixels are traced when, on which
+//! threads, and how their light is held until it is finished into a stack.
+//!
+//! - [`tiles`]: tiled, parallel, cancellable per-pixel work whose result does not depend on
+//!   the thread count.
+//! - The dense schedule, for a progressive bake's passes and a farm's partitions: [`trace`]
+//!   traces a range of eye samples of every pixel, summed in the canonical order of
+//!   [`blocks`] and kept as full-frame layers.
+//! - The streaming schedule, for a one-pass bake: [`stream`] traces tile rows in bands
+//!   ([`band`]), keeps each traced tile as its sparse averages ([`traced_tile`]) and hands a
+//!   tile row to the finishing stage as soon as the rows its denoiser reads are traced, the
+//!   denoiser computing only where a layer can be non-zero ([`denoise_sparse`]).
+//!
+//! Apart from the other stages because this is where a bake's memory and its bits are
+//! decided: the schedule sets what is held at once, and the one summation order in
+//! [`blocks`] is what makes a progressive bake, a farm's merge and a streaming bake give the
+//! same stack.
+
+pub mod band;
+pub mod blocks;
+pub mod denoise_sparse;
+pub mod stream;
+pub mod tiles;
+pub mod trace;
+mod traced_tile;
