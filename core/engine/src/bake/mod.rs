@@ -11,11 +11,8 @@
 //! channels are bit-identical everywhere (its paths met no colour: Table 1's grey layers)
 //! is stored with one channel, an all-zero layer is dropped, and the rest are RGB.
 
-pub mod assemble;
-pub mod denoise;
-pub mod drop;
 pub mod farm_file;
-pub mod finalise;
+pub mod finish;
 pub mod guide_file;
 pub mod layout;
 pub mod non_finite;
@@ -37,7 +34,6 @@ use crate::scene::Scene;
 use crate::stack::tiled::TiledStack;
 use crate::stack::TransferStack;
 use crate::Result;
-pub(crate) use assemble::assemble;
 pub use layout::layer_key;
 pub use non_finite::NonFiniteReport;
 pub use report::{BakeReport, PassReport};
@@ -200,7 +196,7 @@ fn run_passes(
         let streamed =
             schedule::stream::bake_streaming(&ctx, scene, &settings, band, &pool, progress, &rays)?;
         progress.set_stage(Stage::Finishing);
-        let (stack, mut report) = assemble::layer_report(
+        let (stack, mut report) = finish::assemble::layer_report(
             &ctx,
             streamed.finished,
             streamed.assembly_seconds,
@@ -243,9 +239,9 @@ fn run_passes(
         } else {
             store.fold_copy()?
         };
-        let eye_features = denoise::EyeFeatures::from_sums(&ctx, &feature_sums, done);
+        let eye_features = finish::denoise::EyeFeatures::from_sums(&ctx, &feature_sums, done);
         drop(feature_sums);
-        let (stack, mut report, image) = assemble(
+        let (stack, mut report, image) = finish::assemble::assemble(
             &ctx,
             scene,
             &settings,

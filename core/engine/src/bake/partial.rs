@@ -14,8 +14,8 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::bake::denoise::FEATURE_STRIDE;
 use crate::bake::farm_file;
+use crate::bake::finish::denoise::FEATURE_STRIDE;
 use crate::bake::schedule::blocks::Block;
 use crate::bake::settings::BakeSettings;
 use crate::{RelumeError, Result};

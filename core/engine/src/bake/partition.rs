@@ -15,12 +15,13 @@ use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use super::finish::assemble::assemble;
 use super::guide_file::GuideFile;
 use super::prepare::context::BakeContext;
 use super::schedule::blocks::BlockStore;
 use super::schedule::trace::trace_range;
 use super::settings::{BakeSettings, IndirectSampling};
-use super::{assemble, denoise, prepare::estimate, schedule::tiles, BakeReport};
+use super::{finish::denoise, prepare::estimate, schedule::tiles, BakeReport};
 use crate::bake::partial::{BlockInfo, PartialHeader, PartialStack, PARTIAL_FORMAT_VERSION};
 use crate::progress::{Progress, Stage};
 use crate::scene::{hash::scene_hash, Scene};

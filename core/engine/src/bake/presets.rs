@@ -51,7 +51,7 @@ pub struct PresetValues {
     pub basis_tolerance: f32,
     /// Fraction of the scene's resolution baked (each side).
     pub resolution_scale: f64,
-    /// The stack's linear denoiser ([`crate::bake::denoise`]): biased, measured.
+    /// The stack's linear denoiser ([`crate::bake::finish::denoise`]): biased, measured.
     pub denoise: Denoise,
     /// Share of the image's light the bounces past the baked count may leave out: the bake
     /// measures what each bounce adds and bakes as many as that needs, up to the caller's

@@ -4,7 +4,7 @@
 use serde::Serialize;
 
 use super::{
-    drop,
+    finish::drop,
     prepare::{bounce_budget, estimate},
     NonFiniteReport,
 };

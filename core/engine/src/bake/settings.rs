@@ -41,7 +41,7 @@ pub struct BakeSettings {
     /// Worker threads (0: all cores). The result does not depend on it.
     pub threads: usize,
     /// Relative L2 error a relit image may lose to leaving out negligible layers (see
-    /// [`crate::bake::drop`]); 0 keeps every layer a path reached.
+    /// [`crate::bake::finish::drop`]); 0 keeps every layer a path reached.
     #[serde(default)]
     pub drop_budget: f32,
     #[serde(default)]

@@ -237,7 +237,7 @@ fn streaming_peak(ctx: &BakeContext, c: &StreamingCosts) -> (u64, u64) {
     // f32 values per tile: a pixel's grey entry holds one, a coloured one three.
     let values_per_tile = (grey + 3 * c.entries_rgb).div_ceil(c.tiles.max(1)) * tile_px;
     let per_tile_traced =
-        values_per_tile * 4 + tile_px * crate::bake::denoise::FEATURE_STRIDE as u64 * 4;
+        values_per_tile * 4 + tile_px * crate::bake::finish::denoise::FEATURE_STRIDE as u64 * 4;
     let traced = rows_held * tiles_x * per_tile_traced;
     let window_px =
         res.width as u64 * ((2 * apron + band) * crate::bake::schedule::tiles::TILE as u64);
@@ -619,7 +619,7 @@ fn forecast(
     let px = pixels;
     let reached_u = layers_reached as u64;
     let accumulator_bytes = px.saturating_mul(reached_u).saturating_mul(12);
-    let features = px * crate::bake::denoise::FEATURE_STRIDE as u64 * 4;
+    let features = px * crate::bake::finish::denoise::FEATURE_STRIDE as u64 * 4;
     let tile_px = (crate::bake::schedule::tiles::TILE * crate::bake::schedule::tiles::TILE) as u64;
     let tile_buffers = threads * layers as u64 * tile_px * 12;
     let geometry =

@@ -3,7 +3,7 @@
 //! memory forecast ([`crate::bake::prepare::estimate`]).
 
 use super::tiles::TILE;
-use crate::bake::denoise::footprint_radius;
+use crate::bake::finish::denoise::footprint_radius;
 use crate::bake::settings::Denoise;
 use crate::stack::tiled::tiles_along;
 

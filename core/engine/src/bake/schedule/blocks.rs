@@ -44,7 +44,7 @@
 use std::ops::Range;
 use std::sync::Mutex;
 
-use crate::bake::denoise::{EyeFeatures, FEATURE_STRIDE};
+use crate::bake::finish::denoise::{EyeFeatures, FEATURE_STRIDE};
 use crate::Result;
 
 /// Whether the aligned dyadic ranges `left` and `right` are the two children of one node.

@@ -13,7 +13,7 @@ use std::ops::Range;
 
 mod grey_run;
 
-use crate::bake::denoise::{footprint_radius, step_rows, EyeFeatures, FilterWeights};
+use crate::bake::finish::denoise::{footprint_radius, step_rows, EyeFeatures, FilterWeights};
 use grey_run::{GreyRun, Taps, LANES};
 
 impl EyeFeatures {
@@ -320,7 +320,7 @@ impl SparseScratch {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bake::denoise::tests::{layer, noise, two_walls};
+    use crate::bake::finish::denoise::tests::{layer, noise, two_walls};
 
     /// The tiles of a `w`×`h` window (`tile` pixels a side) a layer present on `present`
     /// reaches once filtered with `iterations` steps, and the present ones.

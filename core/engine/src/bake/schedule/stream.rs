@@ -6,8 +6,8 @@
 //! allocator's free pages are handed back after each window
 //! ([`crate::memory::release_free_memory`]), so what is resident follows what is held.
 //!
-//! The denoiser ([`crate::bake::denoise`]) is a fixed linear operator whose weights depend only
-//! on the eye features, with a footprint of [`crate::bake::denoise::footprint_radius`] pixels. A
+//! The denoiser ([`crate::bake::finish::denoise`]) is a fixed linear operator whose weights depend only
+//! on the eye features, with a footprint of [`crate::bake::finish::denoise::footprint_radius`] pixels. A
 //! tile row is filtered on a window of `apron` tile rows above and below it
 //! ([`super::band`]; `apron · 16` ≥ that radius), whose cut edges are treated like the image's: the row's output is then exactly what the
 //! whole-frame filter gives (errors from a cut edge travel at most the radius inwards), so
@@ -23,9 +23,9 @@ use super::band::apron_rows;
 use super::denoise_sparse::{SparseScratch, SparseTiles};
 use super::tiles::{self, TILE};
 use super::traced_tile::{trace_sparse, TracedLayer, TracedTile};
-use crate::bake::assemble::stack_header;
-use crate::bake::denoise::{footprint_radius, EyeFeatures, FEATURE_STRIDE};
-use crate::bake::finalise::{
+use crate::bake::finish::assemble::stack_header;
+use crate::bake::finish::denoise::{footprint_radius, EyeFeatures, FEATURE_STRIDE};
+use crate::bake::finish::finalise::{
     builder_for, finalise_tile, finish_stack, layer_weights, tile_surfaces, Finished, LatticePlan,
     LayerFacts, StackTally, TileInput, TileTally,
 };

@@ -6,7 +6,7 @@ use std::sync::Mutex;
 
 use super::blocks;
 use super::tiles;
-use crate::bake::denoise;
+use crate::bake::finish::denoise;
 use crate::bake::layout::DenseLayout;
 use crate::bake::path::integrator::{trace_eye_sample, CountingTracer, PathSink};
 use crate::bake::path::vertex_brdf::BasisBrdf;

@@ -7,7 +7,7 @@
 
 use super::tiles::Tile;
 use super::trace::trace_tile_records;
-use crate::bake::denoise::FEATURE_STRIDE;
+use crate::bake::finish::denoise::FEATURE_STRIDE;
 use crate::bake::path::vertex_brdf::BasisBrdf;
 use crate::bake::prepare::context::BakeContext;
 use crate::progress::Progress;

@@ -3,7 +3,7 @@
 //! dropping needs (per-layer norms, the image at the bake-time materials) are gathered on
 //! the way, so no step after it needs the layers as full frames.
 //!
-//! Both bakes end here: the streaming one-pass bake ([`super::schedule::stream`]) hands over each
+//! Both bakes end here: the streaming one-pass bake ([`crate::bake::schedule::stream`]) hands over each
 //! tile row as soon as its denoiser window is traced, the dense path (progressive passes,
 //! a farm's merge) cuts its full-frame layers into tiles. Given the same f32 values they
 //! make the same stack, bit for bit: a tile's entries, the order its statistics are added
@@ -17,8 +17,8 @@
 //! statistics above — the drop decisions' norms and the bake-time image — are taken from
 //! the uncompressed values, so dropping does not depend on the compression.
 
-use crate::bake::denoise::EyeFeatures;
-use crate::bake::drop::{self, DropReport, LayerNorm};
+use crate::bake::finish::denoise::EyeFeatures;
+use crate::bake::finish::drop::{self, DropReport, LayerNorm};
 use crate::bake::non_finite::{zero_non_finite, NonFiniteReport};
 use crate::bake::prepare::context::BakeContext;
 use crate::bake::settings::BounceCompression;
@@ -92,7 +92,7 @@ impl LatticePlan {
         }
         let eligible = (0..ctx.layer_count())
             .map(|i| {
-                let key = super::layout::layer_key(ctx, i);
+                let key = crate::bake::layout::layer_key(ctx, i);
                 key.path.len() >= 2
                     && !key
                         .path
@@ -768,7 +768,7 @@ pub(crate) fn builder_for(
     header: crate::stack::StackHeader,
 ) -> Result<TiledStackBuilder> {
     let layers = (0..ctx.layer_count())
-        .map(|i| (super::layout::layer_key(ctx, i), 3u8))
+        .map(|i| (crate::bake::layout::layer_key(ctx, i), 3u8))
         .collect();
     TiledStackBuilder::new(header, layers)
 }
@@ -776,7 +776,7 @@ pub(crate) fn builder_for(
 /// Per layer id, its weight at the scene's bake-time materials.
 pub(crate) fn layer_weights(ctx: &BakeContext, scene: &Scene) -> Result<Vec<Rgb>> {
     let keys: Vec<LayerKey> = (0..ctx.layer_count())
-        .map(|i| super::layout::layer_key(ctx, i))
+        .map(|i| crate::bake::layout::layer_key(ctx, i))
         .collect();
     drop::bake_time_weights(ctx, scene, &keys)
 }

@@ -21,7 +21,7 @@ use std::ops::Range;
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::bake::drop::RawLayer;
+use crate::bake::finish::drop::RawLayer;
 use crate::bake::prepare::context::BakeContext;
 
 /// Floats per pixel of the records gathered while tracing: see [`EyeFeatures::EMPTY`].
@@ -29,12 +29,12 @@ pub const FEATURE_STRIDE: usize = 9;
 
 /// What the filter knows of a pixel: the eye hits of all its eye samples.
 pub struct EyeFeatures {
-    pub(super) width: usize,
-    pub(super) height: usize,
+    pub(in crate::bake) width: usize,
+    pub(in crate::bake) height: usize,
     /// The region every eye sample hit, or `None` (mixed, world, or textured: not filtered).
-    pub(super) region: Vec<Option<u32>>,
+    pub(in crate::bake) region: Vec<Option<u32>>,
     /// One more than the highest region in `region`.
-    pub(super) region_count: usize,
+    pub(in crate::bake) region_count: usize,
     normal: Vec<Vec3>,
     position: Vec<Vec3>,
     /// World size of one pixel at the hit (the distance between neighbouring camera rays
@@ -315,7 +315,7 @@ pub fn step_rows(wanted: &Range<usize>, k: u32, iterations: u32, height: usize) 
 
 /// The per-step tap weights of one filter ([`EyeFeatures::weights_for`]).
 pub struct FilterWeights {
-    pub(super) steps: Vec<Vec<[f32; 25]>>,
+    pub(in crate::bake) steps: Vec<Vec<[f32; 25]>>,
 }
 
 /// Pixels an `iterations`-step filter reaches on each side: 2·(2^iterations − 1).
@@ -334,7 +334,7 @@ impl EyeFeatures {
 }
 
 #[cfg(test)]
-pub(super) mod tests {
+pub(in crate::bake) mod tests {
     use super::*;
     use crate::layer_key::LayerKey;
 

@@ -12,10 +12,10 @@ use super::finalise::{
     builder_for, finalise_dense, finish_stack, layer_weights, Finished, LatticePlan, LayerFacts,
     StackTally,
 };
-use super::layout::layer_key;
-use super::prepare::context::{basis_config_for, BakeContext, RegionModel};
-use super::report::BakeReport;
-use super::settings::BakeSettings;
+use crate::bake::layout::layer_key;
+use crate::bake::prepare::context::{basis_config_for, BakeContext, RegionModel};
+use crate::bake::report::BakeReport;
+use crate::bake::settings::BakeSettings;
 use crate::brdf::RegionBasis;
 use crate::layer_key::LayerKey;
 use crate::options::LightGrouping;

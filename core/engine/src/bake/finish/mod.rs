@@ -1,0 +1,21 @@
+//! Stage 4, finishing: from the traced light to the stack that is stored.
+//!
+//! - [`denoise`]: the linear edge-avoiding filter whose weights come from the eye features
+//!   only, never from the layers, so that it commutes with every relight.
+//! - [`finalise`]: one tile at a time, the denoised layers become entries of the tiled stack
+//!   (lattice entries where the settings ask for them), and the statistics that layer
+//!   dropping needs are gathered on the way.
+//! - [`drop`]: which layers the stack keeps (none that no path reached, and within the
+//!   drop budget none whose worst-case contribution is negligible).
+//! - [`assemble`]: the dense schedule's sums turned into a stack in named steps (average,
+//!   grey detection, denoise, finalise), and the stack's header and the report of its
+//!   layers, which the streaming schedule uses too.
+//!
+//! Apart from the schedules because both end here with the same code: given the same f32
+//! values, a streaming bake, a progressive one and a farm's merge make the same stack, bit
+//! for bit.
+
+pub mod assemble;
+pub mod denoise;
+pub mod drop;
+pub mod finalise;
