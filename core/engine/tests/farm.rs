@@ -5,9 +5,9 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use relume_engine::bake::guide_file::{build_guide, read_guide, write_guide};
-use relume_engine::bake::partial::{read_partial, write_partial, PartialStack};
-use relume_engine::bake::partition::{bake_partition, merge, Partition};
+use relume_engine::bake::farm::guide_file::{build_guide, read_guide, write_guide};
+use relume_engine::bake::farm::partial::{read_partial, write_partial, PartialStack};
+use relume_engine::bake::farm::partition::{bake_partition, merge, Partition};
 use relume_engine::bake::presets::Preset;
 use relume_engine::bake::{bake, bake_progressive, BakeSettings, LightGrouping};
 use relume_engine::progress::Progress;

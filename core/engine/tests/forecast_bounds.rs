@@ -13,8 +13,8 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use common::*;
-use relume_engine::bake::partial::write_partial;
-use relume_engine::bake::partition::{bake_partition, merge_files_tiled_within, Partition};
+use relume_engine::bake::farm::partial::write_partial;
+use relume_engine::bake::farm::partition::{bake_partition, merge_files_tiled_within, Partition};
 use relume_engine::bake::prepare::estimate::estimate_bake;
 use relume_engine::bake::{bake_tiled, BakeSettings};
 use relume_engine::progress::Progress;

@@ -6,7 +6,7 @@ mod common;
 
 use std::path::PathBuf;
 
-use relume_engine::bake::partition::{bake_partition, merge_tiled, Partition};
+use relume_engine::bake::farm::partition::{bake_partition, merge_tiled, Partition};
 use relume_engine::bake::presets::Preset;
 use relume_engine::bake::to_file::bake_to_file;
 use relume_engine::bake::{

@@ -4,9 +4,9 @@
 
 use std::path::{Path, PathBuf};
 
-use relume_engine::bake::guide_file::{build_guide, read_guide, write_guide};
-use relume_engine::bake::partial::write_partial;
-use relume_engine::bake::partition::{bake_partition, Partition};
+use relume_engine::bake::farm::guide_file::{build_guide, read_guide, write_guide};
+use relume_engine::bake::farm::partial::write_partial;
+use relume_engine::bake::farm::partition::{bake_partition, Partition};
 use relume_engine::bake::BakeSettings;
 use relume_engine::scene::Scene;
 use relume_engine::RelumeError;

@@ -7,8 +7,8 @@
 
 use std::path::PathBuf;
 
-use relume_engine::bake::partial::read_partial_header;
-use relume_engine::bake::partition::merge_files_tiled_within;
+use relume_engine::bake::farm::partial::read_partial_header;
+use relume_engine::bake::farm::partition::merge_files_tiled_within;
 use relume_engine::scene::file::load_scene;
 use relume_engine::stack::tiled::file::write_tiled_cancellable;
 use relume_engine::RelumeError;

@@ -11,13 +11,10 @@
 //! channels are bit-identical everywhere (its paths met no colour: Table 1's grey layers)
 //! is stored with one channel, an all-zero layer is dropped, and the rest are RGB.
 
-pub mod farm_file;
+pub mod farm;
 pub mod finish;
-pub mod guide_file;
 pub mod layout;
 pub mod non_finite;
-pub mod partial;
-pub mod partition;
 pub mod path;
 pub mod prepare;
 pub mod presets;

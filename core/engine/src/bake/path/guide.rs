@@ -85,7 +85,7 @@ impl GuideField {
     }
 
     /// Tile side, tiles across and down, and the trees (row-major): what a guide file
-    /// stores ([`crate::bake::guide_file`]).
+    /// stores ([`crate::bake::farm::guide_file`]).
     pub fn parts(&self) -> (u32, u32, u32, &[Option<DirectionTree>]) {
         (self.side, self.tiles_x, self.tiles_y, &self.trees)
     }

@@ -137,7 +137,7 @@ impl DirectionTree {
     }
 
     /// The nodes as (energy, first child) pairs, pre-order: what a guide file stores
-    /// ([`crate::bake::guide_file`]).
+    /// ([`crate::bake::farm::guide_file`]).
     pub fn to_nodes(&self) -> Vec<(f64, u32)> {
         self.nodes.iter().map(|n| (n.energy, n.children)).collect()
     }

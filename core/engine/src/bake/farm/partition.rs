@@ -3,8 +3,8 @@
 //! A bake is a sum over eye samples, and every eye sample draws its random numbers from a
 //! counter-based stream indexed by (seed, pixel, sample) ([`crate::geometry::sampling`]), so
 //! partition `i` of `N` traces samples `[i·spp/N, (i+1)·spp/N)` exactly as a one-machine bake
-//! traces them. It writes a partial stack ([`crate::bake::partial`]): per layer the sums of
-//! its samples in the aligned blocks of the canonical summation tree ([`super::schedule::blocks`]).
+//! traces them. It writes a partial stack ([`crate::bake::farm::partial`]): per layer the sums of
+//! its samples in the aligned blocks of the canonical summation tree ([`crate::bake::schedule::blocks`]).
 //! Work that needs the whole frame runs once: the guide pass before the partitions
 //! ([`super::guide_file`]), and in [`merge`] the sum, the average, grey detection, the
 //! denoiser, layer dropping and the header — the same code as a one-machine bake, on the same
@@ -15,14 +15,14 @@ use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use super::finish::assemble::assemble;
 use super::guide_file::GuideFile;
-use super::prepare::context::BakeContext;
-use super::schedule::blocks::BlockStore;
-use super::schedule::trace::trace_range;
-use super::settings::{BakeSettings, IndirectSampling};
-use super::{finish::denoise, prepare::estimate, schedule::tiles, BakeReport};
-use crate::bake::partial::{BlockInfo, PartialHeader, PartialStack, PARTIAL_FORMAT_VERSION};
+use crate::bake::farm::partial::{BlockInfo, PartialHeader, PartialStack, PARTIAL_FORMAT_VERSION};
+use crate::bake::finish::assemble::assemble;
+use crate::bake::prepare::context::BakeContext;
+use crate::bake::schedule::blocks::BlockStore;
+use crate::bake::schedule::trace::trace_range;
+use crate::bake::settings::{BakeSettings, IndirectSampling};
+use crate::bake::{finish::denoise, prepare::estimate, schedule::tiles, BakeReport};
 use crate::progress::{Progress, Stage};
 use crate::scene::{hash::scene_hash, Scene};
 use crate::stack::tiled::TiledStack;
@@ -63,7 +63,7 @@ impl Partition {
     }
 }
 
-pub use super::settings::{normalized, settings_fingerprint};
+pub use crate::bake::settings::{normalized, settings_fingerprint};
 
 /// Bakes partition `partition` of `scene`: its eye samples, summed in the canonical tree.
 /// `guide` is the guide file of a guided bake (checked against the scene and settings);
@@ -381,12 +381,17 @@ pub fn merge_files_tiled_within(
 ) -> Result<(TiledStack, BakeReport)> {
     let headers = paths
         .iter()
-        .map(|p| Ok((p.clone(), crate::bake::partial::read_partial_header(p)?)))
+        .map(|p| {
+            Ok((
+                p.clone(),
+                crate::bake::farm::partial::read_partial_header(p)?,
+            ))
+        })
         .collect::<Result<Vec<_>>>()?;
     merge_with(
         scene,
         headers,
-        |i| crate::bake::partial::read_partial(&paths[i]),
+        |i| crate::bake::farm::partial::read_partial(&paths[i]),
         threads,
         memory_budget,
         progress,

@@ -13,10 +13,10 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use super::farm_file;
-use super::path::guide::GuideField;
-use super::path::guide_tree::DirectionTree;
-use super::prepare::context::BakeContext;
-use super::settings::{settings_fingerprint, BakeSettings};
+use crate::bake::path::guide::GuideField;
+use crate::bake::path::guide_tree::DirectionTree;
+use crate::bake::prepare::context::BakeContext;
+use crate::bake::settings::{settings_fingerprint, BakeSettings};
 use crate::progress::Progress;
 use crate::scene::{hash::scene_hash, Scene};
 use crate::{RelumeError, Result};

@@ -4,7 +4,7 @@
 //! everything the merge checks: scene hash, settings fingerprint, seed, the sample range, the
 //! guide it was traced with and the engine version.
 //!
-//! File: the farm container ([`crate::bake::farm_file`]: magic `RLMPART1`, JSON header,
+//! File: the farm container ([`crate::bake::farm::farm_file`]: magic `RLMPART1`, JSON header,
 //! little-endian f32 payload, checksum). Payload, block by block: the features
 //! (pixels × [`FEATURE_STRIDE`]), then each reached layer's RGB sums (pixels × 3), in the
 //! order of the block's `layers` list. Layers no sample of the block reached are absent
@@ -14,7 +14,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::bake::farm_file;
+use crate::bake::farm::farm_file;
 use crate::bake::finish::denoise::FEATURE_STRIDE;
 use crate::bake::schedule::blocks::Block;
 use crate::bake::settings::BakeSettings;
@@ -43,7 +43,7 @@ pub struct PartialHeader {
     pub scene_path: Option<PathBuf>,
     /// The bake's settings (threads and memory budget cleared: they change no result).
     pub settings: BakeSettings,
-    /// [`crate::bake::partition::settings_fingerprint`] of `settings`.
+    /// [`crate::bake::farm::partition::settings_fingerprint`] of `settings`.
     pub settings_hash: String,
     /// Eye samples of the whole bake.
     pub spp: u32,
