@@ -20,7 +20,8 @@ pub struct BakeSettings {
     /// indirect bounce (the paper, exact under edits), n > 1 adds bounces 2..n as a "frozen
     /// tail" traced with the bake-time materials and folded into the one-bounce layers
     /// ([`crate::bake::path::integrator`]). With `bounce_budget > 0` this is the cap, and the bake
-    /// measures how many the scene needs ([`crate::bake::prepare::bounces`]). At most [`MAX_BOUNCES`].
+    /// measures how many the scene needs ([`crate::bake::prepare::bounces`]). At most
+    /// [`MAX_BOUNCES`].
     pub bounces: u32,
     /// Relative share of the image's light that bounces beyond the chosen count may leave
     /// out (e.g. 0.005); 0 bakes exactly `bounces`. The presets set it.

@@ -1,7 +1,7 @@
 //! A partial stack: what one partition of a farm bake hands to the merge — per layer the
 //! *sums* of its eye samples (not averages), in the aligned sample blocks of the canonical
-//! summation tree ([`crate::bake::schedule::blocks`]), with the denoiser's per-pixel feature sums and
-//! everything the merge checks: scene hash, settings fingerprint, seed, the sample range, the
+//! summation tree ([`crate::bake::schedule::blocks`]), with the denoiser's per-pixel feature sums
+//! and everything the merge checks: scene hash, settings fingerprint, seed, the sample range, the
 //! guide it was traced with and the engine version.
 //!
 //! File: the farm container ([`crate::bake::farm::farm_file`]: magic `RLMPART1`, JSON header,

@@ -4,12 +4,12 @@
 //! counter-based stream indexed by (seed, pixel, sample) ([`crate::geometry::sampling`]), so
 //! partition `i` of `N` traces samples `[i·spp/N, (i+1)·spp/N)` exactly as a one-machine bake
 //! traces them. It writes a partial stack ([`crate::bake::farm::partial`]): per layer the sums of
-//! its samples in the aligned blocks of the canonical summation tree ([`crate::bake::schedule::blocks`]).
-//! Work that needs the whole frame runs once: the guide pass before the partitions
-//! ([`super::guide_file`]), and in [`merge`] the sum, the average, grey detection, the
-//! denoiser, layer dropping and the header — the same code as a one-machine bake, on the same
-//! bits, so the merged stack is bit-identical to it (`tests/farm.rs` checks every sample of
-//! every layer and the header, for 1, 2, 3 and 7 partitions).
+//! its samples in the aligned blocks of the canonical summation tree
+//! ([`crate::bake::schedule::blocks`]). Work that needs the whole frame runs once: the guide pass
+//! before the partitions ([`super::guide_file`]), and in [`merge`] the sum, the average, grey
+//! detection, the denoiser, layer dropping and the header — the same code as a one-machine bake, on
+//! the same bits, so the merged stack is bit-identical to it (`tests/farm.rs` checks every sample
+//! of every layer and the header, for 1, 2, 3 and 7 partitions).
 
 use std::ops::Range;
 use std::path::{Path, PathBuf};

@@ -3,8 +3,8 @@
 //! dropping needs (per-layer norms, the image at the bake-time materials) are gathered on
 //! the way, so no step after it needs the layers as full frames.
 //!
-//! Both bakes end here: the streaming one-pass bake ([`crate::bake::schedule::stream`]) hands over each
-//! tile row as soon as its denoiser window is traced, the dense path (progressive passes,
+//! Both bakes end here: the streaming one-pass bake ([`crate::bake::schedule::stream`]) hands over
+//! each tile row as soon as its denoiser window is traced, the dense path (progressive passes,
 //! a farm's merge) cuts its full-frame layers into tiles. Given the same f32 values they
 //! make the same stack, bit for bit: a tile's entries, the order its statistics are added
 //! in (layer id within a tile, raster order across tiles) and the dropping do not depend

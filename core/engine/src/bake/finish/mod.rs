@@ -5,7 +5,7 @@
 //! - [`finalise`]: one tile at a time, the denoised layers become entries of the tiled stack
 //!   (lattice entries where the settings ask for them), and the statistics that layer
 //!   dropping needs are gathered on the way.
-//! - [`drop`]: which layers the stack keeps (none that no path reached, and within the
+//! - [`drop`](mod@drop): which layers the stack keeps (none that no path reached, and within the
 //!   drop budget none whose worst-case contribution is negligible).
 //! - [`assemble`]: the dense schedule's sums turned into a stack in named steps (average,
 //!   grey detection, denoise, finalise), and the stack's header and the report of its

@@ -19,7 +19,8 @@
 //! The tree is built from the bake-time materials: editing a region's material afterwards
 //! leaves the guide slightly off for the new material — still unbiased, a little noisier.
 //!
-//! This file holds the guide itself; the pass that builds it is [`crate::bake::prepare::guide_pass`].
+//! This file holds the guide itself; the pass that builds it is
+//! [`crate::bake::prepare::guide_pass`].
 //!
 //! The pass is deterministic (one task per tile, pixels in order, its own random stream), so
 //! a reference render with the same settings builds the same guide and traces the same paths

@@ -75,8 +75,8 @@ impl<'a> BsdfStrategy<'a> {
     }
 }
 
-/// The solid-angle pdf with which [`crate::bake::path::integrator::sample_indirect`] draws `wi` (what multiple importance
-/// sampling weighs light samples against, [`crate::bake::path::mis`]).
+/// The solid-angle pdf with which [`crate::bake::path::integrator::sample_indirect`] draws `wi`
+/// (what multiple importance sampling weighs light samples against, [`crate::bake::path::mis`]).
 #[inline]
 pub(crate) fn indirect_pdf(
     sampling: IndirectSampling,

@@ -2,8 +2,8 @@
 //! will reach (found by a small probe trace), the bytes of its accumulators at their peak,
 //! and the size of the stack it will write.
 //!
-//! A one-pass bake streams ([`crate::bake::schedule::stream`]): its memory is the tiled stack it builds
-//! (per 16×16 tile only the layers non-zero there) plus the tile rows in flight, so the
+//! A one-pass bake streams ([`crate::bake::schedule::stream`]): its memory is the tiled stack it
+//! builds (per 16×16 tile only the layers non-zero there) plus the tile rows in flight, so the
 //! forecast needs how many (tile, layer) pairs are non-zero: the probe counts them in the
 //! tiles it visits, and since a few probe pixels per tile miss layers there, it also
 //! counts per tile the layers its eye regions (and its neighbours') reached anywhere

@@ -1,6 +1,6 @@
 //! The guide pass: the short first trace that builds a guided bake's [`GuideField`] (see
-//! [`crate::bake::path::guide`] for what it records and how the bake samples it). Apart from the guide
-//! itself because it traces paths: the guide is data the bake context holds, the pass
+//! [`crate::bake::path::guide`] for what it records and how the bake samples it). Apart from the
+//! guide itself because it traces paths: the guide is data the bake context holds, the pass
 //! calls the integrator, which reads the context.
 
 use rayon::prelude::*;

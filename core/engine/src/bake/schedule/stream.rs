@@ -6,9 +6,9 @@
 //! allocator's free pages are handed back after each window
 //! ([`crate::memory::release_free_memory`]), so what is resident follows what is held.
 //!
-//! The denoiser ([`crate::bake::finish::denoise`]) is a fixed linear operator whose weights depend only
-//! on the eye features, with a footprint of [`crate::bake::finish::denoise::footprint_radius`] pixels. A
-//! tile row is filtered on a window of `apron` tile rows above and below it
+//! The denoiser ([`crate::bake::finish::denoise`]) is a fixed linear operator whose weights depend
+//! only on the eye features, with a footprint of [`crate::bake::finish::denoise::footprint_radius`]
+//! pixels. A tile row is filtered on a window of `apron` tile rows above and below it
 //! ([`super::band`]; `apron · 16` ≥ that radius), whose cut edges are treated like the image's: the row's output is then exactly what the
 //! whole-frame filter gives (errors from a cut edge travel at most the radius inwards), so
 //! this bake makes the same stack, bit for bit, as the dense path that filters full frames
