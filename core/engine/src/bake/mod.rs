@@ -1,15 +1,28 @@
 //! The bake: one path-tracing pass that fills every layer of the transfer stack.
 //!
-//! For each pixel and eye sample, the integrator ([`integrator`]) gives radiance per slot
-//! (direct) and per slot pair (one bounce). Every bake ends in a [`TiledStack`]: per 16×16
-//! tile only the layers non-zero there ([`finalise`]). A one-pass bake streams
-//! ([`stream`]): tile rows are traced in bands and finalised as soon as their denoiser
-//! window is traced, so its memory follows the data. A progressive bake (several passes)
-//! and a farm's merge keep full-frame accumulators per reached layer ([`blocks`]) — their
-//! memory stays dense, ≈ 12 bytes × reached layers × pixels — and cut the assembled layers
-//! into the same tiles with the same code, so they give the same stack. A layer whose three
-//! channels are bit-identical everywhere (its paths met no colour: Table 1's grey layers)
-//! is stored with one channel, an all-zero layer is dropped, and the rest are RGB.
+//! For each pixel and eye sample, the integrator ([`path::integrator`]) gives radiance per
+//! slot (direct) and per slot pair (one bounce). Every bake ends in a [`TiledStack`]: per
+//! 16×16 tile only the layers non-zero there ([`finish::finalise`]). A one-pass bake streams
+//! ([`schedule::stream`]): tile rows are traced in bands and finalised as soon as their
+//! denoiser window is traced, so its memory follows the data. A progressive bake (several
+//! passes) and a farm's merge keep full-frame accumulators per reached layer
+//! ([`schedule::blocks`]) — their memory stays dense, ≈ 12 bytes × reached layers × pixels
+//! — and cut the assembled layers into the same tiles with the same code, so they give the
+//! same stack. A layer whose three channels are bit-identical everywhere (its paths met no
+//! colour: Table 1's grey layers) is stored with one channel, an all-zero layer is dropped,
+//! and the rest are RGB.
+//!
+//! The folders are the stages, in the order a bake runs them (`run_passes`, below, is the
+//! outline every entry point runs):
+//! 1. [`prepare`]: the context, the set-up steps that trace, the memory forecast;
+//! 2. [`path`]: what one eye sample traces and where its light goes;
+//! 3. [`schedule`]: which samples are traced when, and how their light is held;
+//! 4. [`finish`]: denoising, the tiled stack, layer dropping.
+//!
+//! [`farm`] runs the same stages split over machines. Beside them: the settings
+//! ([`settings`], [`presets`]), what a bake reports ([`report`], [`non_finite`]), the layer
+//! index arithmetic the stages share ([`layout`]), a bake written to a stack file
+//! ([`to_file`]) and the reference renderer ([`reference`](mod@reference)).
 
 pub mod farm;
 pub mod finish;
@@ -47,7 +60,7 @@ pub fn bake(
     Ok((stack.to_dense()?, report))
 }
 
-/// Bakes `scene` into a tiled stack in one streaming pass ([`stream`]): memory is the
+/// Bakes `scene` into a tiled stack in one streaming pass ([`schedule::stream`]): memory is the
 /// stack plus the tile rows in flight. `progress` reports and cancels from other threads.
 pub fn bake_tiled(
     scene: &Scene,
@@ -119,13 +132,16 @@ pub fn bake_progressive_tiled(
     run_passes(scene, settings, passes, None, progress, on_pass)
 }
 
+/// The bake's outline, which every entry point above runs: prepare ([`prepare`]), trace
+/// through the path stage ([`path`]) on one of two schedules ([`schedule`]), finish each
+/// pass into a tiled stack ([`finish`]) and hand it to `on_pass` with its report.
 fn run_passes(
     scene: &Scene,
     settings: &BakeSettings,
     passes: &[u32],
     band_rows: Option<usize>,
     progress: &Progress,
-    mut on_pass: impl FnMut(&TiledStack, &BakeReport, &PassReport) -> Result<()>,
+    on_pass: impl FnMut(&TiledStack, &BakeReport, &PassReport) -> Result<()>,
 ) -> Result<(TiledStack, BakeReport, Vec<PassReport>)> {
     settings.validate()?;
     if passes.is_empty() || passes.windows(2).any(|w| w[0] >= w[1]) || passes[0] == 0 {
@@ -138,6 +154,8 @@ fn run_passes(
     progress.set_stage(Stage::Setup);
     let mut settings = settings.clone();
     settings.spp = *passes.last().unwrap_or(&1);
+    // 1. Prepare: the context and the set-up steps that trace (the light entering
+    // translucent regions, the bounce pre-pass), the memory forecast, then the guide pass.
     let (mut ctx, validation, prepared) =
         prepare::estimate::prepare_measured(scene, &settings, progress)?;
     // The forecast and the budget come before the guide pass and the trace, so a bake that
@@ -157,126 +175,30 @@ fn run_passes(
     )?;
     ctx.build_guide(scene, progress)?;
     let setup_seconds = start.elapsed().as_secs_f64();
-    let res = ctx.resolution;
-    let mut store = schedule::blocks::BlockStore::default();
-    let rays = std::sync::atomic::AtomicU64::new(0);
-    let tile_count = schedule::tiles::tiles(res).len() as u64;
+    let setup = report::SetupFacts {
+        start,
+        setup_seconds,
+        validation,
+        forecast,
+    };
+    // 2. Trace and 3. finish: one pass streams, tile rows finished as soon as their
+    // denoiser window is traced; several passes keep dense blocks and finish after each.
+    let tile_count = schedule::tiles::tiles(ctx.resolution).len() as u64;
     progress.set_stage(Stage::Tracing);
     progress.start(tile_count * settings.spp as u64);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(settings.threads)
         .build()
         .map_err(|e| crate::RelumeError::invalid("threads", e.to_string()))?;
-    let finish_report = |report: &mut BakeReport, rays: u64| {
-        report.seconds = start.elapsed().as_secs_f64();
-        report.setup_seconds = setup_seconds;
-        report.trace_seconds = report.seconds - setup_seconds;
-        report.rays = rays;
-        report.rays_per_second = rays as f64 / report.trace_seconds.max(1e-9);
-        report.triangles = validation.triangles;
-        report.degenerate_triangles = validation.degenerate_triangles;
-        // The validation's warnings first, then those of the bake itself.
-        let own = std::mem::take(&mut report.warnings);
-        report.warnings = validation.warnings.iter().cloned().chain(own).collect();
-        report.estimate = Some(forecast.clone());
+    let baked = if passes.len() == 1 {
+        schedule::passes::one_streaming_pass(
+            &ctx, scene, &settings, band_rows, &pool, progress, &setup, on_pass,
+        )?
+    } else {
+        schedule::passes::progressive_passes(
+            &ctx, scene, &settings, passes, &pool, progress, &setup, on_pass,
+        )?
     };
-    if passes.len() == 1 {
-        let band = band_rows.unwrap_or_else(|| {
-            pool.install(|| {
-                schedule::band::default_band_rows(
-                    res.width,
-                    settings.threads,
-                    schedule::band::apron_rows(&settings.denoise),
-                )
-            })
-        });
-        let streamed =
-            schedule::stream::bake_streaming(&ctx, scene, &settings, band, &pool, progress, &rays)?;
-        progress.set_stage(Stage::Finishing);
-        let (stack, mut report) = finish::assemble::layer_report(
-            &ctx,
-            streamed.finished,
-            streamed.assembly_seconds,
-            streamed.denoise_seconds,
-        );
-        report.peak_accounted_bytes = streamed.peak_accounted_bytes;
-        finish_report(&mut report, rays.load(std::sync::atomic::Ordering::Relaxed));
-        let pass_report = PassReport {
-            pass: 0,
-            spp: settings.spp,
-            seconds: report.seconds,
-            estimated_rel_error: None,
-        };
-        progress.check()?;
-        on_pass(&stack, &report, &pass_report)?;
-        progress.set_stage(Stage::Done);
-        return Ok((stack, report, vec![pass_report]));
-    }
-    let mut pass_reports = Vec::new();
-    let mut previous_image: Option<Vec<f64>> = None;
-    let mut done = 0u32;
-    let mut result = None;
-    for (pass, &upto) in passes.iter().enumerate() {
-        let (from, to) = (done, upto);
-        progress.set_stage(Stage::Tracing);
-        let last_pass = pass + 1 == passes.len();
-        // A one-pass bake keeps only its tree's root per pixel (one image per layer).
-        schedule::trace::trace_range(
-            &ctx,
-            &mut store,
-            from,
-            to,
-            last_pass && from == 0,
-            progress,
-            &rays,
-        )?;
-        done = upto;
-        let (sums, feature_sums) = if last_pass {
-            std::mem::take(&mut store).fold()
-        } else {
-            store.fold_copy()?
-        };
-        let eye_features = finish::denoise::EyeFeatures::from_sums(&ctx, &feature_sums, done);
-        drop(feature_sums);
-        let (stack, mut report, image) = finish::assemble::assemble(
-            &ctx,
-            scene,
-            &settings,
-            &sums,
-            &eye_features,
-            done,
-            &pool,
-            progress,
-            last_pass,
-            true,
-        )?;
-        drop(sums);
-        let image = image.unwrap_or_default();
-        let norm = image.iter().map(|v| v * v).sum::<f64>().sqrt();
-        let estimated_rel_error = previous_image.as_ref().map(|prev| {
-            let diff = prev
-                .iter()
-                .zip(&image)
-                .map(|(a, b)| (a - b) * (a - b))
-                .sum::<f64>()
-                .sqrt();
-            let r = from as f64 / to as f64;
-            diff * (r / (1.0 - r)).sqrt() / norm.max(1e-300)
-        });
-        previous_image = Some(image);
-        finish_report(&mut report, rays.load(std::sync::atomic::Ordering::Relaxed));
-        let pass_report = PassReport {
-            pass,
-            spp: done,
-            seconds: report.seconds,
-            estimated_rel_error,
-        };
-        progress.check()?;
-        on_pass(&stack, &report, &pass_report)?;
-        pass_reports.push(pass_report);
-        result = Some((stack, report));
-    }
     progress.set_stage(Stage::Done);
-    let (stack, report) = result.expect("at least one pass");
-    Ok((stack, report, pass_reports))
+    Ok(baked)
 }

@@ -1,6 +1,8 @@
 //! What a bake reports: the whole bake ([`BakeReport`]) and each pass of a progressive one
 //! ([`PassReport`]), for the command line's JSON and the add-on's status.
 
+use std::time::Instant;
+
 use serde::Serialize;
 
 use super::{
@@ -8,6 +10,7 @@ use super::{
     prepare::{bounce_budget, estimate},
     NonFiniteReport,
 };
+use crate::scene::validate::ValidationReport;
 
 /// What a bake did, for the command line's JSON and the add-on's status.
 #[derive(Clone, Debug, Serialize)]
@@ -84,4 +87,37 @@ pub struct PassReport {
     /// (from the change since the previous pass: for cumulative sample counts n₋ < n, the
     /// noise is ‖I − I₋‖·√(r/(1 − r)) with r = n₋/n); `None` for the first pass.
     pub estimated_rel_error: Option<f64>,
+}
+
+/// What the preparation hands to the report of every pass: when the bake started, how
+/// long its set-up took, the scene's validation and the memory forecast.
+pub(crate) struct SetupFacts {
+    pub start: Instant,
+    pub setup_seconds: f64,
+    pub validation: ValidationReport,
+    pub forecast: estimate::BakeEstimate,
+}
+
+impl SetupFacts {
+    /// Fills in what `report` says of the whole bake: times, rays, triangles, the
+    /// warnings and the forecast.
+    pub(crate) fn finish_report(&self, report: &mut BakeReport, rays: u64) {
+        report.seconds = self.start.elapsed().as_secs_f64();
+        report.setup_seconds = self.setup_seconds;
+        report.trace_seconds = report.seconds - self.setup_seconds;
+        report.rays = rays;
+        report.rays_per_second = rays as f64 / report.trace_seconds.max(1e-9);
+        report.triangles = self.validation.triangles;
+        report.degenerate_triangles = self.validation.degenerate_triangles;
+        // The validation's warnings first, then those of the bake itself.
+        let own = std::mem::take(&mut report.warnings);
+        report.warnings = self
+            .validation
+            .warnings
+            .iter()
+            .cloned()
+            .chain(own)
+            .collect();
+        report.estimate = Some(self.forecast.clone());
+    }
 }

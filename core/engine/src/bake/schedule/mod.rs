@@ -7,7 +7,7 @@
 //!   traces a range of eye samples of every pixel, summed in the canonical order of
 //!   [`blocks`] and kept as full-frame layers.
 //! - The streaming schedule, for a one-pass bake: [`stream`] traces tile rows in bands
-//!   ([`band`]), keeps each traced tile as its sparse averages ([`traced_tile`]) and hands a
+//!   ([`band`]), keeps each traced tile as its sparse averages (`traced_tile`) and hands a
 //!   tile row to the finishing stage as soon as the rows its denoiser reads are traced, the
 //!   denoiser computing only where a layer can be non-zero ([`denoise_sparse`]).
 //!
@@ -19,6 +19,7 @@
 pub mod band;
 pub mod blocks;
 pub mod denoise_sparse;
+pub(crate) mod passes;
 pub mod stream;
 pub mod tiles;
 pub mod trace;
