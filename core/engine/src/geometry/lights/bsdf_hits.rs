@@ -17,7 +17,9 @@
 use glam::Vec3;
 use std::f32::consts::PI;
 
-use super::{sun_cone_pdf, world_mixture_pdf, AreaPlane, Emitter, LightSet, WorldSampling};
+use super::emitters::{AreaPlane, Emitter, WorldSampling};
+use super::sample::{sun_cone_pdf, world_mixture_pdf};
+use super::set::LightSet;
 use crate::geometry::spherical_rect::SphericalRect;
 use crate::Rgb;
 
