@@ -6,6 +6,8 @@ Prints who imports whom, at the granularity of top-level folders and of files, a
 - files import each other in a circle (in core/engine/src or in addon/relume);
 - a module under stack/, geometry/, brdf/ or bssrdf/ imports from bake/ (the bake sits on
   top of them: the vocabulary they share lives on the ground floor of the engine);
+- inside bake/, a stage imports a folder it must not (BAKE_STAGE_RULES: the path imports
+  no schedule, finishing or farm code, finishing no schedule, and no stage the farm);
 - a file of the repository cites a file outside it (../shared/DESIGN.md,
   ../shared/STACK_NOTES.md): the design is docs/design.md.
 
@@ -38,6 +40,16 @@ ADDON = ROOT / "addon" / "relume"
 
 # Layers that must not import from the bake: it builds on them.
 BELOW_BAKE = ("stack", "geometry", "brdf", "bssrdf")
+
+# Inside the bake: folders (stages) and the folders each must not import from. The path
+# traces one eye sample and knows nothing of schedules, finishing or farms; no stage
+# depends on the farm, which drives them across machines.
+BAKE_STAGE_RULES = {
+    "bake/path/": ("bake/schedule/", "bake/finish/", "bake/farm/"),
+    "bake/prepare/": ("bake/farm/",),
+    "bake/schedule/": ("bake/farm/",),
+    "bake/finish/": ("bake/schedule/", "bake/farm/"),
+}
 
 # Paths outside the repository that the code and docs once cited.
 OUTSIDE_REFERENCES = ("../shared/DESIGN.md", "../shared/STACK_NOTES.md")
@@ -417,7 +429,21 @@ def check_rust() -> int:
         print(f"core/engine/src: {source} imports {target}: the bake builds on {top_level(source)}, not the reverse")
     if not upward:
         print(f"core/engine/src: nothing under {', '.join(d + '/' for d in BELOW_BAKE)} imports from bake/")
-    return failures + len(upward)
+    across = sorted(
+        (source, target)
+        for source, targets in graph.items()
+        for target in targets
+        for stage, barred in BAKE_STAGE_RULES.items()
+        if source.startswith(stage) and target.startswith(barred)
+    )
+    for source, target in across:
+        print(f"core/engine/src: {source} imports {target}, which its stage must not")
+    if not across:
+        print(
+            "core/engine/src: bake/path/ imports no schedule, finishing or farm code, "
+            "bake/finish/ no schedule, and no stage imports bake/farm/"
+        )
+    return failures + len(upward) + len(across)
 
 
 # ----------------------------------------------------------------------------------------
