@@ -17,7 +17,9 @@
 //! - [`bssrdf`]: translucency: the dipole profile, its PCA basis, Blender's subsurface inputs.
 //! - [`linalg`]: the Gram matrices and eigen-solvers behind both PCA bases.
 //! - [`geometry`]: BVH (obvhs), sampling helpers, camera rays, light sampling.
-//! - [`bake`]: the bake integrator, its set-up steps, assembly, the reference renderer.
+//! - [`bake`]: the bake, a folder per stage (`prepare`, `path`: the integrator, `schedule`,
+//!   `finish`, and `farm` for a bake split over machines), its settings and report, the
+//!   reference renderer.
 //! - [`stack`]: the transfer stack in memory and as one OpenEXR file.
 //! - [`relight`]: the CPU relight (the reference for the GPU one).
 //! - [`materials`]: material edits (JSON) applied at relight time.
