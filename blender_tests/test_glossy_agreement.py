@@ -13,7 +13,7 @@ and a glossy scene with the roughness range that covers its materials.
   as the issue's 506 against 2.9, fails it — and the mean over Relume's seeds of that pixel must
   be within three standard errors of the converged value, so a systematically brighter (or
   dimmer) highlight fails too. Multiple importance sampling against the BSDF mixture's
-  directions (`core/engine/src/bake/mis.rs`) is what keeps fireflies out; at this preset and
+  directions (`core/engine/src/bake/path/mis.rs`) is what keeps fireflies out; at this preset and
   scene light sampling alone also stayed within the bound (the engine's `tests/mis.rs` shows
   the difference at low sample counts), so this test guards the behaviour users see rather
   than telling the two estimators apart.

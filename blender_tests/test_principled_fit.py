@@ -1,6 +1,6 @@
 """Per material against Cycles: fixed Principled materials, which Relume evaluates as Cycles
 does (GGX, Fresnel, multiple scattering and the diffuse base's view-dependent weight:
-core/engine/src/bake/surface_brdf.rs, since session 30), and the analytic Blinn–Phong
+core/engine/src/bake/path/surface_brdf.rs, since session 30), and the analytic Blinn–Phong
 mapping they were rendered with before the fit (core/engine/src/brdf/principled_fit,
 docs/principled_fit.md), on a row of Principled spheres — metals at roughness 0.1–0.8,
 dielectrics — with the same one-bounce transport on both sides (support/cycles.py says what

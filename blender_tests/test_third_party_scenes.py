@@ -8,7 +8,7 @@ Each scene: export (every warning must be one this test explains), bake with the
 preset at a small resolution, relight, compare with a Cycles render made here at the file's
 own light paths (one bounce), over 8×8 tiles. The figures are printed and recorded. These
 scenes' materials are fixed, so Relume evaluates their Principled BSDFs as Cycles does
-(core/engine/src/bake/surface_brdf.rs): the two opaque scenes must agree within 3 % on tiles
+(core/engine/src/bake/path/surface_brdf.rs): the two opaque scenes must agree within 3 % on tiles
 and 2 % on the mean (measured 1.1–1.4 % and 0.997–1.003, 2026-11-27); the `_asis` variant,
 whose sphere has a transmission Relume renders opaque, within its measured gap (6.4 %,
 mean 1.025) plus a margin. Its emissive quad must light the box and be seen: its pixels

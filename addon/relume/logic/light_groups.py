@@ -4,7 +4,7 @@ A stack baked with light groups keeps each group's light in layers of its own, s
 strength and colour can change at relight time (radiance is linear in each light's
 emission). The cost is that storage and relight time grow by the number of groups.
 
-The core's "scene" grouping (`LightGrouping::Scene`, core/engine/src/geometry/lights.rs)
+The core's "scene" grouping (`LightGrouping::Scene`, core/engine/src/geometry/lights/groups.rs)
 puts the lights the scene file's `light_groups` do not list — and the world, unless a group
 says `"world": true` — into one more group named "default", which every such stack has (even
 when it holds nothing). A Blender light group literally named "default" is therefore the

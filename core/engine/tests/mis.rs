@@ -1,4 +1,4 @@
-//! Multiple importance sampling of direct light (`bake/mis.rs`, issue 15's fireflies on
+//! Multiple importance sampling of direct light (`bake/path/mis.rs`, issue 15's fireflies on
 //! smooth metal): smooth metallic spheres (Principled roughness 0.1–0.3 through the core's
 //! mapping) on a diffuse floor under a small bright area light and an HDRI with a sun-like
 //! hot spot.
