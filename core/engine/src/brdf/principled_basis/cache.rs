@@ -24,7 +24,6 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use super::PrincipledBasisConfig;
 use crate::scene::hash::fnv1a;
 
 /// The first bytes of a cached basis.
@@ -111,9 +110,9 @@ pub(crate) fn default_dir() -> Option<PathBuf> {
     }
 }
 
-/// The key of `config` under this build of the engine.
-pub(crate) fn key(config: &PrincipledBasisConfig) -> u64 {
-    let mut bytes = serde_json::to_vec(config).unwrap_or_default();
+/// The key of a configuration (its serialised form, `config`) under this build of the engine.
+pub(crate) fn key(config: &[u8]) -> u64 {
+    let mut bytes = config.to_vec();
     bytes.extend_from_slice(env!("CARGO_PKG_VERSION").as_bytes());
     bytes.extend_from_slice(std::env::consts::ARCH.as_bytes());
     for source in BUILD_SOURCES {
@@ -122,18 +121,19 @@ pub(crate) fn key(config: &PrincipledBasisConfig) -> u64 {
     fnv1a(&bytes)
 }
 
-/// The file of `config` in `dir`.
-pub(crate) fn path(dir: &Path, config: &PrincipledBasisConfig) -> PathBuf {
-    dir.join(format!("principled-basis-{:016x}.bin", key(config)))
+/// The file of the basis with `key` in `dir`.
+pub(crate) fn path(dir: &Path, key: u64) -> PathBuf {
+    dir.join(format!("principled-basis-{key:016x}.bin"))
 }
 
-/// The stored basis of `config` in `dir`, or `None` when there is none that can be trusted.
-pub(crate) fn load(dir: &Path, config: &PrincipledBasisConfig, shape: &Shape) -> Option<Stored> {
-    let path = path(dir, config);
+/// The stored basis with `key` in `dir`, of at most `max_nspec` specular bases, or `None`
+/// when there is none that can be trusted.
+pub(crate) fn load(dir: &Path, key: u64, max_nspec: usize, shape: &Shape) -> Option<Stored> {
+    let path = path(dir, key);
     let size = std::fs::metadata(&path).ok()?.len() as usize;
     // Header: magic, key, nspec, report length; then the arrays, the report, the checksum.
     let header = MAGIC.len() + 8 + 8 + 8;
-    let most = header + shape.array_bytes(config.bases.saturating_sub(1)) + MAX_REPORT + 8;
+    let most = header + shape.array_bytes(max_nspec) + MAX_REPORT + 8;
     if size < header + 8 || size > most {
         return None;
     }
@@ -143,12 +143,12 @@ pub(crate) fn load(dir: &Path, config: &PrincipledBasisConfig, shape: &Shape) ->
         return None;
     }
     let mut r = Reader { bytes: body, at: 0 };
-    if r.take(MAGIC.len())? != MAGIC || r.u64()? != key(config) {
+    if r.take(MAGIC.len())? != MAGIC || r.u64()? != key {
         return None;
     }
     let nspec = r.u64()? as usize;
     let report_len = r.u64()? as usize;
-    if nspec == 0 || nspec >= config.bases || report_len > MAX_REPORT {
+    if nspec == 0 || nspec > max_nspec || report_len > MAX_REPORT {
         return None;
     }
     if body.len() != header + shape.array_bytes(nspec) + report_len {
@@ -170,18 +170,14 @@ pub(crate) fn load(dir: &Path, config: &PrincipledBasisConfig, shape: &Shape) ->
     Some(stored)
 }
 
-/// Writes `stored` for `config` into `dir` (made when missing) atomically: a temporary file
+/// Writes `stored` under `key` into `dir` (made when missing) atomically: a temporary file
 /// beside the final one, renamed over it. Failure leaves no partial file and is returned
 /// for the caller to ignore (a cache that cannot be written only costs a later build).
-pub(crate) fn store(
-    dir: &Path,
-    config: &PrincipledBasisConfig,
-    stored: &Stored,
-) -> std::io::Result<()> {
+pub(crate) fn store(dir: &Path, key: u64, stored: &Stored) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;
     let mut body = Vec::new();
     body.extend_from_slice(MAGIC);
-    body.extend_from_slice(&key(config).to_le_bytes());
+    body.extend_from_slice(&key.to_le_bytes());
     body.extend_from_slice(&(stored.nspec as u64).to_le_bytes());
     body.extend_from_slice(&(stored.report.len() as u64).to_le_bytes());
     for values in [
@@ -206,7 +202,7 @@ pub(crate) fn store(
     }
     body.extend_from_slice(&stored.report);
     let sum = fnv1a(&body);
-    let final_path = path(dir, config);
+    let final_path = path(dir, key);
     let temp = dir.join(format!(
         ".{}.{}.tmp",
         final_path

@@ -271,6 +271,11 @@ impl PrincipledBasis {
         Ok(basis)
     }
 
+    /// The cache's key of `config` ([`cache::key`]).
+    fn cache_key(config: &PrincipledBasisConfig) -> u64 {
+        cache::key(&serde_json::to_vec(config).unwrap_or_default())
+    }
+
     /// The array lengths `config` implies, for the cache's checks.
     fn cache_shape(config: &PrincipledBasisConfig, nodes: usize) -> cache::Shape {
         cache::Shape {
@@ -290,7 +295,12 @@ impl PrincipledBasis {
     ) -> Option<PrincipledBasis> {
         config.check().ok()?;
         let (nodes, _) = quadrature::nodes(config.quadrature);
-        let stored = cache::load(dir, config, &Self::cache_shape(config, nodes.len()))?;
+        let stored = cache::load(
+            dir,
+            Self::cache_key(config),
+            config.bases - 1,
+            &Self::cache_shape(config, nodes.len()),
+        )?;
         let mut report: PrincipledBasisReport = serde_json::from_slice(&stored.report).ok()?;
         report.from_cache = true;
         let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
@@ -339,7 +349,7 @@ impl PrincipledBasis {
         let (e_avg, values) = curves.parts();
         cache::store(
             dir,
-            &self.config,
+            Self::cache_key(&self.config),
             &cache::Stored {
                 nspec: self.nspec,
                 coef: self.coef.clone(),

@@ -292,7 +292,7 @@ fn the_disk_cache_restores_the_built_basis_and_refuses_damaged_files() {
     };
     let built = PrincipledBasis::cached_in(dir.path(), &config).unwrap();
     assert!(!built.report().from_cache);
-    let file = cache::path(dir.path(), &config);
+    let file = cache::path(dir.path(), PrincipledBasis::cache_key(&config));
     assert!(file.is_file(), "the build is written to the cache");
     let loaded = PrincipledBasis::cached_in(dir.path(), &config).unwrap();
     assert!(loaded.report().from_cache, "the second process reads it");
@@ -357,6 +357,10 @@ fn the_disk_cache_restores_the_built_basis_and_refuses_damaged_files() {
         ..config.clone()
     };
     PrincipledBasis::cached_in(dir.path(), &other).unwrap();
-    std::fs::copy(cache::path(dir.path(), &other), &file).unwrap();
+    std::fs::copy(
+        cache::path(dir.path(), PrincipledBasis::cache_key(&other)),
+        &file,
+    )
+    .unwrap();
     assert!(PrincipledBasis::load_cached(dir.path(), &config).is_none());
 }
