@@ -23,6 +23,7 @@
 //! - [`stack`]: the transfer stack in memory and as one OpenEXR file.
 //! - [`relight`]: the CPU relight (the reference for the GPU one).
 //! - [`materials`]: material edits (JSON) applied at relight time.
+//! - [`features`]: the surfaces each pixel sees (albedo, normal), for denoising the shown image.
 
 // `!(x > 0.0)` is written on purpose throughout: it also rejects NaN, which
 // `x <= 0.0` would let through.
@@ -33,6 +34,7 @@ pub mod brdf;
 pub mod bssrdf;
 pub mod byte_size;
 pub mod error;
+pub mod features;
 pub mod geometry;
 pub mod image_io;
 pub mod layer_key;
