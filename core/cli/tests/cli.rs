@@ -47,9 +47,12 @@ fn bake_relight_reference_compare() {
         s(&dir.join("relit.png")),
         "--scene",
         s(&scene),
+        "--denoise",
+        "none",
         "--json",
     ]));
     assert_eq!(r["width"], 40);
+    assert_eq!(r["denoise"]["ran"], "none");
     assert!(dir.join("relit.png").exists());
 
     let reference = dir.join("ref.exr");

@@ -56,6 +56,8 @@ fn relight_reports_its_device_and_gpu_matches_cpu() {
             s(&dir.join(format!("{device}.exr"))),
             "--device",
             device,
+            "--denoise",
+            "none",
             "--json",
         ])
     };

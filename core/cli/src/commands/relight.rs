@@ -4,6 +4,9 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
 
+use relume_denoise::oidn::{DeviceChoice, LibrarySearch};
+use relume_denoise::{DenoiseMode, DenoiseReport, FeatureImages, ShownImage};
+use relume_engine::features::{albedo_of, PixelFeatures, FEATURE_SAMPLES_PER_AXIS};
 use relume_engine::image_io::{write_png_srgb, write_rgba_exr};
 use relume_engine::materials::{
     load_materials, resolve_light_gains, resolve_materials, MaterialsFile,
@@ -49,6 +52,24 @@ pub fn device_error(device: Device, e: GpuError) -> RelumeError {
     }
 }
 
+/// `--denoise`: what is done to the relit image before it is written.
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum Denoise {
+    Oidn,
+    Linear,
+    None,
+}
+
+impl Denoise {
+    pub fn mode(self) -> DenoiseMode {
+        match self {
+            Denoise::Oidn => DenoiseMode::Oidn,
+            Denoise::Linear => DenoiseMode::Linear,
+            Denoise::None => DenoiseMode::None,
+        }
+    }
+}
+
 #[derive(clap::Args)]
 pub struct Args {
     /// Transfer stack written by `relume bake`.
@@ -71,6 +92,12 @@ pub struct Args {
     /// Relight device: auto takes a real GPU and otherwise the CPU (the summary says why).
     #[arg(long, value_enum, default_value = "auto")]
     pub device: Device,
+    /// What is written: oidn (the relit image through OpenImageDenoise, with albedo and
+    /// normal features when --scene is given; the linear image, with a note, when OIDN is
+    /// not found: set RELUME_OIDN_LIBRARY to its file or folder), linear (the relit image of
+    /// the stack's bake-time-denoised layers) or none (the relit image as summed).
+    #[arg(long, value_enum, default_value = "oidn")]
+    pub denoise: Denoise,
     #[arg(long)]
     pub json: bool,
 }
@@ -91,9 +118,14 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
     let t = Instant::now();
     let stack = read_tiled(&args.stack)?;
     let load_seconds = t.elapsed().as_secs_f64();
-    if let Some(scene_path) = &args.scene {
-        check_scene_hash(&stack.header, &scene_hash(&load_scene(scene_path)?))?;
-    }
+    let scene = match &args.scene {
+        Some(scene_path) => {
+            let scene = load_scene(scene_path)?;
+            check_scene_hash(&stack.header, &scene_hash(&scene))?;
+            Some(scene)
+        }
+        None => None,
+    };
     let edits = match &args.materials {
         Some(p) => load_materials(p)?,
         None => MaterialsFile::default(),
@@ -138,9 +170,19 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
     let relight_ms = t.elapsed().as_secs_f64() * 1e3;
     // An image with inf or NaN pixels is refused, not written as if it were right.
     relume_engine::relight::check_finite_image(&image, width)?;
-    write_rgba_exr(&args.output, width, height, &image)?;
+    let (shown, denoise) = shown_image(
+        &image,
+        (width, height),
+        args.denoise.mode(),
+        scene.as_ref(),
+        &materials,
+    )?;
+    if denoise.ran != denoise.asked {
+        eprintln!("note: {}", denoise.summary());
+    }
+    write_rgba_exr(&args.output, width, height, &shown)?;
     if let Some(png) = &args.png {
-        write_png_srgb(png, width, height, &image, args.exposure)?;
+        write_png_srgb(png, width, height, &shown, args.exposure)?;
     }
     if args.json {
         super::print_json(&json!({
@@ -152,14 +194,68 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
             "height": height,
             "load_seconds": load_seconds,
             "relight_ms": relight_ms,
+            "denoise": denoise_json(&denoise),
             "warnings": warnings,
         }));
     } else {
         println!(
-            "relit {width}×{height} on the {} in {relight_ms:.2} ms → {} ({device_reason})",
+            "relit {width}×{height} on the {} in {relight_ms:.2} ms, shown: {} → {} ({device_reason})",
             device.to_string().to_uppercase(),
+            denoise.summary(),
             args.output.display()
         );
     }
     Ok(())
+}
+
+/// The image written: the relit one under `mode`, with the scene's pixel features (traced
+/// here, the albedo from the current `materials`) when OIDN runs and the scene is given.
+pub fn shown_image(
+    image: &[f32],
+    (width, height): (u32, u32),
+    mode: DenoiseMode,
+    scene: Option<&relume_engine::scene::Scene>,
+    materials: &[relume_engine::brdf::MaterialSpec],
+) -> Result<(Vec<f32>, DenoiseReport), RelumeError> {
+    let mut shown = ShownImage::new(LibrarySearch::with_dirs(vec![]), DeviceChoice::Default);
+    // Features only for an OIDN that is there (tracing them costs primary rays).
+    let oidn_ready = mode == DenoiseMode::Oidn && shown.oidn().is_ok();
+    let traced = match (oidn_ready, scene) {
+        (true, Some(scene)) => {
+            let t = Instant::now();
+            let f = PixelFeatures::trace(scene, width, height, FEATURE_SAMPLES_PER_AXIS)?;
+            let albedo = albedo_of(&f, materials)?;
+            Some((f, albedo, t.elapsed().as_secs_f64() * 1e3))
+        }
+        _ => None,
+    };
+    let features = match &traced {
+        Some((f, albedo, _)) => FeatureImages::Clean {
+            albedo,
+            normal: f.normal(),
+        },
+        None => FeatureImages::Missing(
+            "pass --scene (the scene file baked) for albedo and normals".into(),
+        ),
+    };
+    let (image, mut report) = shown.show(image, width, height, mode, features)?;
+    if let Some((_, _, ms)) = traced {
+        report.milliseconds += ms;
+    }
+    Ok((image.into_owned(), report))
+}
+
+/// The report's JSON: asked, ran, note, features, device, library, version, ms.
+pub fn denoise_json(r: &DenoiseReport) -> serde_json::Value {
+    json!({
+        "asked": r.asked.as_str(),
+        "ran": r.ran.as_str(),
+        "note": r.note,
+        "features": r.features,
+        "device": r.device,
+        "library": r.library,
+        "version": r.version,
+        "negative_values": r.negative_values,
+        "ms": r.milliseconds,
+    })
 }
