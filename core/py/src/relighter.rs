@@ -6,7 +6,14 @@
 //! changed since the last call (the core's incremental `relight_region`, which itself re-sums everything
 //! every 64 edits to bound float drift), or everything on the first call. The sum runs
 //! with the GIL released.
+//!
+//! `relight(denoise="oidn")` returns the shown image instead of the relit one: the relit
+//! image through OpenImageDenoise (relume-denoise's `ShownImage`, which holds the policy:
+//! the search, the fallback to the linear image and the report) with the pixel features of
+//! the scene given to the constructor, traced at the first such call, the albedo from the
+//! current materials at every call.
 
+use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
@@ -14,10 +21,14 @@ use numpy::ndarray::Array3;
 use numpy::{IntoPyArray, PyArray3};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use relume_denoise::oidn::{DeviceChoice, LibrarySearch};
+use relume_denoise::{DenoiseMode, DenoiseReport, FeatureImages, ShownImage};
 use relume_engine::brdf::{
     principled_to_blinn_phong, BlinnPhong, MaterialSpec, PrincipledMaterial, Subsurface,
 };
+use relume_engine::features::{albedo_of, PixelFeatures, FEATURE_SAMPLES_PER_AXIS};
 use relume_engine::materials::{LightGroupEdit, LiveMaterials};
+use relume_engine::scene::{hash::scene_hash, Scene as EngineScene};
 use relume_engine::stack::bases::StackBases;
 use relume_engine::stack::tiled::TiledStack;
 use relume_engine::RelumeError;
@@ -26,6 +37,7 @@ use relume_gpu::{DevicePreference, GpuError, Relighter as Engine};
 use crate::errors::{engine_err, new_err, IntoPy};
 use crate::guard::{guard, guard_detached};
 use crate::materials::{blinn_phong_dict, principled, rgb};
+use crate::scene::Scene;
 use crate::stack::Stack;
 
 struct State {
@@ -34,6 +46,12 @@ struct State {
     /// core's rules and bookkeeping: this layer only converts arguments and errors).
     live: LiveMaterials,
     last_ms: f64,
+    /// The shown-image denoiser and the folders it searched (made at the first
+    /// `denoise="oidn"`, made again when the folders asked for change).
+    shown: Option<(Vec<PathBuf>, ShownImage)>,
+    /// The scene's pixel features, traced at the first OIDN run; the reason there are none.
+    features: Option<Result<PixelFeatures, String>>,
+    last_denoise: Option<DenoiseReport>,
 }
 
 /// Relights one stack live.
@@ -41,6 +59,8 @@ struct State {
 pub struct Relighter {
     stack: Arc<TiledStack>,
     bases: StackBases,
+    /// The scene baked, for the denoiser's features (its hash checked against the stack's).
+    scene: Option<EngineScene>,
     state: Mutex<State>,
 }
 
@@ -91,19 +111,112 @@ impl Relighter {
         st.last_ms = t.elapsed().as_secs_f64() * 1e3;
         Ok(out)
     }
+
+    /// The shown image of the relit `image` (rows top first) under `mode`, searching
+    /// `dirs` for OIDN; the report is kept for `last_denoise`.
+    fn shown(
+        &self,
+        image: Vec<f32>,
+        mode: DenoiseMode,
+        dirs: Vec<PathBuf>,
+    ) -> Result<Vec<f32>, RelumeError> {
+        let (w, h) = (self.stack.header.width, self.stack.header.height);
+        let mut guard = self.lock();
+        let st = &mut *guard;
+        if st.shown.as_ref().is_none_or(|(d, _)| *d != dirs) {
+            let search = LibrarySearch::with_dirs(dirs.clone());
+            st.shown = Some((dirs, ShownImage::new(search, DeviceChoice::Default)));
+        }
+        let shown = &mut st.shown.as_mut().expect("set above").1;
+        let t = Instant::now();
+        // Features only for an OIDN that is there (tracing them costs primary rays).
+        if mode == DenoiseMode::Oidn && st.features.is_none() && shown.oidn().is_ok() {
+            st.features = Some(match &self.scene {
+                Some(scene) => PixelFeatures::trace(scene, w, h, FEATURE_SAMPLES_PER_AXIS)
+                    .map_err(|e| e.to_string()),
+                None => Err("no scene was given to the Relighter".to_string()),
+            });
+        }
+        let albedo = match &st.features {
+            Some(Ok(f)) if mode == DenoiseMode::Oidn => Some(albedo_of(f, st.live.materials())?),
+            _ => None,
+        };
+        let features = match (&st.features, &albedo) {
+            (Some(Ok(f)), Some(albedo)) => FeatureImages::Clean {
+                albedo,
+                normal: f.normal(),
+            },
+            (Some(Err(e)), _) => FeatureImages::Missing(e.clone()),
+            _ => FeatureImages::Missing("not traced".to_string()),
+        };
+        let (out, mut report) = shown.show(&image, w, h, mode, features)?;
+        let out = out.into_owned();
+        if report.ran == DenoiseMode::Oidn {
+            report.milliseconds = t.elapsed().as_secs_f64() * 1e3;
+        }
+        st.last_denoise = Some(report);
+        Ok(out)
+    }
+}
+
+/// `rows` (RGBA, `width` pixels a row) with the row order reversed.
+fn flip_rows(rows: &[f32], width: usize) -> Vec<f32> {
+    let mut flipped = Vec::with_capacity(rows.len());
+    for r in rows.rchunks_exact(width * 4) {
+        flipped.extend_from_slice(r);
+    }
+    flipped
+}
+
+/// The folder of the `bpy` module's libraries (the bpy wheel's `bpy/lib`), found without
+/// importing bpy; `None` where there is no bpy package.
+fn bpy_lib_dir(py: Python<'_>) -> Option<PathBuf> {
+    let spec = py
+        .import("importlib.util")
+        .ok()?
+        .call_method1("find_spec", ("bpy",))
+        .ok()?;
+    if spec.is_none() {
+        return None;
+    }
+    let locations: Vec<String> = spec
+        .getattr("submodule_search_locations")
+        .ok()?
+        .extract()
+        .ok()?;
+    let dir = PathBuf::from(locations.first()?).join("lib");
+    dir.is_dir().then_some(dir)
 }
 
 #[pymethods]
 impl Relighter {
     /// Builds the relighter of `stack` on `device` ("auto": a real GPU, else the CPU;
     /// "gpu": insist, DeviceError without one; "cpu").
+    /// `scene`: the scene the stack was baked from (StaleStackError otherwise), whose pixel
+    /// features (albedo, normals) OpenImageDenoise then uses.
     #[new]
-    #[pyo3(signature = (stack, device = "auto"))]
-    fn new(py: Python<'_>, stack: PyRef<'_, Stack>, device: &str) -> PyResult<Self> {
+    #[pyo3(signature = (stack, device = "auto", scene = None))]
+    fn new(
+        py: Python<'_>,
+        stack: PyRef<'_, Stack>,
+        device: &str,
+        scene: Option<PyRef<'_, Scene>>,
+    ) -> PyResult<Self> {
         let preference: DevicePreference = device
             .parse()
             .map_err(pyo3::exceptions::PyValueError::new_err)?;
         let stack = stack.inner.clone();
+        let scene = scene.map(|s| s.snapshot());
+        if let Some(scene) = &scene {
+            let hash = guard_detached(py, "Relighter()", || scene_hash(scene))?;
+            if hash != stack.header.scene_hash {
+                return Err(new_err(
+                    py,
+                    "StaleStackError",
+                    "the scene given is not the one the stack was baked from (its features would not match the image)".to_string(),
+                ));
+            }
+        }
         let s = stack.clone();
         let (engine, bases) = guard_detached(py, "Relighter()", move || {
             let bases = StackBases::from_header(&s.header)?;
@@ -129,10 +242,14 @@ impl Relighter {
         Ok(Relighter {
             stack,
             bases,
+            scene,
             state: Mutex::new(State {
                 engine,
                 live,
                 last_ms: 0.0,
+                shown: None,
+                features: None,
+                last_denoise: None,
             }),
         })
     }
@@ -241,14 +358,42 @@ impl Relighter {
 
     /// The image for the current materials: float32 (height, width, 4) RGBA, alpha 1,
     /// scene-linear; rows top first, or bottom first with flip_y=True (Blender's order).
-    #[pyo3(signature = (flip_y = false))]
-    fn relight<'py>(&self, py: Python<'py>, flip_y: bool) -> PyResult<Bound<'py, PyArray3<f32>>> {
-        let out = guard_detached(py, "Relighter.relight", || self.run(flip_y))?;
-        let pixels = out.py_err(py)?;
+    /// `denoise`: "none" (the relit image, exact), "linear" (the same pixels: the stack's
+    /// layers as the bake's linear denoiser left them) or "oidn" (through OpenImageDenoise,
+    /// searched in RELUME_OIDN_LIBRARY, `oidn_dirs` — by default the bpy wheel's lib folder
+    /// when there is one — and the system; the linear image when none is found).
+    /// `last_denoise` says which ran and why.
+    #[pyo3(signature = (flip_y = false, denoise = "none", oidn_dirs = None))]
+    fn relight<'py>(
+        &self,
+        py: Python<'py>,
+        flip_y: bool,
+        denoise: &str,
+        oidn_dirs: Option<Vec<PathBuf>>,
+    ) -> PyResult<Bound<'py, PyArray3<f32>>> {
+        let mode: DenoiseMode = denoise
+            .parse()
+            .map_err(pyo3::exceptions::PyValueError::new_err)?;
+        let dirs = match oidn_dirs {
+            Some(d) => d,
+            None if mode == DenoiseMode::Oidn => bpy_lib_dir(py).into_iter().collect(),
+            None => Vec::new(),
+        };
         let (w, h) = (
             self.stack.header.width as usize,
             self.stack.header.height as usize,
         );
+        let out = guard_detached(py, "Relighter.relight", || {
+            if mode == DenoiseMode::None {
+                return self.run(flip_y);
+            }
+            let image = self.run(false)?;
+            // The core's last check on a relit image comes first (the shown image's input).
+            relume_engine::relight::check_finite_image(&image, w as u32)?;
+            let shown = self.shown(image, mode, dirs)?;
+            Ok(if flip_y { flip_rows(&shown, w) } else { shown })
+        })?;
+        let pixels = out.py_err(py)?;
         // The core's last check on a relit image, as `relume relight` makes it: an image
         // with a NaN or an infinity is an error naming where, never shown as if right.
         relume_engine::relight::check_finite_image(&pixels, w as u32).py_err(py)?;
@@ -281,6 +426,33 @@ impl Relighter {
     #[getter]
     fn last_ms(&self) -> f64 {
         self.lock().last_ms
+    }
+
+    /// What the last relight() did to the image shown: {"asked", "ran" ("oidn", "linear" or
+    /// "none"), "note" (why not what was asked, or what OIDN ran without), "features"
+    /// ("albedo+normal" or "none"), "device", "library", "version", "negative_values",
+    /// "ms", "summary"}; None before the first relight.
+    #[getter]
+    fn last_denoise<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let st = self.lock();
+        let Some(r) = &st.last_denoise else {
+            return Ok(None);
+        };
+        let d = PyDict::new(py);
+        d.set_item("asked", r.asked.as_str())?;
+        d.set_item("ran", r.ran.as_str())?;
+        d.set_item("note", r.note.as_deref())?;
+        d.set_item("features", r.features)?;
+        d.set_item("device", r.device.as_deref())?;
+        d.set_item(
+            "library",
+            r.library.as_ref().map(|p| p.display().to_string()),
+        )?;
+        d.set_item("version", r.version.as_deref())?;
+        d.set_item("negative_values", r.negative_values)?;
+        d.set_item("ms", r.milliseconds)?;
+        d.set_item("summary", r.summary())?;
+        Ok(Some(d))
     }
 
     /// Current material of every editable region: {name: {"kd", "ks", "ns"}}.
