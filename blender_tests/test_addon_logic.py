@@ -22,7 +22,16 @@ def _load():
 
 
 _load()
-from relume_logic import camera_map, light_groups, lights_map, material_map, stack_paths, throttle  # noqa: E402
+from relume_logic import (  # noqa: E402
+    camera_map,
+    light_groups,
+    lights_map,
+    material_map,
+    oidn_dirs,
+    settle,
+    stack_paths,
+    throttle,
+)
 from relume_logic.bake_session import format_eta  # noqa: E402
 from relume_logic.export_warnings import WarningList  # noqa: E402
 
@@ -207,3 +216,29 @@ def test_bake_summary_names_layers_bytes_and_compression_error():
     assert kept == "baked in 1.0 s · 4 non-finite values kept out (see warnings)"
     clean = {"path_contributions": 0, "layer_values": 0, "lattice_fits": 0, "stored_values": 0}
     assert bake_summary({"seconds": 1.0, "report": {"non_finite": clean}}) == "baked in 1.0 s"
+
+
+def test_settle_is_due_a_delay_after_the_last_edit_and_each_edit_pushes_it_back():
+    now = [0.0]
+    s = settle.Settle(delay=0.3, clock=lambda: now[0])
+    assert not s.pending and not s.take()
+    s.touch()
+    now[0] = 0.2
+    assert s.pending and not s.take() and abs(s.remaining() - 0.1) < 1e-9
+    s.touch()  # another edit at 0.2: due at 0.5
+    now[0] = 0.45
+    assert not s.take()
+    now[0] = 0.5
+    assert s.take() and not s.pending and not s.take()
+    with pytest.raises(ValueError):
+        settle.Settle(delay=float("nan"))
+
+
+def test_blender_lib_dirs_find_the_folders_that_exist(tmp_path):
+    binary = tmp_path / "blender"
+    (tmp_path / "lib").mkdir()
+    wheel = tmp_path / "site" / "bpy"
+    (wheel / "lib").mkdir(parents=True)
+    dirs = oidn_dirs.blender_lib_dirs(str(binary), str(wheel / "__init__.so"))
+    assert dirs == [str(tmp_path / "lib"), str(wheel / "lib")]
+    assert oidn_dirs.blender_lib_dirs("", None) == []

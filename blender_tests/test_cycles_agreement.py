@@ -82,7 +82,7 @@ def _relume_image(addon, tmp: pathlib.Path, seed: int, name: str, bounces: int =
     report = addon.api.bake(settings=relume.BakeSettings.preset("final", seed=seed, bounces=bounces,
                                                                  **off))
     bake_s = time.perf_counter() - t0
-    out = addon.api.render(str(tmp / f"{name}_relume_seed{seed}.exr"))
+    out = addon.api.render(str(tmp / f"{name}_relume_seed{seed}.exr"), denoise="none")
     image = np.asarray(relume.read_exr(out), dtype=np.float64)[..., :3]
     return image, bake_s, report
 

@@ -63,7 +63,7 @@ def _relume(addon, prefs, tmp: pathlib.Path, name: str, preset: str = "final",
     t0 = time.perf_counter()
     report = addon.api.bake(settings=settings)
     seconds = time.perf_counter() - t0
-    out = addon.api.render(str(tmp / f"{name}_relume.exr"))
+    out = addon.api.render(str(tmp / f"{name}_relume.exr"), denoise="none")
     image = np.asarray(relume.read_exr(out), dtype=np.float64)[..., :3]
     return image, seconds, report, settings
 

@@ -131,7 +131,7 @@ def _relume(addon, tmp, name, lobe="blinn-phong", seed=0):
     t0 = time.perf_counter()
     report = addon.api.bake(settings=relume.BakeSettings.preset("final", seed=seed, bounces=1, lobe=lobe))
     bake_s = time.perf_counter() - t0
-    out = addon.api.render(str(tmp / f"{name}_relume.exr"))
+    out = addon.api.render(str(tmp / f"{name}_relume.exr"), denoise="none")
     image = np.asarray(relume.read_exr(out), dtype=np.float64)[..., :3]
     return image, bake_s, report
 

@@ -130,7 +130,7 @@ def _bake(addon, prefs, bounces: str) -> tuple[dict, float]:
 def _relit(addon, folder, name) -> np.ndarray:
     import relume
 
-    out = addon.api.render(str(folder / f"{name}_relume.exr"))
+    out = addon.api.render(str(folder / f"{name}_relume.exr"), denoise="none")
     return np.asarray(relume.read_exr(out), dtype=np.float64)[..., :3]
 
 

@@ -4,6 +4,12 @@ Relights are throttled: `request_relight` relights now when the throttle allows 
 its interval has passed (a timer; in background mode, at once, as there is no event loop).
 Light group gains (the scene's `relume_light_groups`, the Relume tab's sliders) take the
 same throttled path.
+
+Each live relight shows the raw relit image; when the edits settle (`logic.settle`: no edit
+for a short delay) and the preference *Denoise Shown Image* is on, the image is replaced by
+the same relight through OpenImageDenoise (`show_settled`, run by a timer). Headless there
+is no event loop and so no timer: the live image stays raw, and scripts get the shown image
+from `api.render` (or call `show_settled` as the timer would).
 """
 
 from __future__ import annotations
@@ -14,6 +20,8 @@ import time
 import bpy
 import numpy as np
 
+from .logic.oidn_dirs import blender_lib_dirs
+from .prefs import get_prefs
 from .runtime import RUNTIME
 from .scene_values import current_gains, current_params, sync_light_groups
 
@@ -74,7 +82,60 @@ def relight_now(force: bool = False) -> bool:
     RUNTIME.live.last_upload_ms = (t_end - t_upload) * 1e3
     RUNTIME.live.last_latency_ms = (t_end - t0) * 1e3
     _redraw_image_editors()
+    _schedule_settled()
     return True
+
+
+def denoise_mode(context=None) -> str:
+    """"oidn" when the preference asks for the denoised image, else "none"."""
+    return "oidn" if get_prefs(context).denoise else "none"
+
+
+def set_oidn_dirs() -> None:
+    """Point the relighter's OpenImageDenoise search at Blender's own copy."""
+    RUNTIME.live.oidn_dirs = blender_lib_dirs(bpy.app.binary_path, getattr(bpy, "__file__", None))
+
+
+def show_settled() -> bool:
+    """Replace the Relume image by the current relight through OpenImageDenoise (the
+    linear image, with the reason in `last_denoise`, where OIDN cannot run). True when
+    the image was written."""
+    import relume
+
+    if denoise_mode() != "oidn":
+        return False
+    try:
+        outcome = RUNTIME.live.denoised(bottom_first=True)
+    except relume.RelumeError as e:
+        RUNTIME.live.relight_error = f"{type(e).__name__}: {e}"
+        _redraw_image_editors()
+        return False
+    if outcome is None:
+        return False
+    write_image(outcome.image, bottom_first=True)
+    _redraw_image_editors()
+    return True
+
+
+def _settle_timer():
+    remaining = RUNTIME.settle.remaining()
+    if remaining > 0.0:
+        return remaining + 1e-3
+    RUNTIME.settle_timer_registered = False
+    if RUNTIME.settle.take():
+        show_settled()
+    return None
+
+
+def _schedule_settled() -> None:
+    """After a raw live relight: the denoised image once the edits settle (not headless:
+    no timers run there)."""
+    if bpy.app.background or denoise_mode() != "oidn":
+        return
+    RUNTIME.settle.touch()
+    if not RUNTIME.settle_timer_registered:
+        RUNTIME.settle_timer_registered = True
+        bpy.app.timers.register(_settle_timer, first_interval=RUNTIME.settle.remaining() + 1e-3)
 
 
 def on_stack_loaded() -> None:

@@ -123,7 +123,8 @@ class RELUME_OT_render(bpy.types.Operator):
         except _relume_error_types() as e:
             self.report({"ERROR"}, str(e))
             return {"CANCELLED"}
-        self.report({"INFO"}, f"Relume: wrote {path}")
+        shown = (RUNTIME.live.last_denoise or {}).get("summary", "none")
+        self.report({"INFO"}, f"Relume: wrote {path} (shown image: {shown})")
         return {"FINISHED"}
 
 

@@ -23,6 +23,8 @@ class RELUME_PT_image(bpy.types.Panel):
         live = RUNTIME.live
         draw_bake_controls(layout, context)
         layout.label(text=f"Device: {live.device_text}")
+        if live.last_denoise is not None:
+            layout.label(text=f"Shown: {live.last_denoise['summary']}"[:140])
         if live.relight_error:
             layout.label(text=live.relight_error[:140], icon="ERROR")
         for w in live.range_warnings:

@@ -78,6 +78,11 @@ class RelumePreferences(bpy.types.AddonPreferences):
     light_groups: EnumProperty(name="Light Groups", items=LIGHT_GROUP_ITEMS, default="none",
                                description="Keep lights apart so their strength and colour can "
                                            "change live after the bake; " + _GROUP_COST)
+    denoise: BoolProperty(
+        name="Denoise Shown Image", default=True,
+        description="Show the relit image through OpenImageDenoise (Blender's own) with albedo "
+                    "and normal features once an edit settles; while a slider moves, and with "
+                    "this off, the raw relit image (the exact sum of the stack) is shown")
     stack_folder: StringProperty(name="Stack Folder", subtype="DIR_PATH", default="",
                                  description="Where stacks are stored: empty = a 'relume' folder "
                                              "beside the .blend; '//' paths are relative to it")
@@ -100,6 +105,7 @@ class RelumePreferences(bpy.types.AddonPreferences):
         col.prop(self, "memory_budget_mb")
         col.prop(self, "resolution_scale")
         col.prop(self, "device")
+        col.prop(self, "denoise")
         col.prop(self, "material_lobes")
         col.prop(self, "light_groups")
         if self.light_groups != "none":

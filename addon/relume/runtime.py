@@ -7,6 +7,7 @@ thread, neither of which belongs in a .blend. One instance per Blender session.
 from __future__ import annotations
 
 from .logic.live_state import LiveState
+from .logic.settle import Settle
 from .logic.throttle import Throttle
 
 
@@ -19,6 +20,9 @@ class Runtime:
         self.light_names: list[str] = []  # the last export's lights, in scene order
         self.stale_check_pending = False
         self.relight_timer_registered = False
+        #: When the live image is denoised (after the edits settle) and its timer.
+        self.settle = Settle()
+        self.settle_timer_registered = False
         #: The relit pixels in Blender's row order, reused by every write of a top-first
         #: image into the "Relume" image (`api.render`, `api.relight`; the live relight gets
         #: its rows in Blender's order from the relighter and needs no copy).

@@ -24,6 +24,8 @@ class RelightOutcome:
     changed: list
     relight_ms: float
     bottom_first: bool = False  # rows in Blender's order (the live image's)
+    #: The relighter's report of what was done to the image shown (`last_denoise`).
+    denoise: dict | None = None
 
 
 class LiveState:
@@ -44,6 +46,10 @@ class LiveState:
         self.last_latency_ms: float | None = None
         self.last_relight_ms: float | None = None
         self.last_upload_ms: float | None = None
+        #: Folders that may hold Blender's OpenImageDenoise (`logic.oidn_dirs`), set by the
+        #: add-on; and the report of the last image shown (which denoiser ran, and why).
+        self.oidn_dirs: list[str] = []
+        self.last_denoise: dict | None = None
 
     @property
     def ready(self) -> bool:
@@ -89,7 +95,9 @@ class LiveState:
             self.stack = relume.Stack.load(stack_path)
             if scene is not None:
                 self.check(scene)
-            self.relighter = relume.Relighter(self.stack, device)
+            # The scene gives the denoiser its pixel features; a stale one is not the stack's.
+            features_from = scene if scene is not None and self.stale_reason is None else None
+            self.relighter = relume.Relighter(self.stack, device, scene=features_from)
         except relume.RelumeError as e:
             self.load_error = f"{type(e).__name__}: {e}"
             self.unload()
@@ -141,10 +149,11 @@ class LiveState:
 
     def relight(self, params: dict[str, RegionParams], force: bool = False,
                 gains: dict[str, tuple] | None = None,
-                bottom_first: bool = False) -> RelightOutcome | None:
+                bottom_first: bool = False, denoise: str = "none") -> RelightOutcome | None:
         """Apply `params` (and light group `gains`) and relight; None when nothing changed
         (and not forced). `bottom_first`: the image's rows in Blender's order, for the live
-        image."""
+        image. `denoise`: "none" (the raw relit image) or "oidn" (the shown image, the
+        linear one when OIDN cannot run: `last_denoise` says which)."""
         if not self.ready:
             return None
         changed = self.apply(params, force)
@@ -155,7 +164,20 @@ class LiveState:
         # The relighter copies its image out either way (its own buffer stays for the next
         # incremental sum); asking it for Blender's row order makes that copy the flip, so
         # the live image is written from it directly, with no second frame-sized copy.
-        image = self.relighter.relight(flip_y=bottom_first)
+        image = self.relighter.relight(flip_y=bottom_first, denoise=denoise,
+                                       oidn_dirs=self.oidn_dirs)
         self.last_relight_ms = (time.perf_counter() - t0) * 1e3
+        self.last_denoise = self.relighter.last_denoise
         return RelightOutcome(image=image, changed=changed, relight_ms=self.last_relight_ms,
-                              bottom_first=bottom_first)
+                              bottom_first=bottom_first, denoise=self.last_denoise)
+
+    def denoised(self, bottom_first: bool = False) -> RelightOutcome | None:
+        """The current image through OpenImageDenoise, nothing re-summed (the edits are
+        already in the relighter's image); None without a usable stack."""
+        if not self.ready:
+            return None
+        t0 = time.perf_counter()
+        image = self.relighter.relight(flip_y=bottom_first, denoise="oidn", oidn_dirs=self.oidn_dirs)
+        self.last_denoise = self.relighter.last_denoise
+        return RelightOutcome(image=image, changed=[], relight_ms=(time.perf_counter() - t0) * 1e3,
+                              bottom_first=bottom_first, denoise=self.last_denoise)

@@ -7,38 +7,43 @@ import os
 import bpy
 import numpy as np
 
-from ..live_image import write_image
+from ..live_image import denoise_mode, write_image
 from ..runtime import RUNTIME
 from ..scene_values import current_gains, current_params
 from . import stack as stack_service
 from .errors import BakeError
 
 
-def _relit_top_first(context=None):
+def _relit_top_first(context=None, denoise: str | None = None):
     """Relight with the current material values, write the "Relume" image, and return the
-    relit (h, w, 4) image with its rows top first (the relighter's order)."""
+    shown (h, w, 4) image with its rows top first (the relighter's order). `denoise`:
+    "oidn" or "none"; None follows the preference (`last_denoise` says what ran)."""
     live = RUNTIME.live
     if live.stack is None and not stack_service.load_stack(context):
         raise BakeError(f"no usable Relume stack: {live.load_error or 'not baked yet'}")
     if live.stale_reason is not None:
         raise BakeError(f"the Relume stack is stale: {live.stale_reason}")
-    outcome = live.relight(current_params(), force=True, gains=current_gains())
+    outcome = live.relight(current_params(), force=True, gains=current_gains(),
+                           denoise=denoise or denoise_mode(context))
     write_image(outcome.image)
     return outcome.image
 
 
-def relight(context=None):
-    """Relight with the current material values; returns the (h, w, 4) image (bottom row first)."""
-    return np.ascontiguousarray(_relit_top_first(context)[::-1])
+def relight(context=None, denoise: str | None = None):
+    """Relight with the current material values; returns the (h, w, 4) image (bottom row
+    first): the shown one (see `render`)."""
+    return np.ascontiguousarray(_relit_top_first(context, denoise)[::-1])
 
 
-def render(filepath: str, context=None, check_stale: bool = True) -> str:
-    """Write the relit image to `filepath` (.exr: linear float; .png: sRGB 8-bit)."""
+def render(filepath: str, context=None, check_stale: bool = True, denoise: str | None = None) -> str:
+    """Write the shown image to `filepath` (.exr: linear float; .png: sRGB 8-bit): the relit
+    image through OpenImageDenoise when the preference (or `denoise="oidn"`) asks for it,
+    else (`denoise="none"`) the exact relit image. `api.status()["denoise"]` says which ran."""
     import relume
 
     if check_stale and RUNTIME.live.stack is not None and stack_service.check_stale(context) is not None:
         raise BakeError(f"the Relume stack is stale: {RUNTIME.live.stale_reason}")
-    top_first = _relit_top_first(context)
+    top_first = _relit_top_first(context, denoise)
     path = bpy.path.abspath(filepath)
     folder = os.path.dirname(path)
     if folder:

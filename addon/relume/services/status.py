@@ -22,6 +22,8 @@ def status(context=None) -> dict:
         "bake_state": session.state if session else "idle",
         "bake_message": session.message if session else "",
         "last_latency_ms": live.last_latency_ms,
+        # What the last image shown went through: {"asked", "ran", "note", "summary", …}.
+        "denoise": live.last_denoise,
         "relight_error": live.relight_error,
         # Editable materials outside their baked roughness range (relit at the range's edge).
         "range_warnings": live.range_warnings,

@@ -383,9 +383,11 @@ impl Relighter {
             self.stack.header.width as usize,
             self.stack.header.height as usize,
         );
-        let out = guard_detached(py, "Relighter.relight", || {
+        let out = guard_detached(py, "Relighter.relight", || -> Result<Vec<f32>, GpuError> {
             if mode == DenoiseMode::None {
-                return self.run(flip_y);
+                let image = self.run(flip_y)?;
+                self.lock().last_denoise = Some(DenoiseReport::nothing(mode, mode, None));
+                return Ok(image);
             }
             let image = self.run(false)?;
             // The core's last check on a relit image comes first (the shown image's input).

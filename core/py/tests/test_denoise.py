@@ -51,12 +51,13 @@ def baked(tmp_path_factory):
 def test_none_and_linear_are_the_relit_image_and_report_so(baked):
     scene, stack, _ = baked
     r = relume.Relighter(stack, "cpu", scene=scene)
+    assert r.last_denoise is None
     exact = r.relight()
-    assert r.last_denoise is None  # nothing asked yet: the plain relight
+    assert r.last_denoise["ran"] == "none"
     for mode in ("none", "linear"):
         img = r.relight(denoise=mode)
         assert img.tobytes() == exact.tobytes(), mode
-        assert r.last_denoise["ran"] == mode if mode == "linear" else True
+        assert (r.last_denoise["asked"], r.last_denoise["ran"], r.last_denoise["note"]) == (mode, mode, None)
     with pytest.raises(ValueError, match="oidn"):
         r.relight(denoise="bilateral")
 

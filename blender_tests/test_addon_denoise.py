@@ -1,0 +1,73 @@
+"""The shown image in Blender: raw while a slider moves, through OpenImageDenoise (Blender's
+own copy, here the bpy wheel's `bpy/lib`) with the scene's albedo and normal features once
+the edits settle, and raw everywhere when the preference *Denoise Shown Image* is off.
+
+Headless there is no event loop, so no timer fires: the test calls `show_settled`, the
+function the settle timer runs, as the timer would once the edits stop.
+"""
+
+from __future__ import annotations
+
+import os
+
+import bpy
+import numpy as np
+import relume
+from support.scenes import box_scene
+
+
+def _image():
+    img = bpy.data.images["Relume"]
+    w, h = img.size
+    px = np.empty(w * h * 4, np.float32)
+    img.pixels.foreach_get(px)
+    return px.reshape(h, w, 4)
+
+
+def _edit_floor(roughness: float) -> None:
+    inputs = bpy.data.materials["Floor"].node_tree.nodes["Principled BSDF"].inputs
+    inputs["Roughness"].default_value = roughness
+    bpy.context.view_layer.update()
+
+
+def test_the_settled_image_is_blenders_oidn_and_the_preference_turns_it_off(addon, prefs, blend_dir,
+                                                                           tmp_path):
+    live = addon.runtime.RUNTIME.live
+    box_scene(resolution=32)
+    addon.api.bake()
+    assert any(os.path.isfile(os.path.join(d, "libOpenImageDenoise.so.2")) for d in live.oidn_dirs), \
+        f"Blender's lib folder not among {live.oidn_dirs}"
+    saved = prefs.denoise
+    try:
+        prefs.denoise = True
+        _edit_floor(0.3)
+        raw = _image()
+        # While the slider moves: the raw relit image, exactly the relighter's sum.
+        assert np.array_equal(raw, live.relighter.relight(flip_y=True))
+        # Settled: the same relight through OIDN with the features.
+        assert addon.live_image.show_settled()
+        shown = _image()
+        status = addon.api.status()["denoise"]
+        assert (status["ran"], status["features"], status["note"]) == ("oidn", "albedo+normal", None), status
+        assert os.path.dirname(status["library"]) in live.oidn_dirs, status
+        assert np.isfinite(shown).all() and not np.array_equal(shown, raw)
+        assert np.array_equal(shown, live.relighter.relight(flip_y=True, denoise="oidn",
+                                                            oidn_dirs=live.oidn_dirs))
+        # The operator writes the shown image and says which denoiser ran.
+        out = tmp_path / "shown.exr"
+        assert bpy.ops.relume.render(filepath=str(out)) == {"FINISHED"}
+        written = np.asarray(relume.read_exr(str(out)))[::-1]
+        assert np.allclose(written[..., :3], shown[..., :3], rtol=1e-6, atol=1e-7)
+
+        # Off: nothing is denoised, the render is the exact relit image, and status says so.
+        prefs.denoise = False
+        _edit_floor(0.5)
+        assert not addon.live_image.show_settled()
+        raw = _image()
+        assert np.array_equal(raw, live.relighter.relight(flip_y=True))
+        addon.api.render(str(tmp_path / "raw.exr"))
+        assert addon.api.status()["denoise"]["ran"] == "none"
+        written = np.asarray(relume.read_exr(str(tmp_path / "raw.exr")))[::-1]
+        assert np.allclose(written[..., :3], raw[..., :3], rtol=1e-6, atol=1e-7)
+    finally:
+        prefs.denoise = saved
