@@ -12,7 +12,6 @@ import os
 
 import bpy
 import numpy as np
-import relume
 from support.scenes import box_scene
 
 
@@ -32,6 +31,8 @@ def _edit_floor(roughness: float) -> None:
 
 def test_the_settled_image_is_blenders_oidn_and_the_preference_turns_it_off(addon, prefs, blend_dir,
                                                                            tmp_path):
+    import relume  # the add-on's wheel, installed by the `addon` fixture
+
     live = addon.runtime.RUNTIME.live
     box_scene(resolution=32)
     addon.api.bake()

@@ -234,11 +234,18 @@ def test_settle_is_due_a_delay_after_the_last_edit_and_each_edit_pushes_it_back(
         settle.Settle(delay=float("nan"))
 
 
-def test_blender_lib_dirs_find_the_folders_that_exist(tmp_path):
-    binary = tmp_path / "blender"
-    (tmp_path / "lib").mkdir()
+def test_blender_lib_dirs_find_the_folders_holding_oidn(tmp_path):
+    # A Linux install: the binary's lib folder.
+    install = tmp_path / "blender-5.0"
+    (install / "lib").mkdir(parents=True)
+    (install / "lib" / "libOpenImageDenoise.so.2").write_bytes(b"")
+    # The bpy wheel: bpy/lib, found from the scripts' bpy package four levels below it.
     wheel = tmp_path / "site" / "bpy"
-    (wheel / "lib").mkdir(parents=True)
-    dirs = oidn_dirs.blender_lib_dirs(str(binary), str(wheel / "__init__.so"))
-    assert dirs == [str(tmp_path / "lib"), str(wheel / "lib")]
+    scripts_bpy = wheel / "5.0" / "scripts" / "modules" / "bpy"
+    scripts_bpy.mkdir(parents=True)
+    (wheel / "lib").mkdir()
+    (wheel / "lib" / "libOpenImageDenoise.so.2").write_bytes(b"")
+    (tmp_path / "site" / "lib").mkdir()  # a lib folder without OIDN is passed over
+    dirs = oidn_dirs.blender_lib_dirs(str(install / "blender"), str(scripts_bpy / "__init__.py"))
+    assert dirs == [str(install / "lib"), str(wheel / "lib")]
     assert oidn_dirs.blender_lib_dirs("", None) == []

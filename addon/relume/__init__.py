@@ -7,7 +7,7 @@ an Image Editor image named "Relume" whenever an editable material changes.
 
 from __future__ import annotations
 
-from . import api, live, ops, panels, prefs, props  # noqa: F401  (api: the scripting API)
+from . import api, live, live_image, ops, panels, prefs, props  # noqa: F401  (api: the scripting API)
 from .runtime import RUNTIME
 
 _CLASSES = prefs.CLASSES + ops.CLASSES + panels.CLASSES
@@ -20,6 +20,8 @@ def register() -> None:
     for c in _CLASSES:
         bpy.utils.register_class(c)
     live.register()
+    # The relighter's OpenImageDenoise search starts with Blender's own copy.
+    live_image.set_oidn_dirs()
 
 
 def unregister() -> None:

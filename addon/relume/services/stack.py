@@ -6,7 +6,7 @@ import os
 
 import bpy
 
-from ..live_image import IMAGE_NAME, on_stack_loaded, relight_now, set_oidn_dirs
+from ..live_image import IMAGE_NAME, on_stack_loaded, relight_now
 from ..prefs import get_prefs
 from ..runtime import RUNTIME
 from ..stack_location import stack_location
@@ -25,7 +25,6 @@ def load_stack(context=None) -> bool:
             RUNTIME.live.unload()
             RUNTIME.live.load_error = f"the scene cannot be exported: {e}"
             return False
-    set_oidn_dirs()
     ok = RUNTIME.live.load(path, scene, get_prefs(context).device)
     if ok:
         on_stack_loaded()
