@@ -29,9 +29,9 @@ def _relit_top_first(context=None, denoise: str | None = None):
     return outcome.image
 
 
-def relight(context=None, denoise: str | None = None):
+def relight(context=None, denoise: str = "none"):
     """Relight with the current material values; returns the (h, w, 4) image (bottom row
-    first): the shown one (see `render`)."""
+    first): the exact relit image, or with `denoise="oidn"` the shown one (see `render`)."""
     return np.ascontiguousarray(_relit_top_first(context, denoise)[::-1])
 
 

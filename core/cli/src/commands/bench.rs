@@ -1,6 +1,8 @@
-//! `relume bench bake SCENE` and `relume bench relight STACK.exr`: figures, as JSON.
+//! `relume bench bake SCENE`, `relume bench relight STACK.exr` and `relume bench denoise
+//! SCENE`: figures, as JSON.
 
 mod bake;
+mod denoise;
 mod gpu_relight;
 
 use std::path::PathBuf;
@@ -47,6 +49,23 @@ pub enum Bench {
         #[arg(long)]
         json: bool,
     },
+    /// The shown image's cost per size: pixel features traced, albedo per edit, and
+    /// OpenImageDenoise (first run and later ones; found as `relume relight` finds it).
+    Denoise {
+        /// The scene whose features are traced (at each size).
+        scene: PathBuf,
+        /// Image sizes, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "512x512,1920x1080")]
+        sizes: Vec<String>,
+        /// Timed repetitions after the first run (min and median are reported).
+        #[arg(long, default_value_t = 5)]
+        repeats: usize,
+        /// OIDN's CPU device even where it would take a GPU.
+        #[arg(long)]
+        cpu: bool,
+        #[arg(long)]
+        json: bool,
+    },
 }
 
 pub fn run(bench: Bench) -> Result<(), RelumeError> {
@@ -76,6 +95,18 @@ pub fn run(bench: Bench) -> Result<(), RelumeError> {
             device,
             json,
         } => bench_relight(&stack, repeats.max(1), device, json),
+        Bench::Denoise {
+            scene,
+            sizes,
+            repeats,
+            cpu,
+            json,
+        } => {
+            let figures =
+                denoise::bench_denoise(&load_scene(&scene)?, &sizes, repeats.max(1), cpu)?;
+            print_figures(&figures, json);
+            Ok(())
+        }
     }
 }
 
