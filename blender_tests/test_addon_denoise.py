@@ -52,13 +52,17 @@ def test_the_settled_image_is_blenders_oidn_and_the_preference_turns_it_off(addo
         assert (status["ran"], status["features"], status["note"]) == ("oidn", "albedo+normal", None), status
         assert os.path.dirname(status["library"]) in live.oidn_dirs, status
         assert np.isfinite(shown).all() and not np.array_equal(shown, raw)
+        assert status["quality"] == "balanced"  # the live image: OIDN's interactive mode
         assert np.array_equal(shown, live.relighter.relight(flip_y=True, denoise="oidn",
-                                                            oidn_dirs=live.oidn_dirs))
-        # The operator writes the shown image and says which denoiser ran.
+                                                            oidn_dirs=live.oidn_dirs,
+                                                            oidn_quality="balanced"))
+        # The operator writes the shown image at OIDN's high quality and says so.
         out = tmp_path / "shown.exr"
         assert bpy.ops.relume.render(filepath=str(out)) == {"FINISHED"}
+        assert addon.api.status()["denoise"]["quality"] == "high"
+        high = live.relighter.relight(flip_y=True, denoise="oidn", oidn_dirs=live.oidn_dirs)
         written = np.asarray(relume.read_exr(str(out)))[::-1]
-        assert np.allclose(written[..., :3], shown[..., :3], rtol=1e-6, atol=1e-7)
+        assert np.allclose(written[..., :3], high[..., :3], rtol=1e-6, atol=1e-7)
 
         # Off: nothing is denoised, the render is the exact relit image, and status says so.
         prefs.denoise = False

@@ -171,13 +171,16 @@ class LiveState:
         return RelightOutcome(image=image, changed=changed, relight_ms=self.last_relight_ms,
                               bottom_first=bottom_first, denoise=self.last_denoise)
 
-    def denoised(self, bottom_first: bool = False) -> RelightOutcome | None:
+    def denoised(self, bottom_first: bool = False, quality: str = "balanced") -> RelightOutcome | None:
         """The current image through OpenImageDenoise, nothing re-summed (the edits are
-        already in the relighter's image); None without a usable stack."""
+        already in the relighter's image); None without a usable stack. `quality`: OIDN's
+        "balanced" for the live image (its advice for interactive use, about a third of
+        the time of "high" on a CPU, docs/denoise.md), "high" for renders."""
         if not self.ready:
             return None
         t0 = time.perf_counter()
-        image = self.relighter.relight(flip_y=bottom_first, denoise="oidn", oidn_dirs=self.oidn_dirs)
+        image = self.relighter.relight(flip_y=bottom_first, denoise="oidn", oidn_dirs=self.oidn_dirs,
+                                       oidn_quality=quality)
         self.last_denoise = self.relighter.last_denoise
         return RelightOutcome(image=image, changed=[], relight_ms=(time.perf_counter() - t0) * 1e3,
                               bottom_first=bottom_first, denoise=self.last_denoise)

@@ -19,6 +19,8 @@ pub struct DenoiseReport {
     pub device: Option<String>,
     pub library: Option<PathBuf>,
     pub version: Option<String>,
+    /// OIDN's filter quality, when OIDN ran.
+    pub quality: Option<crate::oidn::Quality>,
     /// Colour values below zero (a basis's negative lobes summed into a pixel) that entered
     /// OIDN as 0, which takes only values ≥ 0; the image relit keeps them.
     pub negative_values: usize,
@@ -37,6 +39,7 @@ impl DenoiseReport {
             device: None,
             library: None,
             version: None,
+            quality: None,
             negative_values: 0,
             milliseconds: 0.0,
         }
@@ -48,9 +51,10 @@ impl DenoiseReport {
         match self.ran {
             DenoiseMode::Oidn => {
                 let mut s = format!(
-                    "OIDN {} ({}, features: {}) in {:.0} ms",
+                    "OIDN {} ({}, {} quality, features: {}) in {:.0} ms",
                     self.version.as_deref().unwrap_or("?"),
                     self.device.as_deref().unwrap_or("?"),
+                    self.quality.map_or("?", |q| q.as_str()),
                     self.features,
                     self.milliseconds
                 );

@@ -11,7 +11,7 @@ use std::time::Instant;
 
 use relume_engine::{RelumeError, Result};
 
-use crate::oidn::{DeviceChoice, LibrarySearch, OidnApi, OidnDenoiser};
+use crate::oidn::{DeviceChoice, LibrarySearch, OidnApi, OidnDenoiser, Quality};
 use crate::{DenoiseMode, DenoiseReport};
 
 /// The auxiliary images OIDN may use, or why there are none.
@@ -29,6 +29,7 @@ pub enum FeatureImages<'a> {
 pub struct ShownImage {
     search: LibrarySearch,
     choice: DeviceChoice,
+    quality: Quality,
     /// Made at the first OIDN request; the reason it could not be, kept so the search runs
     /// once.
     oidn: Option<std::result::Result<OidnDenoiser, String>>,
@@ -39,8 +40,16 @@ impl ShownImage {
         ShownImage {
             search,
             choice,
+            quality: Quality::High,
             oidn: None,
         }
+    }
+
+    /// OIDN's filter quality for the next images: `High` (the default, for renders) or
+    /// `Balanced` (OIDN's advice for interactive use: about a third of the time on this
+    /// project's CPU, docs/denoise.md).
+    pub fn set_quality(&mut self, quality: Quality) {
+        self.quality = quality;
     }
 
     /// The OIDN denoiser, made on first use, or why there is none.
@@ -97,10 +106,12 @@ impl ShownImage {
             );
             Ok((Cow::Borrowed(rgba), report))
         };
+        let quality = self.quality;
         let denoiser = match self.oidn() {
             Ok(d) => d,
             Err(e) => return fallback(e),
         };
+        denoiser.set_quality(quality);
         // OIDN takes HDR colour in [0, ∞): a value below zero enters as 0 (counted).
         let mut negative_values = 0usize;
         let mut color = Vec::with_capacity(pixels * 3);
@@ -146,6 +157,7 @@ impl ShownImage {
             device: Some(denoiser.device_kind().to_string()),
             library: Some(denoiser.library().to_path_buf()),
             version: Some(denoiser.version_text()),
+            quality: Some(quality),
             negative_values,
             milliseconds: t.elapsed().as_secs_f64() * 1e3,
         };

@@ -5,7 +5,7 @@ mod common;
 
 use std::time::Instant;
 
-use relume_denoise::oidn::DeviceChoice;
+use relume_denoise::oidn::{DeviceChoice, Quality};
 use relume_denoise::{DenoiseMode, FeatureImages, ShownImage};
 use relume_engine::brdf::{BlinnPhong, MaterialSpec};
 use relume_engine::features::{albedo_of, PixelFeatures, FEATURE_SAMPLES_PER_AXIS};
@@ -88,5 +88,27 @@ fn oidn_brings_a_noisy_bake_much_closer_to_a_converged_one_before_and_after_an_e
             report.summary()
         );
         assert!(e_oidn < 0.5 * e_raw, "OIDN {e_oidn} against relit {e_raw}");
+        // OIDN's balanced quality (the add-on's live image): close to the high one.
+        shown.set_quality(Quality::Balanced);
+        let (balanced, report) = shown
+            .show(
+                &raw,
+                SIZE,
+                SIZE,
+                DenoiseMode::Oidn,
+                FeatureImages::Clean {
+                    albedo: &albedo,
+                    normal: features.normal(),
+                },
+            )
+            .unwrap();
+        shown.set_quality(Quality::High);
+        assert_eq!(report.quality, Some(Quality::Balanced));
+        let e_balanced = compare_rgb(&balanced, &reference, 4).unwrap().rel_l2;
+        eprintln!("{label}: balanced quality {e_balanced:.4}");
+        assert!(
+            e_balanced < 0.5 * e_raw,
+            "balanced {e_balanced} against relit {e_raw}"
+        );
     }
 }

@@ -21,7 +21,7 @@ use numpy::ndarray::Array3;
 use numpy::{IntoPyArray, PyArray3};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use relume_denoise::oidn::{DeviceChoice, LibrarySearch};
+use relume_denoise::oidn::{DeviceChoice, LibrarySearch, Quality};
 use relume_denoise::{DenoiseMode, DenoiseReport, FeatureImages, ShownImage};
 use relume_engine::brdf::{
     principled_to_blinn_phong, BlinnPhong, MaterialSpec, PrincipledMaterial, Subsurface,
@@ -119,6 +119,7 @@ impl Relighter {
         image: Vec<f32>,
         mode: DenoiseMode,
         dirs: Vec<PathBuf>,
+        quality: Quality,
     ) -> Result<Vec<f32>, RelumeError> {
         let (w, h) = (self.stack.header.width, self.stack.header.height);
         let mut guard = self.lock();
@@ -128,6 +129,7 @@ impl Relighter {
             st.shown = Some((dirs, ShownImage::new(search, DeviceChoice::Default)));
         }
         let shown = &mut st.shown.as_mut().expect("set above").1;
+        shown.set_quality(quality);
         let t = Instant::now();
         // Features only for an OIDN that is there (tracing them costs primary rays).
         if mode == DenoiseMode::Oidn && st.features.is_none() && shown.oidn().is_ok() {
@@ -362,18 +364,22 @@ impl Relighter {
     /// layers as the bake's linear denoiser left them) or "oidn" (through OpenImageDenoise,
     /// searched in RELUME_OIDN_LIBRARY, `oidn_dirs` — by default the bpy wheel's lib folder
     /// when there is one — and the system; the linear image when none is found).
-    /// `last_denoise` says which ran and why.
-    #[pyo3(signature = (flip_y = false, denoise = "none", oidn_dirs = None))]
+    /// `oidn_quality`: "high" (renders), "balanced" (OIDN's advice for interactive use,
+    /// faster) or "fast". `last_denoise` says which ran and why.
+    #[pyo3(signature = (flip_y = false, denoise = "none", oidn_dirs = None, oidn_quality = "high"))]
     fn relight<'py>(
         &self,
         py: Python<'py>,
         flip_y: bool,
         denoise: &str,
         oidn_dirs: Option<Vec<PathBuf>>,
+        oidn_quality: &str,
     ) -> PyResult<Bound<'py, PyArray3<f32>>> {
         let mode: DenoiseMode = denoise
             .parse()
             .map_err(pyo3::exceptions::PyValueError::new_err)?;
+        let quality =
+            Quality::parse(oidn_quality).map_err(pyo3::exceptions::PyValueError::new_err)?;
         let dirs = match oidn_dirs {
             Some(d) => d,
             None if mode == DenoiseMode::Oidn => bpy_lib_dir(py).into_iter().collect(),
@@ -392,7 +398,7 @@ impl Relighter {
             let image = self.run(false)?;
             // The core's last check on a relit image comes first (the shown image's input).
             relume_engine::relight::check_finite_image(&image, w as u32)?;
-            let shown = self.shown(image, mode, dirs)?;
+            let shown = self.shown(image, mode, dirs, quality)?;
             Ok(if flip_y { flip_rows(&shown, w) } else { shown })
         })?;
         let pixels = out.py_err(py)?;
@@ -433,7 +439,7 @@ impl Relighter {
     /// What the last relight() did to the image shown: {"asked", "ran" ("oidn", "linear" or
     /// "none"), "note" (why not what was asked, or what OIDN ran without), "features"
     /// ("albedo+normal" or "none"), "device", "library", "version", "negative_values",
-    /// "ms", "summary"}; None before the first relight.
+    /// "quality", "ms", "summary"}; None before the first relight.
     #[getter]
     fn last_denoise<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
         let st = self.lock();
@@ -451,6 +457,7 @@ impl Relighter {
             r.library.as_ref().map(|p| p.display().to_string()),
         )?;
         d.set_item("version", r.version.as_deref())?;
+        d.set_item("quality", r.quality.map(|q| q.as_str()))?;
         d.set_item("negative_values", r.negative_values)?;
         d.set_item("ms", r.milliseconds)?;
         d.set_item("summary", r.summary())?;

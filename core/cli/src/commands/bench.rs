@@ -63,6 +63,9 @@ pub enum Bench {
         /// OIDN's CPU device even where it would take a GPU.
         #[arg(long)]
         cpu: bool,
+        /// OIDN's filter quality: high (its default), balanced or fast.
+        #[arg(long, default_value = "high")]
+        quality: String,
         #[arg(long)]
         json: bool,
     },
@@ -100,10 +103,16 @@ pub fn run(bench: Bench) -> Result<(), RelumeError> {
             sizes,
             repeats,
             cpu,
+            quality,
             json,
         } => {
-            let figures =
-                denoise::bench_denoise(&load_scene(&scene)?, &sizes, repeats.max(1), cpu)?;
+            let figures = denoise::bench_denoise(
+                &load_scene(&scene)?,
+                &sizes,
+                repeats.max(1),
+                cpu,
+                &quality,
+            )?;
             print_figures(&figures, json);
             Ok(())
         }

@@ -255,7 +255,9 @@ pub fn denoise_json(r: &DenoiseReport) -> serde_json::Value {
         "device": r.device,
         "library": r.library,
         "version": r.version,
+        "quality": r.quality.map(|q| q.as_str()),
         "negative_values": r.negative_values,
         "ms": r.milliseconds,
+        "summary": r.summary(),
     })
 }

@@ -18,6 +18,46 @@ const DEVICE_TYPE_DEFAULT: i32 = 0;
 const DEVICE_TYPE_CPU: i32 = 1;
 const FORMAT_FLOAT3: i32 = 3;
 
+/// OIDN's filter quality (`OIDNQuality`): the trade of its network's precision for time.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Quality {
+    /// Final-frame quality, OIDN's default.
+    #[default]
+    High,
+    /// Lower numerical precision where the device has it (OIDN's advice for interactive
+    /// use); on many CPUs the same time as `High`.
+    Balanced,
+    /// Faster still, lower quality.
+    Fast,
+}
+
+impl Quality {
+    /// "high", "balanced" or "fast".
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Quality::High => "high",
+            Quality::Balanced => "balanced",
+            Quality::Fast => "fast",
+        }
+    }
+
+    /// Parses a name written by [`Quality::as_str`].
+    pub fn parse(name: &str) -> Result<Quality, String> {
+        [Quality::High, Quality::Balanced, Quality::Fast]
+            .into_iter()
+            .find(|q| q.as_str() == name)
+            .ok_or_else(|| format!("OIDN quality \"{name}\": expected high, balanced or fast"))
+    }
+
+    fn oidn(self) -> i32 {
+        match self {
+            Quality::High => 6,
+            Quality::Balanced => 5,
+            Quality::Fast => 4,
+        }
+    }
+}
+
 /// Which OIDN device to make.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum DeviceChoice {
@@ -47,6 +87,7 @@ struct Filter {
     height: usize,
     with_features: bool,
     clean_features: bool,
+    quality: Quality,
     /// color, albedo, normal, output (albedo and normal null without features).
     buffers: [Handle; 4],
 }
@@ -57,6 +98,7 @@ pub struct OidnDenoiser {
     device: Handle,
     kind: i32,
     version: i32,
+    quality: Quality,
     filter: Option<Filter>,
 }
 
@@ -88,6 +130,7 @@ impl OidnDenoiser {
             device,
             kind: 0,
             version: 0,
+            quality: Quality::default(),
             filter: None,
         };
         unsafe { (api.commit_device)(device) };
@@ -103,6 +146,11 @@ impl OidnDenoiser {
             ));
         }
         Ok(d)
+    }
+
+    /// Sets the filter quality for the next images (the filter is set up again).
+    pub fn set_quality(&mut self, quality: Quality) {
+        self.quality = quality;
     }
 
     fn device_int(&self, name: &str) -> i32 {
@@ -158,8 +206,13 @@ impl OidnDenoiser {
         }
         let with_features = features.is_some();
         let reuse = self.filter.as_ref().is_some_and(|f| {
-            (f.width, f.height, f.with_features, f.clean_features)
-                == (width, height, with_features, clean_features)
+            (
+                f.width,
+                f.height,
+                f.with_features,
+                f.clean_features,
+                f.quality,
+            ) == (width, height, with_features, clean_features, self.quality)
         });
         if !reuse {
             self.release_filter();
@@ -201,6 +254,7 @@ impl OidnDenoiser {
             height,
             with_features,
             clean_features,
+            quality: self.quality,
             buffers: [std::ptr::null_mut(); 4],
         };
         let names = ["color", "albedo", "normal", "output"];
@@ -242,9 +296,10 @@ impl OidnDenoiser {
                     )
                 };
             }
-            let (hdr, clean) = (cstr("hdr"), cstr("cleanAux"));
+            let (hdr, clean, quality) = (cstr("hdr"), cstr("cleanAux"), cstr("quality"));
             unsafe {
                 (api.set_filter_bool)(f.handle, hdr.as_ptr(), true);
+                (api.set_filter_int)(f.handle, quality.as_ptr(), f.quality.oidn());
                 (api.set_filter_bool)(f.handle, clean.as_ptr(), with_features && clean_features);
                 (api.commit_filter)(f.handle);
             }

@@ -124,6 +124,7 @@ pub struct OidnApi {
     pub set_filter_image:
         unsafe extern "C" fn(Handle, *const c_char, Handle, i32, usize, usize, usize, usize, usize),
     pub set_filter_bool: unsafe extern "C" fn(Handle, *const c_char, bool),
+    pub set_filter_int: unsafe extern "C" fn(Handle, *const c_char, i32),
     pub commit_filter: unsafe extern "C" fn(Handle),
     pub execute_filter: unsafe extern "C" fn(Handle),
     pub release_filter: unsafe extern "C" fn(Handle),
@@ -177,6 +178,7 @@ impl OidnApi {
             new_filter: sym!("oidnNewFilter"),
             set_filter_image: sym!("oidnSetFilterImage"),
             set_filter_bool: sym!("oidnSetFilterBool"),
+            set_filter_int: sym!("oidnSetFilterInt"),
             commit_filter: sym!("oidnCommitFilter"),
             execute_filter: sym!("oidnExecuteFilter"),
             release_filter: sym!("oidnReleaseFilter"),

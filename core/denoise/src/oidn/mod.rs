@@ -5,5 +5,5 @@
 pub mod device;
 pub mod library;
 
-pub use device::{DeviceChoice, OidnDenoiser};
+pub use device::{DeviceChoice, OidnDenoiser, Quality};
 pub use library::{LibrarySearch, OidnApi, ENV_VAR, LIBRARY_NAMES};

@@ -14,8 +14,9 @@ use crate::memory::try_with_capacity;
 use crate::scene::{Resolution, Scene};
 use crate::{RelumeError, Result, Rgb};
 
-/// Samples per pixel side: 4 × 4 = 16 primary rays a pixel, enough that an edge pixel's
-/// coverage is within 1/16 of its area.
+/// Samples per pixel side where a pixel is not one surface: 4 × 4 = 16 primary rays, enough
+/// that an edge pixel's coverage is within 1/16 of its area (a pixel inside one untextured
+/// surface takes 2 × 2, see `TraceContext::pixel`).
 pub const FEATURE_SAMPLES_PER_AXIS: u32 = 4;
 
 /// What one scene region contributes at a hit.
@@ -130,6 +131,18 @@ struct TraceContext<'a> {
     n: u32,
 }
 
+/// A pixel's samples, summed.
+#[derive(Default)]
+struct PixelSum {
+    normal: Vec3,
+    fixed: Rgb,
+    shares: Vec<EditableShare>,
+}
+
+/// Normals closer than this (cosine) count as one surface for [`TraceContext::pixel`]'s
+/// first look.
+const SAME_SURFACE_COS: f32 = 0.999;
+
 impl TraceContext<'_> {
     fn row(&self, y: u32) -> Row {
         let w = self.width as usize;
@@ -138,48 +151,13 @@ impl TraceContext<'_> {
             fixed_albedo: vec![0.0; w * 3],
             shares: Vec::with_capacity(w),
         };
-        let inv = 1.0 / (self.n * self.n) as f32;
         for x in 0..self.width {
-            let mut normal = Vec3::ZERO;
-            let mut fixed = Rgb::ZERO;
-            let mut shares: Vec<EditableShare> = Vec::new();
-            for j in 0..self.n {
-                for i in 0..self.n {
-                    let fx = x as f32 + (i as f32 + 0.5) / self.n as f32;
-                    let fy = y as f32 + (j as f32 + 0.5) / self.n as f32;
-                    let (origin, dir) = self.camera.ray(fx, fy);
-                    let Some(hit) = self.geometry.intersect(origin, dir, 0.0, self.clip_end) else {
-                        continue;
-                    };
-                    normal += hit.shading_normal;
-                    let Some(region) = self.regions.get(hit.region as usize) else {
-                        continue;
-                    };
-                    let tex = region
-                        .texture
-                        .as_ref()
-                        .map_or(Rgb::ONE, |t| t.lookup(hit.uv.x, hit.uv.y));
-                    match region.editable {
-                        None => fixed += region.kd * tex + region.ks,
-                        Some(e) => match shares.iter_mut().find(|s| s.region == e) {
-                            Some(s) => {
-                                s.coverage += 1.0;
-                                for (a, t) in s.texture.iter_mut().zip(tex.to_array()) {
-                                    *a += t;
-                                }
-                            }
-                            None => shares.push(EditableShare {
-                                region: e,
-                                coverage: 1.0,
-                                texture: tex.to_array(),
-                            }),
-                        },
-                    }
-                }
-            }
+            let (sum, count) = self.pixel(x, y);
+            let inv = 1.0 / count as f32;
             let px = x as usize * 3;
-            row.normal[px..px + 3].copy_from_slice(&(normal * inv).to_array());
-            row.fixed_albedo[px..px + 3].copy_from_slice(&(fixed * inv).to_array());
+            row.normal[px..px + 3].copy_from_slice(&(sum.normal * inv).to_array());
+            row.fixed_albedo[px..px + 3].copy_from_slice(&(sum.fixed * inv).to_array());
+            let mut shares = sum.shares;
             for s in &mut shares {
                 s.coverage *= inv;
                 for t in &mut s.texture {
@@ -190,5 +168,85 @@ impl TraceContext<'_> {
             row.shares.push(shares);
         }
         row
+    }
+
+    /// The sums of pixel (`x`, `y`) and their sample count. A first look with a 2 × 2 grid;
+    /// where its four rays see one untextured surface (the same region, normals within
+    /// [`SAME_SURFACE_COS`]) or all miss, the pixel is that surface and they suffice, else
+    /// the full `n × n` grid decides (edges, creases, textures). The rule depends on the
+    /// scene alone, so the features stay free of noise.
+    fn pixel(&self, x: u32, y: u32) -> (PixelSum, u32) {
+        if self.n > 2 {
+            let mut first = PixelSum::default();
+            let mut uniform = true;
+            let mut seen: Option<(Option<u32>, Vec3)> = None;
+            for j in 0..2 {
+                for i in 0..2 {
+                    let hit = self.sample(x, y, i, j, 2, &mut first);
+                    let key = hit.map(|(r, n, textured)| {
+                        uniform &= !textured;
+                        (Some(r), n)
+                    });
+                    let key = key.unwrap_or((None, Vec3::ZERO));
+                    match seen {
+                        None => seen = Some(key),
+                        Some((r, n)) => {
+                            uniform &=
+                                r == key.0 && (r.is_none() || n.dot(key.1) >= SAME_SURFACE_COS)
+                        }
+                    }
+                }
+            }
+            if uniform {
+                return (first, 4);
+            }
+        }
+        let mut sum = PixelSum::default();
+        for j in 0..self.n {
+            for i in 0..self.n {
+                self.sample(x, y, i, j, self.n, &mut sum);
+            }
+        }
+        (sum, self.n * self.n)
+    }
+
+    /// Traces sample (`i`, `j`) of an `n × n` grid in pixel (`x`, `y`) into `sum`; returns
+    /// the region hit, its normal and whether it is textured.
+    fn sample(
+        &self,
+        x: u32,
+        y: u32,
+        i: u32,
+        j: u32,
+        n: u32,
+        sum: &mut PixelSum,
+    ) -> Option<(u32, Vec3, bool)> {
+        let fx = x as f32 + (i as f32 + 0.5) / n as f32;
+        let fy = y as f32 + (j as f32 + 0.5) / n as f32;
+        let (origin, dir) = self.camera.ray(fx, fy);
+        let hit = self.geometry.intersect(origin, dir, 0.0, self.clip_end)?;
+        sum.normal += hit.shading_normal;
+        let region = self.regions.get(hit.region as usize)?;
+        let tex = region
+            .texture
+            .as_ref()
+            .map_or(Rgb::ONE, |t| t.lookup(hit.uv.x, hit.uv.y));
+        match region.editable {
+            None => sum.fixed += region.kd * tex + region.ks,
+            Some(e) => match sum.shares.iter_mut().find(|s| s.region == e) {
+                Some(s) => {
+                    s.coverage += 1.0;
+                    for (a, t) in s.texture.iter_mut().zip(tex.to_array()) {
+                        *a += t;
+                    }
+                }
+                None => sum.shares.push(EditableShare {
+                    region: e,
+                    coverage: 1.0,
+                    texture: tex.to_array(),
+                }),
+            },
+        }
+        Some((hit.region, hit.shading_normal, region.texture.is_some()))
     }
 }

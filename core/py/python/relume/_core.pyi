@@ -188,6 +188,7 @@ class Relighter:
         flip_y: bool = False,
         denoise: _Denoise = "none",
         oidn_dirs: Sequence[_Path] | None = None,
+        oidn_quality: Literal["high", "balanced", "fast"] = "high",
     ) -> npt.NDArray[np.float32]: ...
     @property
     def last_denoise(self) -> dict[str, Any] | None: ...

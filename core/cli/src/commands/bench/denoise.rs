@@ -8,7 +8,7 @@
 
 use std::time::Instant;
 
-use relume_denoise::oidn::{DeviceChoice, LibrarySearch};
+use relume_denoise::oidn::{DeviceChoice, LibrarySearch, Quality};
 use relume_engine::features::{albedo_of, PixelFeatures, FEATURE_SAMPLES_PER_AXIS};
 use relume_engine::materials::{resolve_materials, MaterialsFile};
 use relume_engine::scene::Scene;
@@ -25,7 +25,9 @@ pub fn bench_denoise(
     sizes: &[String],
     repeats: usize,
     cpu_only: bool,
+    quality: &str,
 ) -> Result<serde_json::Value> {
+    let quality = Quality::parse(quality).map_err(|e| RelumeError::invalid("--quality", e))?;
     let search = LibrarySearch::with_dirs(vec![]);
     let choice = if cpu_only {
         DeviceChoice::Cpu
@@ -71,6 +73,7 @@ pub fn bench_denoise(
         // A fresh device per size, so "first" includes making the filter as a load does.
         let mut oidn = relume_denoise::oidn::OidnDenoiser::new(api, choice)
             .map_err(|e| RelumeError::invalid("bench denoise", e))?;
+        oidn.set_quality(quality);
         device = oidn.device_kind().to_string();
         version = oidn.version_text();
         let run = |oidn: &mut relume_denoise::oidn::OidnDenoiser| -> Result<f64> {
@@ -104,11 +107,15 @@ pub fn bench_denoise(
     }
     Ok(json!({
         "command": "bench denoise",
+        "quality": quality.as_str(),
         "library": api.path,
         "version": version,
         "device": device,
         "threads": std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1),
-        "feature_samples_per_pixel": FEATURE_SAMPLES_PER_AXIS * FEATURE_SAMPLES_PER_AXIS,
+        "feature_samples_per_pixel": format!(
+            "4, or {} where a pixel is not one untextured surface",
+            FEATURE_SAMPLES_PER_AXIS * FEATURE_SAMPLES_PER_AXIS
+        ),
         "sizes": rows,
     }))
 }
