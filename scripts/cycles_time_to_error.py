@@ -21,7 +21,12 @@ Kd := Kd + Ks, the same albedo, and stays editable in Relume, so the bake keeps 
    presets apply their own (linear) denoiser to the stack. Each render's
    wall time (scene sync, BVH build and path tracing; not Blender's start-up) and its error
    against the same reference are recorded.
-3. Prints and writes (OUT/cycles_time_to_error.json) Cycles' time to the preview's error,
+3. The shown image (docs/denoise.md): the preview stack relit through OpenImageDenoise with
+   the scene's albedo and normal features (`relume relight --denoise oidn --scene`, Blender's
+   own OIDN from the bpy wheel), its error against the same reference, its time (bake plus
+   features and OIDN), and Cycles' and Cycles + OIDN's times to that error. `--no-shown`
+   skips it.
+4. Prints and writes (OUT/cycles_time_to_error.json) Cycles' time to the preview's error,
    interpolated log–log between the two sample counts that bracket it, and Cycles' error at
    its highest sample count (the floor where the two renderers' models differ: smooth normals
    from Blender's own vertex normals, light sampling conventions).
@@ -56,10 +61,37 @@ def diffuse_variant(scene_path: pathlib.Path, out_path: pathlib.Path) -> None:
 
 def run_report(relume: str, variant: pathlib.Path, out: pathlib.Path, reference_spp: int) -> dict:
     cmd = [relume, "report", str(variant), "--presets", "preview", "--out", str(out / "report"),
-           "--reference-spp", str(reference_spp), "--json"]
+           "--reference-spp", str(reference_spp), "--keep-stacks", "--json"]
     print("+", " ".join(cmd), file=sys.stderr)
     res = subprocess.run(cmd, check=True, stdout=subprocess.PIPE, cwd=ROOT)
     return json.loads(res.stdout)
+
+
+def bpy_lib_dir() -> str | None:
+    """The bpy wheel's lib folder (Blender's OpenImageDenoise), found without importing bpy."""
+    import importlib.util
+
+    spec = importlib.util.find_spec("bpy")
+    if spec is None or not spec.submodule_search_locations:
+        return None
+    lib = pathlib.Path(list(spec.submodule_search_locations)[0]) / "lib"
+    return str(lib) if lib.is_dir() else None
+
+
+def run_shown(relume: str, stack: pathlib.Path, variant: pathlib.Path, out: pathlib.Path) -> dict:
+    """The preview stack's shown image: relit through OIDN with the scene's features."""
+    image = out / "relume_preview_oidn.exr"
+    env = dict(os.environ)
+    lib = bpy_lib_dir()
+    if lib and not env.get("RELUME_OIDN_LIBRARY"):
+        env["RELUME_OIDN_LIBRARY"] = lib
+    cmd = [relume, "relight", str(stack), "--scene", str(variant), "--denoise", "oidn",
+           "--device", "cpu", "-o", str(image), "--json"]
+    print("+", " ".join(cmd), file=sys.stderr)
+    res = subprocess.run(cmd, check=True, stdout=subprocess.PIPE, env=env, cwd=ROOT)
+    data = json.loads(res.stdout)
+    data["image"] = str(image)
+    return data
 
 
 # --- Blender side -------------------------------------------------------------------------
@@ -201,6 +233,8 @@ def main() -> None:
                          "denoiser (OpenImageDenoise) on, since Relume's presets denoise too; "
                          "empty to skip")
     ap.add_argument("--threads", type=int, default=os.cpu_count() or 2)
+    ap.add_argument("--no-shown", action="store_true",
+                    help="skip the shown image (the preview relit through OpenImageDenoise)")
     args = ap.parse_args()
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -209,6 +243,10 @@ def main() -> None:
 
     report = run_report(args.relume, variant, out, args.reference_spp)
     row = report["rows"][0]
+    stack = out / "report" / "stacks" / f"{variant.name.removesuffix('.scene.json')}.preview.relume.exr"
+    if not stack.exists():
+        stack = next((out / "report" / "stacks").glob("*.preview.relume.exr"))
+    shown = None if args.no_shown else run_shown(args.relume, stack, variant, out)
     ref_info = report["references"][0]
     ref_path = pathlib.Path(ref_info["file"])
     if not ref_path.is_absolute():
@@ -225,6 +263,15 @@ def main() -> None:
     import bpy
 
     _, _, ref = load_exr_rgb(ref_path)
+    shown_target = None
+    if shown is not None:
+        _, _, img = load_exr_rgb(pathlib.Path(shown["image"]))
+        raw = rel_l2(img, ref)
+        shown_target = math.sqrt(max(raw * raw - ref_noise * ref_noise, 0.0))
+        shown.update({"rel_l2": shown_target, "rel_l2_raw": raw,
+                      "seconds_bake_plus_denoise": row["bake_seconds"] + shown["denoise"]["ms"] / 1e3})
+        print(f"relume preview, shown ({shown['denoise']['summary']}): "
+              f"error {shown_target * 100:.3f} % (raw {raw * 100:.3f} %)", file=sys.stderr)
 
     def series(spps: list[int], denoise: bool) -> list[dict]:
         scene.cycles.use_denoising = denoise
@@ -246,8 +293,9 @@ def main() -> None:
                   f"{err * 100:.3f} % (raw {raw * 100:.3f} %)", file=sys.stderr)
         return points
 
-    def time_to(points: list[dict]) -> dict | None:
-        """Time to the preview's error: log–log interpolation between the bracketing points."""
+    def time_to(points: list[dict], target: float = target) -> dict | None:
+        """Time to `target` (the preview's error): log–log interpolation between the
+        bracketing points."""
         for a, b in itertools.pairwise(points):
             if a["rel_l2"] > target >= b["rel_l2"]:
                 f = math.log(a["rel_l2"] / target) / math.log(a["rel_l2"] / b["rel_l2"])
@@ -285,6 +333,10 @@ def main() -> None:
         "cycles_oidn": denoised_points,
         "cycles_oidn_time_to_preview_error": denoised_time,
         "cycles_oidn_error": denoised_error,
+        "relume_preview_shown": shown,
+        "cycles_time_to_shown_error": time_to(points, shown_target) if shown_target else None,
+        "cycles_oidn_time_to_shown_error": (time_to(denoised_points, shown_target)
+                                            if shown_target and denoised_points else None),
     }
     (out / "cycles_time_to_error.json").write_text(json.dumps(result, indent=2))
     if cycles_time:
@@ -296,6 +348,11 @@ def main() -> None:
     if denoised_time:
         print(f"Cycles + OpenImageDenoise reaches it in {denoised_time['seconds']:.2f} s "
               f"(≈ {denoised_time['spp']:.0f} spp)")
+    if shown_target is not None:
+        t_oidn = result["cycles_oidn_time_to_shown_error"]
+        print(f"Relume preview + OIDN: {shown_target * 100:.2f} % in "
+              f"{shown['seconds_bake_plus_denoise']:.2f} s; Cycles + OIDN reaches that in "
+              + (f"{t_oidn['seconds']:.2f} s (≈ {t_oidn['spp']:.0f} spp)" if t_oidn else "none of its sample counts"))
     print(f"→ {out / 'cycles_time_to_error.json'}")
 
 
