@@ -2,13 +2,15 @@
 own copy, here the bpy wheel's `bpy/lib`) with the scene's albedo and normal features once
 the edits settle, and raw everywhere when the preference *Denoise Shown Image* is off.
 
-Headless there is no event loop, so no timer fires: the test calls `show_settled`, the
-function the settle timer runs, as the timer would once the edits stop.
+Headless there is no event loop, so no timer fires: the tests call `show_settled` (the
+settled step done at once) and the worker-thread path's start and poll functions as the
+timers would.
 """
 
 from __future__ import annotations
 
 import os
+import time
 
 import bpy
 import numpy as np
@@ -74,5 +76,41 @@ def test_the_settled_image_is_blenders_oidn_and_the_preference_turns_it_off(addo
         assert addon.api.status()["denoise"]["ran"] == "none"
         written = np.asarray(relume.read_exr(str(tmp_path / "raw.exr")))[::-1]
         assert np.allclose(written[..., :3], raw[..., :3], rtol=1e-6, atol=1e-7)
+    finally:
+        prefs.denoise = saved
+
+
+def _wait_for_worker(runtime, timeout: float = 60.0) -> None:
+    t0 = time.monotonic()
+    while runtime.settled_result is None:
+        assert time.monotonic() - t0 < timeout, "the denoise worker gave no result"
+        time.sleep(0.01)
+
+
+def test_the_worker_threads_image_is_written_unless_an_edit_came_meanwhile(addon, prefs, blend_dir):
+    runtime = addon.runtime.RUNTIME
+    live, live_image = runtime.live, addon.live_image
+    box_scene(resolution=32)
+    addon.api.bake()
+    saved = prefs.denoise
+    try:
+        prefs.denoise = True
+        _edit_floor(0.35)
+        raw = _image()
+        # Settled, OIDN on the worker thread; the poll (the timer's function) writes it.
+        runtime.settle.touch()
+        live_image._start_settled_worker()
+        _wait_for_worker(runtime)
+        assert live_image._poll_settled() is None
+        denoised = _image()
+        assert live.last_denoise["ran"] == "oidn" and not np.array_equal(denoised, raw)
+        # An edit while the worker runs: its image is out of date and not written.
+        _edit_floor(0.55)
+        raw = _image()
+        live_image._start_settled_worker()
+        runtime.settle.touch()  # the edit's generation
+        _wait_for_worker(runtime)
+        live_image._poll_settled()
+        assert np.array_equal(_image(), raw)
     finally:
         prefs.denoise = saved

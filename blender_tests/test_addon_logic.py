@@ -225,7 +225,8 @@ def test_settle_is_due_a_delay_after_the_last_edit_and_each_edit_pushes_it_back(
     s.touch()
     now[0] = 0.2
     assert s.pending and not s.take() and abs(s.remaining() - 0.1) < 1e-9
-    s.touch()  # another edit at 0.2: due at 0.5
+    s.touch()  # another edit at 0.2: due at 0.5, and a denoise of generation 1 is out of date
+    assert s.generation == 2
     now[0] = 0.45
     assert not s.take()
     now[0] = 0.5

@@ -7,14 +7,17 @@ same throttled path.
 
 Each live relight shows the raw relit image; when the edits settle (`logic.settle`: no edit
 for a short delay) and the preference *Denoise Shown Image* is on, the image is replaced by
-the same relight through OpenImageDenoise (`show_settled`, run by a timer). Headless there
-is no event loop and so no timer: the live image stays raw, and scripts get the shown image
-from `api.render` (or call `show_settled` as the timer would).
+the same relight through OpenImageDenoise. OIDN takes up to seconds, so it runs on a worker
+thread (the relighter releases the GIL, and its raw relights do not wait for it) and a timer
+writes its image on Blender's thread unless an edit came meanwhile. Headless there is no
+event loop and so no timer: the live image stays raw, and scripts get the shown image from
+`api.render` (or call `show_settled`, the same step done at once).
 """
 
 from __future__ import annotations
 
 import contextlib
+import threading
 import time
 
 import bpy
@@ -122,8 +125,43 @@ def _settle_timer():
     if remaining > 0.0:
         return remaining + 1e-3
     RUNTIME.settle_timer_registered = False
-    if RUNTIME.settle.take():
-        show_settled()
+    if RUNTIME.settle.take() and denoise_mode() == "oidn":
+        _start_settled_worker()
+    return None
+
+
+def _start_settled_worker() -> None:
+    """OIDN on a worker thread; `_poll_settled` writes its image on Blender's thread."""
+    import relume
+
+    generation, relighter = RUNTIME.settle.generation, RUNTIME.live.relighter
+
+    def work():
+        try:
+            RUNTIME.settled_result = (generation, relighter, RUNTIME.live.denoised(bottom_first=True), None)
+        except relume.RelumeError as e:
+            RUNTIME.settled_result = (generation, relighter, None, f"{type(e).__name__}: {e}")
+
+    RUNTIME.settled_result = None
+    threading.Thread(target=work, name="relume-denoise", daemon=True).start()
+    bpy.app.timers.register(_poll_settled, first_interval=0.05)
+
+
+def _poll_settled():
+    result = RUNTIME.settled_result
+    if result is None:
+        return 0.05
+    RUNTIME.settled_result = None
+    generation, relighter, outcome, error = result
+    # An edit since (a newer raw image is shown, a newer denoise is due) or another stack:
+    # this image is out of date.
+    if generation != RUNTIME.settle.generation or relighter is not RUNTIME.live.relighter:
+        return None
+    if error is not None:
+        RUNTIME.live.relight_error = error
+    elif outcome is not None:
+        write_image(outcome.image, bottom_first=True)
+    _redraw_image_editors()
     return None
 
 

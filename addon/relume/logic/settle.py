@@ -25,10 +25,13 @@ class Settle:
         self.delay = delay
         self._clock = clock
         self._last_edit: float | None = None
+        #: Counts the edits: a denoised image of an earlier generation is out of date.
+        self.generation = 0
 
     def touch(self) -> None:
         """An edit was shown raw: the denoised image is due `delay` seconds from now."""
         self._last_edit = self._clock()
+        self.generation += 1
 
     @property
     def pending(self) -> bool:

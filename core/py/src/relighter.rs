@@ -46,12 +46,18 @@ struct State {
     /// core's rules and bookkeeping: this layer only converts arguments and errors).
     live: LiveMaterials,
     last_ms: f64,
+    last_denoise: Option<DenoiseReport>,
+}
+
+/// The shown image's denoiser, under a lock of its own: OIDN takes up to seconds, and a
+/// relight of the raw image (the next slider step) must not wait for it.
+#[derive(Default)]
+struct ShownState {
     /// The shown-image denoiser and the folders it searched (made at the first
     /// `denoise="oidn"`, made again when the folders asked for change).
     shown: Option<(Vec<PathBuf>, ShownImage)>,
     /// The scene's pixel features, traced at the first OIDN run; the reason there are none.
     features: Option<Result<PixelFeatures, String>>,
-    last_denoise: Option<DenoiseReport>,
 }
 
 /// Relights one stack live.
@@ -62,6 +68,7 @@ pub struct Relighter {
     /// The scene baked, for the denoiser's features (its hash checked against the stack's).
     scene: Option<EngineScene>,
     state: Mutex<State>,
+    shown: Mutex<ShownState>,
 }
 
 /// An edit the core refused: a value outside its rules is a `MaterialsError`.
@@ -112,17 +119,32 @@ impl Relighter {
         Ok(out)
     }
 
-    /// The shown image of the relit `image` (rows top first) under `mode`, searching
-    /// `dirs` for OIDN; the report is kept for `last_denoise`.
+    /// The relit image brought up to date (rows top first) and the materials it was relit
+    /// with, taken under one lock.
+    fn run_with_materials(&self) -> Result<(Vec<f32>, Vec<MaterialSpec>), GpuError> {
+        let mut guard = self.lock();
+        let st = &mut *guard;
+        let t = Instant::now();
+        st.live
+            .update(&self.stack.header, &self.bases, &mut st.engine)?;
+        let image = st.engine.image().to_vec();
+        st.last_ms = t.elapsed().as_secs_f64() * 1e3;
+        Ok((image, st.live.materials().to_vec()))
+    }
+
+    /// The shown image of the relit `image` (rows top first, relit with `materials`) under
+    /// `mode`, searching `dirs` for OIDN; the report is kept for `last_denoise`. Holds only
+    /// the denoiser's lock while OIDN runs.
     fn shown(
         &self,
         image: Vec<f32>,
+        materials: &[MaterialSpec],
         mode: DenoiseMode,
         dirs: Vec<PathBuf>,
         quality: Quality,
     ) -> Result<Vec<f32>, RelumeError> {
         let (w, h) = (self.stack.header.width, self.stack.header.height);
-        let mut guard = self.lock();
+        let mut guard = self.shown.lock().unwrap_or_else(|e| e.into_inner());
         let st = &mut *guard;
         if st.shown.as_ref().is_none_or(|(d, _)| *d != dirs) {
             let search = LibrarySearch::with_dirs(dirs.clone());
@@ -140,7 +162,7 @@ impl Relighter {
             });
         }
         let albedo = match &st.features {
-            Some(Ok(f)) if mode == DenoiseMode::Oidn => Some(albedo_of(f, st.live.materials())?),
+            Some(Ok(f)) if mode == DenoiseMode::Oidn => Some(albedo_of(f, materials)?),
             _ => None,
         };
         let features = match (&st.features, &albedo) {
@@ -156,7 +178,8 @@ impl Relighter {
         if report.ran == DenoiseMode::Oidn {
             report.milliseconds = t.elapsed().as_secs_f64() * 1e3;
         }
-        st.last_denoise = Some(report);
+        drop(guard);
+        self.lock().last_denoise = Some(report);
         Ok(out)
     }
 }
@@ -249,10 +272,9 @@ impl Relighter {
                 engine,
                 live,
                 last_ms: 0.0,
-                shown: None,
-                features: None,
                 last_denoise: None,
             }),
+            shown: Mutex::new(ShownState::default()),
         })
     }
 
@@ -395,10 +417,10 @@ impl Relighter {
                 self.lock().last_denoise = Some(DenoiseReport::nothing(mode, mode, None));
                 return Ok(image);
             }
-            let image = self.run(false)?;
+            let (image, materials) = self.run_with_materials()?;
             // The core's last check on a relit image comes first (the shown image's input).
             relume_engine::relight::check_finite_image(&image, w as u32)?;
-            let shown = self.shown(image, mode, dirs, quality)?;
+            let shown = self.shown(image, &materials, mode, dirs, quality)?;
             Ok(if flip_y { flip_rows(&shown, w) } else { shown })
         })?;
         let pixels = out.py_err(py)?;
