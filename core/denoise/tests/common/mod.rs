@@ -6,9 +6,10 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use relume_denoise::oidn::{LibrarySearch, ENV_VAR};
-use relume_engine::bake::{bake_tiled, progress::Progress, BakeSettings};
+use relume_engine::bake::{bake_tiled, BakeSettings};
 use relume_engine::brdf::MaterialSpec;
 use relume_engine::materials::{resolve_materials, MaterialsFile};
+use relume_engine::progress::Progress;
 use relume_engine::relight::CpuRelighter;
 use relume_engine::scene::{file::load_scene, Resolution, Scene};
 use relume_engine::stack::bases::StackBases;
