@@ -40,8 +40,10 @@ def run_json(cmd):
 
 def relit_max_abs(relume, a, b, tmp):
     ia, ib = os.path.join(tmp, "a.exr"), os.path.join(tmp, "b.exr")
-    subprocess.run([relume, "relight", a, "-o", ia, "--device", "cpu", "--denoise", "none"], check=True, capture_output=True)
-    subprocess.run([relume, "relight", b, "-o", ib, "--device", "cpu", "--denoise", "none"], check=True, capture_output=True)
+    subprocess.run([relume, "relight", a, "-o", ia, "--device", "cpu", "--denoise", "none"],
+                   check=True, capture_output=True)
+    subprocess.run([relume, "relight", b, "-o", ib, "--device", "cpu", "--denoise", "none"],
+                   check=True, capture_output=True)
     return run_json([relume, "compare", ia, ib, "--json"])
 
 
