@@ -54,8 +54,10 @@ impl IndirectSampling {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
 pub enum LightGrouping {
-    /// All lights (and the world) in one set of layers.
+    /// All lights (and the world) in one set of layers (the command line also calls it
+    /// `none`: no groups).
     #[default]
+    #[serde(alias = "none")]
     All,
     /// One group per light, and one for the world.
     PerLight,

@@ -187,25 +187,27 @@ pub const MAX_DENOISE_ITERATIONS: u32 = 8;
 
 impl BakeSettings {
     /// The one set of rules every front end (command line, Python, add-on) applies, with
-    /// the same words: sample counts ≥ 1 (light and indirect samples at most
+    /// the same words, each error naming the setting by its key in [`super::fields`]:
+    /// sample counts ≥ 1 (light and indirect samples at most
     /// [`MAX_VERTEX_SAMPLES`]), bounces within [`MAX_BOUNCES`], threads within
     /// [`MAX_THREADS`], a resolution override within [`Resolution::MAX_SIDE`], finite
-    /// budgets. Scene-dependent checks (regions, lights) happen when the bake prepares.
+    /// budgets, a compression tolerance only with a compression step, a consistent basis
+    /// ([`crate::brdf::basis::check_config`]). Scene-dependent checks (regions, lights) happen when the bake prepares.
     pub fn validate(&self) -> crate::Result<()> {
         let bad = |what: &str, message: String| Err(crate::RelumeError::invalid(what, message));
         for (what, v) in [
             ("spp", self.spp),
-            ("light samples", self.light_samples),
-            ("indirect samples", self.indirect_samples),
-            ("subsurface samples", self.subsurface_samples),
+            ("light_samples", self.light_samples),
+            ("indirect_samples", self.indirect_samples),
+            ("subsurface_samples", self.subsurface_samples),
         ] {
             if v == 0 {
                 return bad(what, "must be ≥ 1, got 0".into());
             }
         }
         for (what, v) in [
-            ("light samples", self.light_samples),
-            ("indirect samples", self.indirect_samples),
+            ("light_samples", self.light_samples),
+            ("indirect_samples", self.indirect_samples),
         ] {
             if v > MAX_VERTEX_SAMPLES {
                 return bad(
@@ -239,25 +241,25 @@ impl BakeSettings {
         }
         if !(self.drop_budget.is_finite() && (0.0..1.0).contains(&self.drop_budget)) {
             return bad(
-                "drop budget",
+                "drop_budget",
                 format!("must be in [0, 1), got {}", self.drop_budget),
             );
         }
         if !(self.bounce_budget.is_finite() && (0.0..1.0).contains(&self.bounce_budget)) {
             return bad(
-                "bounce budget",
+                "bounce_budget",
                 format!("must be in [0, 1), got {}", self.bounce_budget),
             );
         }
         if !(self.subsurface_theta.is_finite() && self.subsurface_theta > 0.0) {
             return bad(
-                "subsurface theta",
+                "subsurface_theta",
                 format!("must be finite and > 0, got {}", self.subsurface_theta),
             );
         }
         for (what, n) in [
-            ("denoise direct iterations", self.denoise.direct_iterations),
-            ("denoise bounce iterations", self.denoise.bounce_iterations),
+            ("denoise_direct", self.denoise.direct_iterations),
+            ("denoise_bounce", self.denoise.bounce_iterations),
         ] {
             if n > MAX_DENOISE_ITERATIONS {
                 return bad(what, format!("{n} asked; at most {MAX_DENOISE_ITERATIONS}"));
@@ -266,7 +268,7 @@ impl BakeSettings {
         let c = self.compression;
         if c.step > crate::stack::tiled::lattice::MAX_LATTICE_STEP {
             return bad(
-                "compression step",
+                "compression_step",
                 format!(
                     "{} pixels asked; at most {}",
                     c.step,
@@ -276,13 +278,26 @@ impl BakeSettings {
         }
         if !(c.tolerance.is_finite() && (0.0..1.0).contains(&c.tolerance)) {
             return bad(
-                "compression tolerance",
+                "compression_tolerance",
                 format!("must be in [0, 1), got {}", c.tolerance),
             );
         }
-        if self.memory_budget == Some(0) {
-            return bad("memory budget", "must be > 0 bytes".into());
+        if c.step == 0 && c.tolerance != 0.0 {
+            return bad(
+                "compression_tolerance",
+                format!(
+                    "{} given, but the bounce layers are not compressed: give a compression step (or a preset)",
+                    c.tolerance
+                ),
+            );
         }
+        if self.memory_budget == Some(0) {
+            return bad("memory_budget_mb", "must be > 0 (MiB)".into());
+        }
+        crate::brdf::basis::check_config(&self.basis).map_err(|e| match e {
+            crate::RelumeError::Basis(message) => crate::RelumeError::invalid("basis", message),
+            other => other,
+        })?;
         Ok(())
     }
 }

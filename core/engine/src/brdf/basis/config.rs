@@ -188,7 +188,7 @@ impl Default for LobeWeighting {
 }
 
 /// The configuration's own consistency (what [`super::BrdfBasis::build`] refuses up front).
-pub(super) fn check_config(cfg: &BasisConfig) -> Result<()> {
+pub(crate) fn check_config(cfg: &BasisConfig) -> Result<()> {
     let e = |m: String| Err(RelumeError::Basis(m));
     if !cfg.ns_min.is_finite() || !cfg.ns_max.is_finite() {
         return e(format!(

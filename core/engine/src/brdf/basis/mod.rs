@@ -113,7 +113,8 @@ pub use config::{
 };
 pub use error::{BasisErrorReport, CountError};
 
-use config::{check_config, sample_ns};
+pub(crate) use config::check_config;
+use config::sample_ns;
 use error::ErrorMeasures;
 use fit::{fit, Fit};
 use measure::{Atoms, Measures};
