@@ -1,45 +1,16 @@
-//! Options shared by the commands that trace paths (bake, reference, bench bake).
+//! Options shared by the commands that trace paths (bake, reference, bench bake): a preset
+//! and one flag per bake setting, made from the engine's [`FIELDS`] (a flag is its key with
+//! dashes, its help the key's documentation), so a setting added to the engine is a flag
+//! with no code here. A value is read as JSON when it parses (numbers, `null`) and as text
+//! otherwise (`uniform`, `256x256`), then converted by serde; the engine's rules judge it.
 
-use clap::{Args, ValueEnum};
+use clap::{Arg, ArgMatches, Args, FromArgMatches, ValueEnum};
+use relume_engine::bake::fields::{BakeFields, FIELDS};
 use relume_engine::bake::presets::Preset;
-use relume_engine::bake::settings::{default_ns_range, DEFAULT_BOUNCES};
-use relume_engine::bake::{BakeSettings, IndirectSampling, LightGrouping};
-use relume_engine::brdf::principled_basis::PrincipledBasisConfig;
-use relume_engine::brdf::{BasisConfig, BasisCount};
+use relume_engine::bake::BakeSettings;
 use relume_engine::scene::Resolution;
-use relume_engine::stack::Precision;
 use relume_engine::RelumeError;
-
-#[derive(Clone, Copy, Debug, ValueEnum)]
-pub enum SamplingArg {
-    Uniform,
-    Mixture,
-    /// The mixture plus a per-tile guide map from a short first pass.
-    Guided,
-}
-
-#[derive(Clone, Copy, ValueEnum)]
-pub enum LightGroupsArg {
-    /// All lights share the layers.
-    None,
-    /// One group per light (and one for the world): every light's strength and colour live.
-    PerLight,
-    /// The scene file's light groups (Blender's light groups).
-    Scene,
-}
-
-/// `--lobe`: the basis editable regions are baked in.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum LobeArg {
-    BlinnPhong,
-    Principled,
-}
-
-#[derive(Clone, Copy, ValueEnum)]
-pub enum PrecisionArg {
-    F16,
-    F32,
-}
+use serde_json::{Map, Value};
 
 /// The quality presets of [`Preset`], as the command line spells them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -62,246 +33,97 @@ impl PresetArg {
     }
 }
 
-/// The values the options fall back to when neither a flag nor a preset sets them (the
-/// paper's configuration, as before presets existed).
-pub const DEFAULT_SPP: u32 = 16;
-pub const DEFAULT_LIGHT_SAMPLES: u32 = 4;
-pub const DEFAULT_INDIRECT_SAMPLES: u32 = 1;
-pub const DEFAULT_BASES: u32 = 6;
+/// Older spellings of two flags, kept for the scripts and farm templates that use them.
+pub const FLAG_ALIASES: [(&str, &str); 2] =
+    [("basis_tolerance", "tolerance"), ("light_grouping", "light-groups")];
 
 /// Bake options; `reference` takes the same so it traces the same paths.
 ///
 /// Precedence: an explicit flag, then the preset's value (`--preset`), then the default.
 #[derive(Args, Clone)]
 pub struct BakeOptions {
-    /// Quality preset: sets --spp, --light-samples, --indirect-samples, --sampling,
-    /// --tolerance and a resolution scale (draft: ½ of the scene's resolution); explicit
-    /// flags override the preset's values. docs/measurements.md#presets-measured says what each costs.
+    /// Quality preset: sets samples, sampling, the basis tolerance, the denoiser, the
+    /// compression, a bounce budget (with 12 bounces as the cap) and a resolution scale
+    /// (draft: ½); explicit flags override its values. docs/measurements.md#presets-measured
+    /// says what each costs.
     #[arg(long, value_enum)]
     pub preset: Option<PresetArg>,
-    /// Eye samples per pixel [default: 16, or the preset's].
-    #[arg(long)]
-    pub spp: Option<u32>,
-    /// Samples per light (and for the world) at every shading point [default: 4, or the
-    /// preset's].
-    #[arg(long)]
-    pub light_samples: Option<u32>,
-    /// Indirect directions per eye hit [default: 1, or the preset's].
-    #[arg(long)]
-    pub indirect_samples: Option<u32>,
-    /// Indirect bounces as Cycles counts them (0: direct light only; 1: one bounce, the
-    /// paper; more: bounces 2.. traced with the bake-time materials, the "frozen tail").
-    /// With a preset this is the cap and the bake measures how many the scene needs
-    /// [default: 1, or 12 (Blender's default) with a preset].
-    #[arg(long)]
-    pub bounces: Option<u32>,
-    /// Share of the image's light the bounces past the baked count may leave out (0: bake
-    /// exactly --bounces) [default: 0, or the preset's].
-    #[arg(long)]
-    pub bounce_budget: Option<f32>,
-    /// Indirect sampling: uniform hemisphere (the paper), cosine + lobes mixture, or guided
-    /// [default: uniform, or the preset's (mixture)].
-    #[arg(long, value_enum)]
-    pub sampling: Option<SamplingArg>,
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
-    /// Override the scene's resolution, e.g. 256x256 (a preset's resolution scale then
-    /// does not apply; --resolution-scale does).
-    #[arg(long)]
-    pub resolution: Option<String>,
-    /// Scale each side of the resolution (the scene's, or --resolution's) by this factor,
-    /// e.g. 0.5 [default: the preset's when --resolution is not given, else 1].
-    #[arg(long)]
-    pub resolution_scale: Option<f64>,
-    /// Layer storage precision.
-    #[arg(long, value_enum, default_value = "f16")]
-    pub precision: PrecisionArg,
-    /// Basis count N_b (including the diffuse basis) [default: 6, or the preset's
-    /// tolerance].
-    #[arg(long)]
-    pub bases: Option<u32>,
-    /// Instead of --bases: the smallest basis whose worst lobe error is at most this (e.g. 0.03).
-    #[arg(long)]
-    pub tolerance: Option<f32>,
-    /// Blinn–Phong exponent range of editable regions without a range of their own
-    /// [default: Principled roughness 0.1–1, the add-on's: ns ≈ 0.0015–35 000 under the fitted
-    /// Principled mapping].
-    #[arg(long)]
-    pub ns_min: Option<f32>,
-    /// Upper end of that range [default: ns ≈ 35 000, the fitted exponent at roughness 0.1].
-    #[arg(long)]
-    pub ns_max: Option<f32>,
-    /// The lobes editable regions are baked in: the paper's Blinn–Phong basis, or
-    /// (experimental) a basis of Cycles' Principled lobes for editable regions with an
-    /// opaque, untextured Principled material (21 slots, roughness 0.1–1; others keep
-    /// Blinn–Phong, with a warning).
-    #[arg(long, value_enum, default_value = "blinn-phong")]
-    pub lobe: LobeArg,
-    /// Worker threads (0: all cores); the result does not depend on it.
-    #[arg(long, default_value_t = 0)]
-    pub threads: usize,
-    /// Leave out layers whose worst-case contribution to any relit image stays within this
-    /// relative L2 error (e.g. 0.001); 0 keeps every layer a path reached.
-    #[arg(long, default_value_t = 0.0)]
-    pub drop_budget: f32,
-    /// Keep light groups apart so their strength and colour can be edited at relight time
-    /// (storage and relight cost grow with the number of groups).
-    #[arg(long, value_enum, default_value = "none")]
-    pub light_groups: LightGroupsArg,
-    /// Surface samples per translucent region (uniform by area), unless the scene's region
-    /// sets `subsurface.samples`.
-    #[arg(long, default_value_t = 65536)]
-    pub subsurface_samples: u32,
-    /// À-trous iterations of the stack's linear denoiser on the direct layers [default: 0,
-    /// or the preset's]; each doubles the kernel's reach.
-    #[arg(long)]
-    pub denoise_direct: Option<u32>,
-    /// À-trous iterations on the one-bounce layers [default: 0, or the preset's].
-    #[arg(long)]
-    pub denoise_bounce: Option<u32>,
-    /// Memory the bake may plan to use at its peak, in MiB; a bake whose estimate exceeds
-    /// it is refused before tracing [default: 80 % of the available memory].
-    #[arg(long)]
-    pub memory_budget_mb: Option<f64>,
-    /// Bounce-layer compression: pixels between lattice nodes (1 to 16), 0 to store every
-    /// layer per pixel [default: off, or the preset's].
-    #[arg(long)]
-    pub compression_step: Option<u32>,
-    /// Relative L2 error of each tile's bake-time image the bounce-layer compression may
-    /// spend, in [0, 1) [default: the preset's, or the draft and preview presets' when only
-    /// --compression-step is given].
-    #[arg(long)]
-    pub compression_tolerance: Option<f32>,
+    #[command(flatten)]
+    pub fields: FieldFlags,
+}
+
+/// The bake-setting flags given, as key → JSON value.
+#[derive(Clone, Debug, Default)]
+pub struct FieldFlags(pub Map<String, Value>);
+
+impl FromArgMatches for FieldFlags {
+    fn from_arg_matches(m: &ArgMatches) -> Result<Self, clap::Error> {
+        let mut given = FieldFlags::default();
+        given.update_from_arg_matches(m)?;
+        Ok(given)
+    }
+
+    fn update_from_arg_matches(&mut self, m: &ArgMatches) -> Result<(), clap::Error> {
+        for field in FIELDS {
+            if let Some(text) = m.get_one::<String>(field.key) {
+                let value = serde_json::from_str(text).unwrap_or_else(|_| Value::from(text.as_str()));
+                self.0.insert(field.key.into(), value);
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Args for FieldFlags {
+    fn augment_args(cmd: clap::Command) -> clap::Command {
+        let defaults = BakeFields::default().to_map();
+        FIELDS.iter().fold(cmd, |cmd, field| {
+            let default = defaults.get(field.key).map_or("null".into(), Value::to_string);
+            let mut arg = Arg::new(field.key)
+                .long(field.flag())
+                .value_name(field.key.to_uppercase())
+                .help(format!("{} [default: {default}, or the preset's]", field.doc()));
+            for (key, alias) in FLAG_ALIASES {
+                if key == field.key {
+                    arg = arg.visible_alias(alias);
+                }
+            }
+            cmd.arg(arg)
+        })
+    }
+
+    fn augment_args_for_update(cmd: clap::Command) -> clap::Command {
+        Self::augment_args(cmd)
+    }
 }
 
 impl BakeOptions {
     /// The engine's settings for a scene whose own resolution is `scene_resolution`: the
-    /// preset's values first, then every flag given explicitly, then the resolution (an
-    /// explicit `--resolution`, else the scene's) scaled by `--resolution-scale` or, without
-    /// an explicit resolution, by the preset's scale.
+    /// preset's fields (or the defaults), then the flags given. An error names the flag.
     pub fn settings(&self, scene_resolution: Resolution) -> Result<BakeSettings, RelumeError> {
-        let mut s = BakeSettings {
-            spp: DEFAULT_SPP,
-            light_samples: DEFAULT_LIGHT_SAMPLES,
-            indirect_samples: DEFAULT_INDIRECT_SAMPLES,
-            bounces: match (self.bounces, self.preset) {
-                (Some(n), _) => n,
-                (None, Some(_)) => DEFAULT_BOUNCES,
-                (None, None) => 1,
-            },
-            sampling: IndirectSampling::Uniform,
-            seed: self.seed,
-            resolution: None,
-            precision: match self.precision {
-                PrecisionArg::F16 => Precision::F16,
-                PrecisionArg::F32 => Precision::F32,
-            },
-            basis: BasisConfig {
-                ns_min: self.ns_min.unwrap_or(default_ns_range()[0]),
-                ns_max: self.ns_max.unwrap_or(default_ns_range()[1]),
-                count: BasisCount::Fixed(DEFAULT_BASES),
-                ..BasisConfig::default()
-            },
-            principled_basis: match self.lobe {
-                LobeArg::BlinnPhong => None,
-                LobeArg::Principled => Some(PrincipledBasisConfig::default()),
-            },
-            threads: self.threads,
-            drop_budget: self.drop_budget,
-            light_grouping: match self.light_groups {
-                LightGroupsArg::None => LightGrouping::All,
-                LightGroupsArg::PerLight => LightGrouping::PerLight,
-                LightGroupsArg::Scene => LightGrouping::Scene,
-            },
-            subsurface_samples: self.subsurface_samples,
-            ..BakeSettings::default()
+        let mut fields = match self.preset {
+            Some(p) => BakeFields::preset(p.preset()),
+            None => BakeFields::default(),
         };
-        let preset_scale = match self.preset {
-            Some(p) => p.preset().apply(&mut s),
-            None => 1.0,
-        };
-        if let Some(v) = self.spp {
-            s.spp = v;
-        }
-        if let Some(v) = self.bounce_budget {
-            if !(v.is_finite() && (0.0..1.0).contains(&v)) {
-                return Err(RelumeError::invalid(
-                    "--bounce-budget",
-                    format!("{v} (a share of the light in [0, 1))"),
-                ));
-            }
-            s.bounce_budget = v;
-        }
-        if let Some(v) = self.light_samples {
-            s.light_samples = v;
-        }
-        if let Some(v) = self.indirect_samples {
-            s.indirect_samples = v;
-        }
-        if let Some(v) = self.denoise_direct {
-            s.denoise.direct_iterations = v;
-        }
-        if let Some(v) = self.denoise_bounce {
-            s.denoise.bounce_iterations = v;
-        }
-        if self.memory_budget_mb.is_some() {
-            s.memory_budget = budget_from_mib(self.memory_budget_mb)?;
-        }
-        if let Some(v) = self.sampling {
-            s.sampling = match v {
-                SamplingArg::Uniform => IndirectSampling::Uniform,
-                SamplingArg::Mixture => IndirectSampling::Mixture,
-                SamplingArg::Guided => IndirectSampling::Guided,
-            };
-        }
-        if let Some(step) = self.compression_step {
-            s.compression = s.compression.with_step(step);
-        }
-        if let Some(t) = self.compression_tolerance {
-            if s.compression.step == 0 {
-                return Err(RelumeError::invalid(
-                    "--compression-tolerance",
-                    "the bounce layers are not compressed: give --compression-step or a preset",
-                ));
-            }
-            s.compression.tolerance = t;
-        }
-        match (self.tolerance, self.bases) {
-            (Some(t), _) => s.basis.count = BasisCount::Tolerance(t),
-            (None, Some(n)) => s.basis.count = BasisCount::Fixed(n),
-            (None, None) => {}
-        }
-        let explicit = match &self.resolution {
-            None => None,
-            Some(text) => Some(parse_resolution(text)?),
-        };
-        let scale = match (self.resolution_scale, explicit) {
-            (Some(f), _) => {
-                // Checked even at 1, so "--resolution-scale nan" never passes silently.
-                scale_resolution(
-                    Resolution {
-                        width: 1,
-                        height: 1,
-                    },
-                    f,
-                )?;
-                f
-            }
-            (None, Some(_)) => 1.0,
-            (None, None) => preset_scale,
-        };
-        s.resolution = match (explicit, scale == 1.0) {
-            (None, true) => None,
-            (Some(r), true) => Some(r),
-            (base, false) => Some(scale_resolution(base.unwrap_or(scene_resolution), scale)?),
-        };
-        s.validate()?;
-        Ok(s)
+        fields
+            .apply(&self.fields.0)
+            .and_then(|()| fields.settings(scene_resolution))
+            .map_err(name_the_flag)
     }
 }
 
-/// `r` with each side multiplied by `scale` (the engine's [`Resolution::scaled`], as the
-/// Python bindings' `resolution_scale`): errors name `--resolution-scale`.
+/// An error naming a setting by its key names it by its flag.
+fn name_the_flag(e: RelumeError) -> RelumeError {
+    match e {
+        RelumeError::InvalidValue { what, message } if FIELDS.iter().any(|f| f.key == what) => {
+            RelumeError::invalid(format!("--{}", what.replace('_', "-")), message)
+        }
+        other => other,
+    }
+}
+
+/// `r` with each side multiplied by `scale` (the engine's [`Resolution::scaled`]): errors
+/// name `--resolution-scale`.
 pub fn scale_resolution(r: Resolution, scale: f64) -> Result<Resolution, RelumeError> {
     r.scaled(scale).map_err(|e| match e {
         RelumeError::InvalidValue { message, .. } => {
@@ -328,7 +150,7 @@ pub fn parse_resolution(s: &str) -> Result<Resolution, RelumeError> {
 }
 
 /// `--memory-budget-mb` in bytes (`None`: the default budget), refused unless finite and > 0;
-/// one reading for every command that takes it.
+/// for `merge`, which takes the budget without the bake's other settings.
 pub fn budget_from_mib(mib: Option<f64>) -> Result<Option<u64>, RelumeError> {
     match mib {
         None => Ok(None),
@@ -344,7 +166,9 @@ pub fn budget_from_mib(mib: Option<f64>) -> Result<Option<u64>, RelumeError> {
 mod tests {
     use super::*;
     use clap::Parser;
-    use relume_engine::bake::settings::BounceCompression;
+    use relume_engine::bake::settings::{BounceCompression, DEFAULT_BOUNCES};
+    use relume_engine::bake::{IndirectSampling, LightGrouping};
+    use relume_engine::brdf::BasisCount;
 
     #[derive(Parser)]
     struct Cli {
@@ -394,7 +218,7 @@ mod tests {
         assert_eq!((c.step, c.tolerance), (preview.step, 0.005));
         // Without compression a tolerance means nothing: said, not ignored.
         let e = settings(&["--compression-tolerance", "0.01"]).unwrap_err();
-        assert!(e.to_string().contains("--compression-step"), "{e}");
+        assert!(e.to_string().contains("give a compression step"), "{e}");
         // The engine's rules (BakeSettings::validate) judge the values.
         for bad in [
             &["--compression-step", "17"][..],
@@ -478,8 +302,75 @@ mod tests {
         );
         assert_eq!(s.sampling, IndirectSampling::Uniform);
         assert!(matches!(s.basis.count, BasisCount::Fixed(7)));
-        let s = settings(&["--preset", "final", "--tolerance", "0.2", "--bases", "7"]).unwrap();
+        let s = settings(&["--preset", "final", "--tolerance", "0.2"]).unwrap();
         assert!(matches!(s.basis.count, BasisCount::Tolerance(t) if t == 0.2));
+        // Both name the basis count: refused rather than one silently ignored.
+        let e = settings(&["--tolerance", "0.2", "--bases", "7"]).unwrap_err();
+        assert!(e.to_string().contains("not both"), "{e}");
+    }
+
+    #[test]
+    fn every_flag_the_docs_and_scripts_use_still_parses() {
+        let s = settings(&[
+            "--spp=2",
+            "--light-samples=3",
+            "--indirect-samples=2",
+            "--bounces=2",
+            "--bounce-budget=0.01",
+            "--sampling=guided",
+            "--seed=5",
+            "--resolution=64x32",
+            "--resolution-scale=0.5",
+            "--precision=f32",
+            "--bases=5",
+            "--ns-min=2",
+            "--ns-max=300",
+            "--lobe=principled",
+            "--threads=2",
+            "--drop-budget=0.001",
+            "--light-groups=per-light",
+            "--subsurface-samples=1024",
+            "--subsurface-theta=0.3",
+            "--denoise-direct=1",
+            "--denoise-bounce=2",
+            "--memory-budget-mb=512",
+            "--compression-step=4",
+            "--compression-tolerance=0.01",
+        ])
+        .unwrap();
+        assert_eq!((s.spp, s.light_samples, s.indirect_samples, s.seed), (2, 3, 2, 5));
+        assert_eq!((s.bounces, s.bounce_budget), (2, 0.01));
+        assert_eq!(s.sampling, IndirectSampling::Guided);
+        assert_eq!(s.resolution, Some(Resolution { width: 32, height: 16 }));
+        assert_eq!(s.precision, relume_engine::stack::Precision::F32);
+        assert!(matches!(s.basis.count, BasisCount::Fixed(5)));
+        assert_eq!((s.basis.ns_min, s.basis.ns_max), (2.0, 300.0));
+        assert!(s.principled_basis.is_some());
+        assert_eq!((s.threads, s.drop_budget), (2, 0.001));
+        assert_eq!(s.light_grouping, LightGrouping::PerLight);
+        assert_eq!((s.subsurface_samples, s.subsurface_theta), (1024, 0.3));
+        assert_eq!((s.denoise.direct_iterations, s.denoise.bounce_iterations), (1, 2));
+        assert_eq!(s.memory_budget, Some(512 * 1024 * 1024));
+        assert_eq!((s.compression.step, s.compression.tolerance), (4, 0.01));
+        let s = settings(&["--light-groups", "none"]).unwrap();
+        assert_eq!(s.light_grouping, LightGrouping::All);
+    }
+
+    #[test]
+    fn a_bad_value_is_refused_naming_its_flag() {
+        for (args, flag) in [
+            (&["--spp", "0"][..], "--spp"),
+            (&["--spp", "many"][..], "--spp"),
+            (&["--sampling", "best"][..], "--sampling"),
+            (&["--resolution", "wide"][..], "--resolution"),
+            (&["--memory-budget-mb", "0"][..], "--memory-budget-mb"),
+            (&["--threads", "100000"][..], "--threads"),
+        ] {
+            let e = settings(args).unwrap_err().to_string();
+            assert!(e.contains(flag), "{args:?}: {e}");
+        }
+        let e = settings(&["--sampling", "best"]).unwrap_err().to_string();
+        assert!(e.contains("uniform") && e.contains("guided"), "{e}");
     }
 
     #[test]

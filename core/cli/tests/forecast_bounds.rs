@@ -55,7 +55,7 @@ fn an_estimate_with_four_billion_indirect_samples_is_refused_at_once() {
     let err = stderr_of(child);
     assert_eq!(status.code(), Some(1), "{err}");
     assert!(
-        err.contains("indirect samples") && err.contains("at most 1024"),
+        err.contains("--indirect-samples") && err.contains("at most 1024"),
         "{err}"
     );
     assert!(took < Duration::from_secs(10), "{took:?}");

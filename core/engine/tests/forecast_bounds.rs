@@ -170,10 +170,10 @@ fn estimate_within(
 fn sample_counts_past_any_real_bake_are_refused_by_the_settings_rule() {
     for (field, set) in [
         (
-            "indirect samples",
+            "indirect_samples",
             (|s: &mut BakeSettings| s.indirect_samples = u32::MAX) as fn(&mut _),
         ),
-        ("light samples", |s: &mut BakeSettings| {
+        ("light_samples", |s: &mut BakeSettings| {
             s.light_samples = u32::MAX
         }),
     ] {

@@ -317,7 +317,7 @@ fn bad_settings_are_refused_with_the_field_named() {
                 drop_budget: f32::NAN,
                 ..BakeSettings::default()
             },
-            "drop budget",
+            "drop_budget",
         ),
     ];
     for (settings, field) in cases {

@@ -69,7 +69,8 @@ class Scene:
 # --- bake ----------------------------------------------------------------------------------
 
 class BakeSettings:
-    """Keyword fields, each checked when set (ValueError naming the field)."""
+    """The engine's bake fields (docs/cli.md, "Bake settings") as keywords, plus `passes`;
+    a bad value is a ValueError naming the field."""
 
     spp: int
     light_samples: int
@@ -78,23 +79,25 @@ class BakeSettings:
     bounce_budget: float  # share of the light bounces past the baked count may leave out
     sampling: Literal["uniform", "mixture", "guided"]
     seed: int
-    resolution: tuple[int, int] | None
+    resolution: tuple[int, int] | list[int] | str | None  # read back as [width, height]
     resolution_scale: float
     precision: Literal["f16", "f32"]
-    basis_tolerance: float | None
     bases: int | None
+    basis_tolerance: float | None
     ns_min: float
     ns_max: float
     lobe: Literal["blinn-phong", "principled"]  # "principled": experimental Principled-lobe basis
     threads: int
     drop_budget: float
     light_grouping: Literal["all", "per-light", "scene"]
+    subsurface_samples: int
+    subsurface_theta: float
     denoise_direct: int
     denoise_bounce: int
-    passes: int
     memory_budget_mb: float | None
     compression_step: int
     compression_tolerance: float
+    passes: int
     def __init__(self, **fields: Any) -> None: ...
     @staticmethod
     def preset(name: Literal["draft", "preview", "final"], **overrides: Any) -> BakeSettings: ...
