@@ -7,8 +7,9 @@ an Image Editor image named "Relume" whenever an editable material changes.
 
 from __future__ import annotations
 
-from . import api, live, live_image, ops, panels, prefs, props  # noqa: F401  (api: the scripting API)
+from . import api, live, live_image  # noqa: F401  (api: the scripting API)
 from .runtime import RUNTIME
+from .ui import ops, panels, prefs, props
 
 _CLASSES = prefs.CLASSES + ops.CLASSES + panels.CLASSES
 

@@ -24,9 +24,9 @@ import bpy
 import numpy as np
 
 from .logic.oidn_dirs import blender_lib_dirs
-from .prefs import get_prefs
+from .relight_values import current_gains, current_params, sync_light_groups
 from .runtime import RUNTIME
-from .scene_values import current_gains, current_params, sync_light_groups
+from .ui.prefs import get_prefs
 
 IMAGE_NAME = "Relume"
 

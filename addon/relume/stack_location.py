@@ -8,7 +8,7 @@ import tempfile
 import bpy
 
 from .logic.stack_paths import stack_file_name, stack_folder
-from .prefs import get_prefs
+from .ui.prefs import get_prefs
 
 
 def stack_location(context=None) -> tuple[str, str, bool]:

@@ -1,6 +1,6 @@
 """The material of one editable region, as the live relight sends it to the relighter.
 
-Read from bpy by the add-on (`scene_values.region_params`) and compared with what was last
+Read from bpy by the add-on (`relight_values.region_params`) and compared with what was last
 sent, so that only regions whose values changed are relit: frozen dataclasses compare by
 value, and a region that switches between the two kinds never compares equal.
 """

@@ -9,9 +9,9 @@ import bpy
 
 from ..live_image import on_stack_loaded
 from ..logic.bake_session import BakeSession
-from ..prefs import get_prefs
 from ..runtime import RUNTIME
 from ..stack_location import stack_location
+from ..ui.prefs import get_prefs
 from .errors import BakeCancelled, BakeError
 from .export import bake_settings, export
 

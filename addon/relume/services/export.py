@@ -7,9 +7,9 @@ import bpy
 
 from ..exporter.scene_export import ExportOptions, ExportResult, cycles_bounce_cap, export_scene
 from ..logic.light_groups import GROUPING_OF_PREF
-from ..prefs import get_prefs
 from ..runtime import RUNTIME
 from ..stack_location import stack_location
+from ..ui.prefs import get_prefs
 
 #: The roughness range an editable material is baked for unless it sets its own: the Principled
 #: slider's range down to 0.1 (the mapping's exponent there is a few times 10⁴; the panel

@@ -8,8 +8,8 @@ import bpy
 import numpy as np
 
 from ..live_image import denoise_mode, write_image
+from ..relight_values import current_gains, current_params
 from ..runtime import RUNTIME
-from ..scene_values import current_gains, current_params
 from . import stack as stack_service
 from .errors import BakeError
 

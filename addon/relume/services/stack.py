@@ -7,9 +7,9 @@ import os
 import bpy
 
 from ..live_image import IMAGE_NAME, on_stack_loaded, relight_now
-from ..prefs import get_prefs
 from ..runtime import RUNTIME
 from ..stack_location import stack_location
+from ..ui.prefs import get_prefs
 from .export import export
 
 

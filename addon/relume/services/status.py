@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import bpy
 
+from ..relight_values import current_gains
 from ..runtime import RUNTIME
-from ..scene_values import current_gains
 
 
 def status(context=None) -> dict:

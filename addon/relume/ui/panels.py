@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import bpy
 
+from ..logic.light_groups import cost_text, group_label
+from ..logic.region_params import PrincipledParams
+from ..relight_values import region_params
+from ..runtime import RUNTIME
+from ..services.export import roughness_range
 from .bake_controls import draw_bake_controls
-from .logic.light_groups import cost_text, group_label
-from .logic.region_params import PrincipledParams
-from .runtime import RUNTIME
-from .scene_values import region_params
-from .services.export import roughness_range
 
 
 class RELUME_PT_image(bpy.types.Panel):

@@ -5,9 +5,9 @@ from __future__ import annotations
 import bpy
 from bpy.props import BoolProperty, CollectionProperty, FloatProperty, FloatVectorProperty, PointerProperty
 
-from .live import request_stale_check
-from .live_image import request_relight
-from .runtime import RUNTIME
+from ..live import request_stale_check
+from ..live_image import request_relight
+from ..runtime import RUNTIME
 
 
 # Changing a registered property of a material does not tag the material for the depsgraph,

@@ -3,8 +3,8 @@ Editor's Relume tab and in the add-on preferences."""
 
 from __future__ import annotations
 
-from .logic.estimate_text import estimate_lines
-from .runtime import RUNTIME
+from ..logic.estimate_text import estimate_lines
+from ..runtime import RUNTIME
 
 
 def draw_bake_controls(layout, context) -> None:

@@ -7,7 +7,8 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, St
 
 from .bake_controls import draw_bake_controls
 
-ADDON_ID = __package__
+# The add-on's package (this module is in its `ui` subpackage): the preferences' key.
+ADDON_ID = __package__.rpartition(".")[0]
 
 PRESET_ITEMS = [
     ("draft", "Draft", "Fastest bake: few samples, coarse basis, half resolution"),

@@ -5,15 +5,15 @@ from __future__ import annotations
 import bpy
 from bpy.props import StringProperty
 
-from .exporter.scene_export import ExportError
-from .logic.bake_summary import bake_summary
-from .logic.estimate_text import estimate_lines
-from .runtime import RUNTIME
-from .services.bake import bake, cancel_bake, start_bake
-from .services.errors import BakeCancelled, BakeError
-from .services.export import estimate, export
-from .services.output import render
-from .services.stack import check_stale, load_stack
+from ..exporter.scene_export import ExportError
+from ..logic.bake_summary import bake_summary
+from ..logic.estimate_text import estimate_lines
+from ..runtime import RUNTIME
+from ..services.bake import bake, cancel_bake, start_bake
+from ..services.errors import BakeCancelled, BakeError
+from ..services.export import estimate, export
+from ..services.output import render
+from ..services.stack import check_stale, load_stack
 
 
 def _relume_error_types():
