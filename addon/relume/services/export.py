@@ -6,7 +6,7 @@ from __future__ import annotations
 import bpy
 
 from ..exporter.scene_export import ExportOptions, ExportResult, cycles_bounce_cap, export_scene
-from ..logic.light_groups import GROUPING_OF_PREF
+from ..logic.bake_settings_map import settings_keywords
 from ..runtime import RUNTIME
 from ..stack_location import stack_location
 from ..ui.prefs import get_prefs
@@ -64,18 +64,10 @@ def bake_settings(context=None):
         bounces = cycles_bounce_cap((context or bpy.context).scene)
     else:
         bounces = int(prefs.bounces)
-    common = {"bounces": bounces, "passes": int(prefs.passes),
-              "light_grouping": GROUPING_OF_PREF[prefs.light_groups],
-              "lobe": getattr(prefs, "material_lobes", "blinn-phong")}
-    budget = float(getattr(prefs, "memory_budget_mb", 0.0))
-    if budget > 0.0:
-        common["memory_budget_mb"] = budget
-    preset = getattr(relume.BakeSettings, "preset", None)
-    if prefs.preset != "custom" and preset is not None:
-        return preset(prefs.preset, **common)
-    return relume.BakeSettings(spp=int(prefs.spp), light_samples=int(prefs.light_samples),
-                               indirect_samples=int(prefs.indirect_samples),
-                               basis_tolerance=float(prefs.basis_tolerance), **common)
+    preset, keywords = settings_keywords(prefs, bounces)
+    if preset is not None:
+        return relume.BakeSettings.preset(preset, **keywords)
+    return relume.BakeSettings(**keywords)
 
 
 def estimate(context=None, settings=None) -> dict:

@@ -162,6 +162,19 @@ def test_compression_is_a_setting_judged_by_the_engines_rules():
     # A refused value leaves the settings as they were.
     assert (s.compression_step, s.compression_tolerance) == (8, pytest.approx(0.02))
 
+def test_bake_settings_keywords_are_the_engines_fields_and_bad_ones_are_named():
+    s = relume.BakeSettings(subsurface_theta=0.3, resolution="64x32", light_grouping="scene")
+    assert (s.subsurface_theta, s.resolution, s.light_grouping) == (pytest.approx(0.3), [64, 32], "scene")
+    assert relume.BakeSettings(**s.to_dict()) == s
+    for kwargs, words in (({"spp": 0}, "BakeSettings.spp"), ({"spp": "many"}, "BakeSettings.spp"),
+                          ({"sampling": "best"}, "uniform"), ({"seed": float("nan")}, "BakeSettings.seed"),
+                          ({"spp_count": 1}, "no such bake setting"),
+                          ({"bases": 7, "basis_tolerance": 0.1}, "not both"),
+                          ({"passes": 0}, "BakeSettings.passes")):
+        with pytest.raises(ValueError, match=words):
+            relume.BakeSettings(**kwargs)
+
+
 def test_stubs_declare_exactly_the_module():
     tree = ast.parse(STUBS.read_text())
     declared = set()
