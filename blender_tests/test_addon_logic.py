@@ -23,6 +23,7 @@ def _load():
 
 _load()
 from relume_logic import (  # noqa: E402
+    bake_settings_map,  # noqa: F401  (tested in test_bake_settings_map.py)
     camera_map,
     light_groups,
     lights_map,

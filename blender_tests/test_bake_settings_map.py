@@ -5,26 +5,15 @@ from their one definition (core/engine/src/bake/fields.rs) and the bindings' own
 from __future__ import annotations
 
 import ast
-import importlib.util
 import pathlib
 import re
-import sys
 from types import SimpleNamespace
 
+from test_addon_logic import bake_settings_map as m
+
 ROOT = pathlib.Path(__file__).resolve().parent.parent
-LOGIC = ROOT / "addon" / "relume" / "logic"
 FIELDS_RS = ROOT / "core" / "engine" / "src" / "bake" / "fields.rs"
 STUBS = ROOT / "core" / "py" / "python" / "relume" / "_core.pyi"
-
-
-def _logic():
-    spec = importlib.util.spec_from_file_location(
-        "relume_logic", LOGIC / "__init__.py", submodule_search_locations=[str(LOGIC)])
-    pkg = importlib.util.module_from_spec(spec)
-    sys.modules["relume_logic"] = pkg
-    spec.loader.exec_module(pkg)
-    from relume_logic import bake_settings_map
-    return bake_settings_map
 
 
 def core_settings() -> set[str]:
@@ -38,7 +27,6 @@ def core_settings() -> set[str]:
 
 
 def test_the_addon_says_what_it_does_with_every_bake_setting():
-    m = _logic()
     mapped, left = set(m.PREFERENCE_OF), set(m.NOT_A_PREFERENCE)
     assert not mapped & left, sorted(mapped & left)
     assert mapped | left == core_settings(), (sorted(core_settings() - mapped - left),
@@ -47,7 +35,6 @@ def test_the_addon_says_what_it_does_with_every_bake_setting():
 
 
 def test_the_preferences_become_keywords_by_the_table():
-    m = _logic()
     prefs = SimpleNamespace(preset="custom", spp=2, light_samples=3, indirect_samples=1,
                             basis_tolerance=0.05, bounces=5, material_lobes="blinn-phong",
                             light_groups="per_light", memory_budget_mb=0.0, passes=2)
