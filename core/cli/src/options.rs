@@ -34,8 +34,10 @@ impl PresetArg {
 }
 
 /// Older spellings of two flags, kept for the scripts and farm templates that use them.
-pub const FLAG_ALIASES: [(&str, &str); 2] =
-    [("basis_tolerance", "tolerance"), ("light_grouping", "light-groups")];
+pub const FLAG_ALIASES: [(&str, &str); 2] = [
+    ("basis_tolerance", "tolerance"),
+    ("light_grouping", "light-groups"),
+];
 
 /// Bake options; `reference` takes the same so it traces the same paths.
 ///
@@ -66,7 +68,8 @@ impl FromArgMatches for FieldFlags {
     fn update_from_arg_matches(&mut self, m: &ArgMatches) -> Result<(), clap::Error> {
         for field in FIELDS {
             if let Some(text) = m.get_one::<String>(field.key) {
-                let value = serde_json::from_str(text).unwrap_or_else(|_| Value::from(text.as_str()));
+                let value =
+                    serde_json::from_str(text).unwrap_or_else(|_| Value::from(text.as_str()));
                 self.0.insert(field.key.into(), value);
             }
         }
@@ -78,11 +81,16 @@ impl Args for FieldFlags {
     fn augment_args(cmd: clap::Command) -> clap::Command {
         let defaults = BakeFields::default().to_map();
         FIELDS.iter().fold(cmd, |cmd, field| {
-            let default = defaults.get(field.key).map_or("null".into(), Value::to_string);
+            let default = defaults
+                .get(field.key)
+                .map_or("null".into(), Value::to_string);
             let mut arg = Arg::new(field.key)
                 .long(field.flag())
                 .value_name(field.key.to_uppercase())
-                .help(format!("{} [default: {default}, or the preset's]", field.doc()));
+                .help(format!(
+                    "{} [default: {default}, or the preset's]",
+                    field.doc()
+                ));
             for (key, alias) in FLAG_ALIASES {
                 if key == field.key {
                     arg = arg.visible_alias(alias);
@@ -338,10 +346,19 @@ mod tests {
             "--compression-tolerance=0.01",
         ])
         .unwrap();
-        assert_eq!((s.spp, s.light_samples, s.indirect_samples, s.seed), (2, 3, 2, 5));
+        assert_eq!(
+            (s.spp, s.light_samples, s.indirect_samples, s.seed),
+            (2, 3, 2, 5)
+        );
         assert_eq!((s.bounces, s.bounce_budget), (2, 0.01));
         assert_eq!(s.sampling, IndirectSampling::Guided);
-        assert_eq!(s.resolution, Some(Resolution { width: 32, height: 16 }));
+        assert_eq!(
+            s.resolution,
+            Some(Resolution {
+                width: 32,
+                height: 16
+            })
+        );
         assert_eq!(s.precision, relume_engine::stack::Precision::F32);
         assert!(matches!(s.basis.count, BasisCount::Fixed(5)));
         assert_eq!((s.basis.ns_min, s.basis.ns_max), (2.0, 300.0));
@@ -349,7 +366,10 @@ mod tests {
         assert_eq!((s.threads, s.drop_budget), (2, 0.001));
         assert_eq!(s.light_grouping, LightGrouping::PerLight);
         assert_eq!((s.subsurface_samples, s.subsurface_theta), (1024, 0.3));
-        assert_eq!((s.denoise.direct_iterations, s.denoise.bounce_iterations), (1, 2));
+        assert_eq!(
+            (s.denoise.direct_iterations, s.denoise.bounce_iterations),
+            (1, 2)
+        );
         assert_eq!(s.memory_budget, Some(512 * 1024 * 1024));
         assert_eq!((s.compression.step, s.compression.tolerance), (4, 0.01));
         let s = settings(&["--light-groups", "none"]).unwrap();

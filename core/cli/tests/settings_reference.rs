@@ -13,7 +13,10 @@ fn generated() -> String {
     let defaults = BakeFields::default().to_map();
     let mut text = String::new();
     for field in FIELDS {
-        let default = defaults.get(field.key).map(|v| v.to_string()).unwrap_or_default();
+        let default = defaults
+            .get(field.key)
+            .map(|v| v.to_string())
+            .unwrap_or_default();
         text += &format!(
             "- `--{}` (`{}=`, default `{default}`): {}\n",
             field.flag(),
@@ -28,8 +31,14 @@ fn generated() -> String {
 fn the_cli_reference_lists_every_bake_setting_with_its_documentation() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/cli.md");
     let doc = std::fs::read_to_string(&path).unwrap();
-    let start = doc.find(BEGIN).expect("docs/cli.md has the generated-list marker") + BEGIN.len();
-    let end = start + doc[start..].find(END).expect("docs/cli.md has the end marker");
+    let start = doc
+        .find(BEGIN)
+        .expect("docs/cli.md has the generated-list marker")
+        + BEGIN.len();
+    let end = start
+        + doc[start..]
+            .find(END)
+            .expect("docs/cli.md has the end marker");
     let want = generated();
     if doc[start..end] == want {
         return;

@@ -129,7 +129,10 @@ fn the_defaults_and_the_presets_round_trip_to_the_engines_settings() {
         serde_json::to_value(a).unwrap() == serde_json::to_value(b).unwrap()
     };
     let fields = BakeFields::default();
-    assert!(same(&fields.settings(SCENE).unwrap(), &BakeSettings::default()));
+    assert!(same(
+        &fields.settings(SCENE).unwrap(),
+        &BakeSettings::default()
+    ));
     for preset in Preset::ALL {
         let fields = BakeFields::preset(preset);
         let mut expected = BakeSettings::default();
@@ -138,7 +141,11 @@ fn the_defaults_and_the_presets_round_trip_to_the_engines_settings() {
         if scale != 1.0 {
             expected.resolution = Some(SCENE.scaled(scale).unwrap());
         }
-        assert!(same(&fields.settings(SCENE).unwrap(), &expected), "{}", preset.name());
+        assert!(
+            same(&fields.settings(SCENE).unwrap(), &expected),
+            "{}",
+            preset.name()
+        );
     }
 }
 
@@ -182,7 +189,13 @@ fn overrides_keep_the_pairs_that_name_one_value_consistent() {
     let mut draft = BakeFields::preset(Preset::Draft);
     draft.apply(&one("resolution", json!([100, 50]))).unwrap();
     let r = draft.settings(SCENE).unwrap().resolution;
-    assert_eq!(r, Some(Resolution { width: 100, height: 50 }));
+    assert_eq!(
+        r,
+        Some(Resolution {
+            width: 100,
+            height: 50
+        })
+    );
     // A step turning compression on reads back with the tolerance it bakes with.
     let mut fields = BakeFields::default();
     fields.apply(&one("compression_step", json!(8))).unwrap();

@@ -76,7 +76,10 @@ impl BakeSettings {
                 .and_then(|t| t.extract())
                 .map_err(|_| {
                     let shown = v.repr().map(|r| r.to_string()).unwrap_or_default();
-                    bad(&key, format!("{shown} (expected a finite number, a string, a list or None)"))
+                    bad(
+                        &key,
+                        format!("{shown} (expected a finite number, a string, a list or None)"),
+                    )
                 })?;
             let value: Value = serde_json::from_str(&text).map_err(|e| bad(&key, e))?;
             overrides.insert(key, value);
