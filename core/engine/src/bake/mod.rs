@@ -20,9 +20,10 @@
 //! 4. [`finish`]: denoising, the tiled stack, layer dropping.
 //!
 //! [`farm`] runs the same stages split over machines. Beside them: the settings
-//! ([`settings`], their flat face [`fields`], [`presets`]), what a bake reports ([`report`], [`non_finite`]), the layer
-//! index arithmetic the stages share ([`layout`]), a bake written to a stack file
-//! ([`to_file`]) and the reference renderer ([`reference`](mod@reference)).
+//! ([`settings`], their flat face [`fields`], [`presets`]), what a bake reports
+//! ([`report`], [`non_finite`]), the layer index arithmetic the stages share ([`layout`]),
+//! a bake written to a stack file ([`to_file`]) and the reference renderer
+//! ([`reference`](mod@reference)).
 
 pub mod farm;
 pub mod fields;
