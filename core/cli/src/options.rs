@@ -68,9 +68,7 @@ impl FromArgMatches for FieldFlags {
     fn update_from_arg_matches(&mut self, m: &ArgMatches) -> Result<(), clap::Error> {
         for field in FIELDS {
             if let Some(text) = m.get_one::<String>(field.key) {
-                let value =
-                    serde_json::from_str(text).unwrap_or_else(|_| Value::from(text.as_str()));
-                self.0.insert(field.key.into(), value);
+                self.0.insert(field.key.into(), value_of(text));
             }
         }
         Ok(())
@@ -84,8 +82,10 @@ impl Args for FieldFlags {
             let default = defaults
                 .get(field.key)
                 .map_or("null".into(), Value::to_string);
+            let key = field.key;
             let mut arg = Arg::new(field.key)
                 .long(field.flag())
+                .value_parser(move |text: &str| of_its_type(key, text).map(|()| text.to_string()))
                 .value_name(field.key.to_uppercase())
                 .help(format!(
                     "{} [default: {default}, or the preset's]",
@@ -103,6 +103,22 @@ impl Args for FieldFlags {
     fn augment_args_for_update(cmd: clap::Command) -> clap::Command {
         Self::augment_args(cmd)
     }
+}
+
+/// A flag's text as JSON: parsed when it is JSON (numbers, `null`), else the text itself.
+fn value_of(text: &str) -> Value {
+    serde_json::from_str(text).unwrap_or_else(|_| Value::from(text))
+}
+
+/// Whether `text` converts to the type of the field `key` (not whether the engine's rules
+/// accept the value): a value of the wrong type is a usage error, as clap's typed flags
+/// make it, with serde's words.
+fn of_its_type(key: &str, text: &str) -> Result<(), String> {
+    let mut map = BakeFields::default().to_map();
+    map.insert(key.into(), value_of(text));
+    serde_json::from_value::<BakeFields>(Value::Object(map))
+        .map(drop)
+        .map_err(|e| e.to_string())
 }
 
 impl BakeOptions {
