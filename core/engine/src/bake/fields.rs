@@ -12,8 +12,8 @@ use serde_json::{Map, Value};
 use super::presets::Preset;
 use super::settings::{BakeSettings, BounceCompression, DEFAULT_BOUNCES};
 use crate::brdf::principled_basis::PrincipledBasisConfig;
-use crate::brdf::BasisCount;
-use crate::options::{IndirectSampling, LightGrouping, Precision};
+use crate::brdf::{BasisConfig, BasisCount};
+use crate::options::{Denoise, IndirectSampling, LightGrouping, Precision};
 use crate::scene::Resolution;
 use crate::{RelumeError, Result};
 
@@ -204,42 +204,49 @@ impl BakeFields {
 
     /// The engine's settings at the resolution given (or the scene's), before the scale.
     fn unscaled(&self) -> BakeSettings {
-        let mut s = BakeSettings::default();
-        s.spp = self.spp;
-        s.light_samples = self.light_samples;
-        s.indirect_samples = self.indirect_samples;
-        s.bounces = self.bounces;
-        s.bounce_budget = self.bounce_budget;
-        s.sampling = self.sampling;
-        s.seed = self.seed;
-        s.resolution = self.resolution;
-        s.precision = self.precision;
-        s.basis.count = match (self.bases, self.basis_tolerance) {
-            (_, Some(t)) => BasisCount::Tolerance(t),
-            (Some(n), None) => BasisCount::Fixed(n),
-            (None, None) => s.basis.count,
-        };
-        s.basis.ns_min = self.ns_min;
-        s.basis.ns_max = self.ns_max;
-        s.principled_basis = match self.lobe {
-            Lobe::BlinnPhong => None,
-            Lobe::Principled => Some(PrincipledBasisConfig::default()),
-        };
-        s.threads = self.threads;
-        s.drop_budget = self.drop_budget;
-        s.light_grouping = self.light_grouping;
-        s.subsurface_samples = self.subsurface_samples;
-        s.subsurface_theta = self.subsurface_theta;
-        s.denoise.direct_iterations = self.denoise_direct;
-        s.denoise.bounce_iterations = self.denoise_bounce;
-        // `as` saturates: a negative or NaN budget becomes 0 bytes, which `validate` refuses.
-        s.memory_budget = self.memory_budget_mb.map(|mb| (mb * MIB) as u64);
-        s.compression = BounceCompression {
-            step: 0,
-            tolerance: self.compression_tolerance,
+        let default = BakeSettings::default();
+        BakeSettings {
+            spp: self.spp,
+            light_samples: self.light_samples,
+            indirect_samples: self.indirect_samples,
+            bounces: self.bounces,
+            bounce_budget: self.bounce_budget,
+            sampling: self.sampling,
+            seed: self.seed,
+            resolution: self.resolution,
+            precision: self.precision,
+            basis: BasisConfig {
+                count: match (self.bases, self.basis_tolerance) {
+                    (_, Some(t)) => BasisCount::Tolerance(t),
+                    (Some(n), None) => BasisCount::Fixed(n),
+                    (None, None) => default.basis.count,
+                },
+                ns_min: self.ns_min,
+                ns_max: self.ns_max,
+                ..default.basis
+            },
+            principled_basis: match self.lobe {
+                Lobe::BlinnPhong => None,
+                Lobe::Principled => Some(PrincipledBasisConfig::default()),
+            },
+            threads: self.threads,
+            drop_budget: self.drop_budget,
+            light_grouping: self.light_grouping,
+            subsurface_samples: self.subsurface_samples,
+            subsurface_theta: self.subsurface_theta,
+            denoise: Denoise {
+                direct_iterations: self.denoise_direct,
+                bounce_iterations: self.denoise_bounce,
+            },
+            // `as` saturates: a negative or NaN budget becomes 0 bytes, which `validate`
+            // refuses.
+            memory_budget: self.memory_budget_mb.map(|mb| (mb * MIB) as u64),
+            compression: BounceCompression {
+                step: 0,
+                tolerance: self.compression_tolerance,
+            }
+            .with_step(self.compression_step),
         }
-        .with_step(self.compression_step);
-        s
     }
 
     /// The engine's settings for a scene of `scene_resolution`, checked by
