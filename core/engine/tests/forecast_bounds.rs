@@ -374,8 +374,7 @@ fn a_merge_over_its_budget_is_refused_before_reading_the_parts() {
     let dir = tempfile::tempdir().unwrap();
     let scene = cornell(32);
     let paths = two_parts(dir.path(), &scene);
-    let Err(e) = merge_files(&scene, &paths, 1, Some(1 << 20), &Progress::new())
-    else {
+    let Err(e) = merge_files(&scene, &paths, 1, Some(1 << 20), &Progress::new()) else {
         panic!("not refused");
     };
     assert!(

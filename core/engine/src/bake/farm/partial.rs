@@ -178,7 +178,8 @@ impl PartialWriter {
         header.largest_tile_bytes = self.largest_tile;
         let scratch = self.scratch.clone();
         let result = (|| {
-            let mut from = std::fs::File::open(&scratch).map_err(|e| RelumeError::io(&scratch, e))?;
+            let mut from =
+                std::fs::File::open(&scratch).map_err(|e| RelumeError::io(&scratch, e))?;
             farm_file::write(&self.path, MAGIC, &header, self.written, |w| {
                 let mut buf = vec![0u8; 1 << 20];
                 loop {
@@ -249,9 +250,7 @@ impl<'a> PartialReader<'a> {
         for _ in 0..self.header.blocks.len() {
             let n = self.payload.u64s(1)?[0];
             if n > layer_count {
-                return Err(self.bad(format!(
-                    "a tile claims {n} layers of {layer_count}"
-                )));
+                return Err(self.bad(format!("a tile claims {n} layers of {layer_count}")));
             }
             let entries = self.payload.u64s(n as usize)?;
             let features = self

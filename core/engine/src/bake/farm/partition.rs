@@ -378,7 +378,8 @@ pub fn merge_peak_bytes(headers: &[(PathBuf, PartialHeader)]) -> u64 {
         .map(|(_, h)| h.bake_peak_bytes)
         .max()
         .unwrap_or(0);
-    let per_part = |h: &PartialHeader| (1u64 << 20).saturating_add(h.largest_tile_bytes.saturating_mul(6));
+    let per_part =
+        |h: &PartialHeader| (1u64 << 20).saturating_add(h.largest_tile_bytes.saturating_mul(6));
     headers
         .iter()
         .map(|(_, h)| per_part(h))
@@ -404,7 +405,12 @@ pub fn merge_files(
     let start = Instant::now();
     let headers = paths
         .iter()
-        .map(|p| Ok((p.clone(), crate::bake::farm::partial::read_partial_header(p)?)))
+        .map(|p| {
+            Ok((
+                p.clone(),
+                crate::bake::farm::partial::read_partial_header(p)?,
+            ))
+        })
         .collect::<Result<Vec<_>>>()?;
     let order = check_parts(&headers)?;
     let h0 = &headers[0].1;
@@ -460,9 +466,7 @@ pub fn merge_files(
     let mut readers = Vec::with_capacity(order.len());
     for &i in &order {
         let r = PartialReader::open(&paths[i])?;
-        if r.header.samples != headers[i].1.samples
-            || r.header.settings_hash != h0.settings_hash
-        {
+        if r.header.samples != headers[i].1.samples || r.header.settings_hash != h0.settings_hash {
             return Err(RelumeError::invalid(
                 "partial stacks",
                 format!("{} changed while the merge read it", headers[i].0.display()),

@@ -64,20 +64,28 @@ pub(crate) fn bake_streaming(
 ) -> Result<Streamed> {
     let brdf = BasisBrdf { ctx };
     let spp = settings.spp;
-    finish_streaming(ctx, scene, settings, band_rows, pool, progress, |band_tiles| {
-        let done: Vec<Result<TracedTile>> = pool.install(|| {
-            band_tiles
-                .par_iter()
-                .map(|tile| {
-                    progress.check()?;
-                    let t = trace_sparse(ctx, &brdf, tile, spp, progress, rays)?;
-                    progress.advance(spp as u64);
-                    Ok(t)
-                })
-                .collect()
-        });
-        done.into_iter().collect()
-    })
+    finish_streaming(
+        ctx,
+        scene,
+        settings,
+        band_rows,
+        pool,
+        progress,
+        |band_tiles| {
+            let done: Vec<Result<TracedTile>> = pool.install(|| {
+                band_tiles
+                    .par_iter()
+                    .map(|tile| {
+                        progress.check()?;
+                        let t = trace_sparse(ctx, &brdf, tile, spp, progress, rays)?;
+                        progress.advance(spp as u64);
+                        Ok(t)
+                    })
+                    .collect()
+            });
+            done.into_iter().collect()
+        },
+    )
 }
 
 /// The streaming bake's walk over the frame with its tiles from `source`: given the next
