@@ -8,6 +8,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use common::*;
+use relume_engine::bake::farm::partial::{read_partial_header, PARTIAL_FORMAT_VERSION};
+use relume_engine::stack::tiled::file::read_tiled;
+use relume_engine::stack::tiled::STACK_FORMAT_VERSION_TILED;
 
 /// Guided, denoised preview with a light group per light, tiny.
 const OPTIONS: &[&str] = &[
@@ -22,7 +25,7 @@ const OPTIONS: &[&str] = &[
 ];
 
 /// The merged file is the single bake's file, byte for byte (both are the tiled format,
-/// finalised and written by the same code).
+/// finalised by the same streaming code and written by the same writer).
 fn assert_same_stack(a: &Path, b: &Path) {
     let (bytes_a, bytes_b) = (std::fs::read(a).unwrap(), std::fs::read(b).unwrap());
     assert!(
@@ -52,45 +55,51 @@ fn guide_partitions_and_merge_on_the_command_line() {
     let mut args = vec!["bake", s(&scene), "--guide-only", "-o", s(&guide)];
     args.extend_from_slice(OPTIONS);
     ok(relume(&args));
-    let parts: Vec<PathBuf> = (0..3)
-        .map(|i| dir.join(format!("part_{i}.rpart")))
-        .collect();
-    for (i, part) in parts.iter().enumerate() {
-        let p = format!("{i}/3");
-        let mut args = vec![
-            "bake",
-            s(&scene),
-            "--partition",
-            &p,
-            "--guide",
-            s(&guide),
-            "-o",
-            s(part),
-            "--json",
-        ];
-        args.extend_from_slice(OPTIONS);
-        let out = ok(relume(&args));
-        let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-        assert_eq!(json["partition"], serde_json::json!([i, 3]));
+    let split = |n: usize| -> Vec<PathBuf> {
+        (0..n)
+            .map(|i| {
+                let part = dir.join(format!("part_{n}_{i}.rpart"));
+                let p = format!("{i}/{n}");
+                let mut args = vec![
+                    "bake",
+                    s(&scene),
+                    "--partition",
+                    &p,
+                    "--guide",
+                    s(&guide),
+                    "-o",
+                    s(&part),
+                    "--json",
+                ];
+                args.extend_from_slice(OPTIONS);
+                let json = json_of(&relume(&args));
+                assert_eq!(json["partition"], serde_json::json!([i, n]));
+                let header = read_partial_header(&part).unwrap();
+                assert_eq!(header.format_version, PARTIAL_FORMAT_VERSION);
+                part
+            })
+            .collect()
+    };
+    let mut parts = Vec::new();
+    for n in [2usize, 3] {
+        parts = split(n);
+        let merged = dir.join(format!("merged_{n}.exr"));
+        let mut args = vec!["merge"];
+        // Any order; the scene comes from the parts.
+        args.extend(parts.iter().rev().map(|p| s(p)));
+        args.extend_from_slice(&["-o", s(&merged)]);
+        ok(relume(&args));
+        assert_same_stack(&single, &merged);
+        let stack = read_tiled(&merged).unwrap();
+        assert_eq!(stack.header.format_version, STACK_FORMAT_VERSION_TILED);
     }
-    // Any order; the scene comes from the parts.
-    let merged = dir.join("merged.exr");
-    ok(relume(&[
-        "merge",
-        s(&parts[2]),
-        s(&parts[0]),
-        s(&parts[1]),
-        "-o",
-        s(&merged),
-    ]));
-    assert_same_stack(&single, &merged);
-
     let refused = |args: &[&str]| {
         let out = relume(args);
         assert!(!out.status.success());
         String::from_utf8_lossy(&out.stderr).into_owned()
     };
     let bad = dir.join("bad.exr");
+    let before: Vec<Vec<u8>> = parts.iter().map(|p| std::fs::read(p).unwrap()).collect();
     // The merge's forecast is held to the budget before any part's body is read.
     let e = refused(&[
         "merge",
@@ -108,6 +117,13 @@ fn guide_partitions_and_merge_on_the_command_line() {
         "{e}"
     );
     assert!(!bad.exists(), "a refused merge writes nothing");
+    for (part, before) in parts.iter().zip(&before) {
+        assert!(
+            &std::fs::read(part).unwrap() == before,
+            "a refused merge leaves {} as it was",
+            part.display()
+        );
+    }
     let e = refused(&["merge", s(&parts[0]), s(&parts[2]), "-o", s(&bad)]);
     assert!(e.contains("missing") && e.contains("partition 1/3"), "{e}");
     let e = refused(&[
@@ -120,7 +136,7 @@ fn guide_partitions_and_merge_on_the_command_line() {
         s(&bad),
     ]);
     assert!(
-        e.contains("duplicated") && e.contains("part_1.rpart"),
+        e.contains("duplicated") && e.contains("part_3_1.rpart"),
         "{e}"
     );
     // A partition of another seed is foreign.

@@ -6,8 +6,8 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use relume_engine::bake::farm::guide_file::{build_guide, read_guide, write_guide};
-use relume_engine::bake::farm::partial::{read_partial, write_partial, PartialStack};
-use relume_engine::bake::farm::partition::{bake_partition, merge, Partition};
+use relume_engine::bake::farm::partial::verify_partial;
+use relume_engine::bake::farm::partition::{bake_partition, merge_files, Partition};
 use relume_engine::bake::presets::Preset;
 use relume_engine::bake::{bake, bake_progressive, BakeSettings, LightGrouping};
 use relume_engine::progress::Progress;
@@ -61,15 +61,15 @@ fn assert_identical(a: &TransferStack, b: &TransferStack, what: &str) {
     }
 }
 
-/// Bakes every partition of a split in `n` (through the files a farm would copy) and
-/// returns the parts read back, with their paths.
+/// Bakes every partition of a split in `n` into the files a farm would copy; returns their
+/// paths.
 fn bake_parts(
     scene: &Scene,
     settings: &BakeSettings,
     n: u32,
     guide: Option<&Path>,
     dir: &Path,
-) -> Vec<(PathBuf, PartialStack)> {
+) -> Vec<PathBuf> {
     (0..n)
         .map(|i| {
             // Thread counts differ between machines: the result must not care.
@@ -78,20 +78,26 @@ fn bake_parts(
                 ..settings.clone()
             };
             let g = guide.map(|g| read_guide(g).unwrap());
-            let (part, _) = bake_partition(
+            let path = dir.join(format!("part_{n}_{i}.rpart"));
+            bake_partition(
                 scene,
                 None,
                 &settings,
                 Partition { index: i, count: n },
                 g,
+                &path,
                 &Progress::new(),
             )
             .unwrap();
-            let path = dir.join(format!("part_{n}_{i}.rpart"));
-            write_partial(&path, &part).unwrap();
-            (path.clone(), read_partial(&path).unwrap())
+            path
         })
         .collect()
+}
+
+/// Merges the parts `paths` (any order) into a dense stack for the comparisons.
+fn merge(scene: &Scene, paths: &[PathBuf]) -> relume_engine::Result<TransferStack> {
+    let (stack, _) = merge_files(scene, paths, 0, None, &Progress::new())?;
+    stack.to_dense()
 }
 
 #[test]
@@ -118,7 +124,7 @@ fn split_in_1_2_3_and_7_partitions_merges_to_the_bits_of_one_bake() {
         // One split lets the partitions run the guide pass themselves: the same trees.
         let g = (n != 2).then_some(guide.as_path());
         let parts = bake_parts(&scene, &settings, n, g, dir.path());
-        let (merged, _) = merge(&scene, parts, 0, &Progress::new()).unwrap();
+        let merged = merge(&scene, &parts).unwrap();
         assert_identical(&single, &merged, &format!("{n} partitions"));
         // The files too (their bytes are not compared: the OpenEXR encoder writes chunks in
         // the order its threads finish them, so two writes of one stack differ in layout).
@@ -174,18 +180,11 @@ fn missing_duplicated_and_foreign_parts_are_refused_by_name() {
     };
     std::fs::create_dir_all(dir.path().join("seed0")).unwrap();
     std::fs::create_dir_all(dir.path().join("seed1")).unwrap();
-    let reread = |p: &Path| (p.to_path_buf(), read_partial(p).unwrap());
-    let good: Vec<PathBuf> = parts(0).into_iter().map(|(p, _)| p).collect();
-    let foreign: Vec<PathBuf> = parts(1).into_iter().map(|(p, _)| p).collect();
+    let good: Vec<PathBuf> = parts(0);
+    let foreign: Vec<PathBuf> = parts(1);
     let err = |list: Vec<&PathBuf>| {
-        merge(
-            &scene,
-            list.into_iter().map(|p| reread(p)).collect(),
-            0,
-            &Progress::new(),
-        )
-        .unwrap_err()
-        .to_string()
+        let list: Vec<PathBuf> = list.into_iter().cloned().collect();
+        merge(&scene, &list).unwrap_err().to_string()
     };
 
     let e = err(vec![&good[0], &good[2]]);
@@ -215,14 +214,7 @@ fn missing_duplicated_and_foreign_parts_are_refused_by_name() {
         color: [1.0; 3],
         strength: 1.0,
     };
-    let e = merge(
-        &other,
-        good.iter().map(|p| reread(p)).collect(),
-        0,
-        &Progress::new(),
-    )
-    .unwrap_err()
-    .to_string();
+    let e = merge(&other, &good).unwrap_err().to_string();
     assert!(e.contains("another scene"), "{e}");
     // A part damaged in a copy.
     let mut bytes = std::fs::read(&good[1]).unwrap();
@@ -230,18 +222,31 @@ fn missing_duplicated_and_foreign_parts_are_refused_by_name() {
     bytes[k] ^= 1;
     let damaged = dir.path().join("damaged.rpart");
     std::fs::write(&damaged, &bytes).unwrap();
-    let e = read_partial(&damaged).err().unwrap().to_string();
+    let e = verify_partial(&damaged).err().unwrap().to_string();
+    assert!(e.contains("checksum"), "{e}");
+    // The merge reads it through too, and refuses it before returning a stack.
+    let e = merge(&scene, &[good[0].clone(), damaged.clone(), good[2].clone()])
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("checksum"), "{e}");
     std::fs::write(&damaged, &bytes[..k]).unwrap();
-    let e = read_partial(&damaged).err().unwrap().to_string();
+    let e = verify_partial(&damaged).err().unwrap().to_string();
     assert!(e.contains("truncated"), "{e}");
+    // A part of the old dense format (version 1) is refused by its version.
+    let text = std::fs::read(&good[1]).unwrap();
+    let at = text
+        .windows(18)
+        .position(|w| w == b"\"format_version\":2")
+        .expect("the header names its version");
+    let mut old = text.clone();
+    old[at + 17] = b'1';
+    let old_part = dir.path().join("old.rpart");
+    std::fs::write(&old_part, &old).unwrap();
+    let e = verify_partial(&old_part).err().unwrap().to_string();
+    assert!(
+        e.contains("format version 1") && e.contains("reads version 2"),
+        "{e}"
+    );
     // And the good parts, in any order, merge.
-    let list = vec![&good[2], &good[0], &good[1]];
-    merge(
-        &scene,
-        list.into_iter().map(|p| reread(p)).collect(),
-        0,
-        &Progress::new(),
-    )
-    .unwrap();
+    merge(&scene, &[good[2].clone(), good[0].clone(), good[1].clone()]).unwrap();
 }

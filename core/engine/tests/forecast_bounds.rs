@@ -13,8 +13,7 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use common::*;
-use relume_engine::bake::farm::partial::write_partial;
-use relume_engine::bake::farm::partition::{bake_partition, merge_files_tiled_within, Partition};
+use relume_engine::bake::farm::partition::{bake_partition, merge_files, Partition};
 use relume_engine::bake::prepare::estimate::estimate_bake;
 use relume_engine::bake::{bake_tiled, BakeSettings};
 use relume_engine::progress::Progress;
@@ -352,17 +351,17 @@ fn two_parts(dir: &std::path::Path, scene: &Scene) -> Vec<std::path::PathBuf> {
     };
     (0..2)
         .map(|i| {
-            let (part, _) = bake_partition(
+            let path = dir.join(format!("part{i}.relume-part"));
+            bake_partition(
                 scene,
                 None,
                 &settings,
                 Partition { index: i, count: 2 },
                 None,
+                &path,
                 &Progress::new(),
             )
             .unwrap();
-            let path = dir.join(format!("part{i}.relume-part"));
-            write_partial(&path, &part).unwrap();
             path
         })
         .collect()
@@ -375,8 +374,7 @@ fn a_merge_over_its_budget_is_refused_before_reading_the_parts() {
     let dir = tempfile::tempdir().unwrap();
     let scene = cornell(32);
     let paths = two_parts(dir.path(), &scene);
-    let Err(e) = merge_files_tiled_within(&scene, &paths, 1, Some(1 << 20), &Progress::new())
-    else {
+    let Err(e) = merge_files(&scene, &paths, 1, Some(1 << 20), &Progress::new()) else {
         panic!("not refused");
     };
     assert!(
@@ -389,5 +387,5 @@ fn a_merge_over_its_budget_is_refused_before_reading_the_parts() {
             && text.contains("1.0 MiB is the memory budget"),
         "{text}"
     );
-    merge_files_tiled_within(&scene, &paths, 1, Some(4 << 30), &Progress::new()).unwrap();
+    merge_files(&scene, &paths, 1, Some(4 << 30), &Progress::new()).unwrap();
 }

@@ -6,7 +6,7 @@ mod common;
 
 use std::path::PathBuf;
 
-use relume_engine::bake::farm::partition::{bake_partition, merge_tiled, Partition};
+use relume_engine::bake::farm::partition::{bake_partition, merge_files, Partition};
 use relume_engine::bake::presets::Preset;
 use relume_engine::bake::to_file::bake_to_file;
 use relume_engine::bake::{
@@ -197,10 +197,12 @@ fn a_one_pass_bake_equals_the_same_bake_merged_from_partitions() {
         ..settings(Precision::F16, 2)
     };
     let (single, _) = bake_tiled(&scene, &s, &Progress::new()).unwrap();
+    let dir = tempfile::tempdir().unwrap();
     for n in [2u32, 3] {
-        let parts = (0..n)
+        let parts: Vec<PathBuf> = (0..n)
             .map(|i| {
-                let (part, _) = bake_partition(
+                let path = dir.path().join(format!("part_{n}_{i}"));
+                bake_partition(
                     &scene,
                     None,
                     &BakeSettings {
@@ -209,13 +211,14 @@ fn a_one_pass_bake_equals_the_same_bake_merged_from_partitions() {
                     },
                     Partition { index: i, count: n },
                     None,
+                    &path,
                     &Progress::new(),
                 )
                 .unwrap();
-                (PathBuf::from(format!("part_{i}")), part)
+                path
             })
             .collect();
-        let (merged, _) = merge_tiled(&scene, parts, 0, &Progress::new()).unwrap();
+        let (merged, _) = merge_files(&scene, &parts, 0, None, &Progress::new()).unwrap();
         assert_same_bits(&single, &merged, &format!("{n} partitions"));
     }
 }

@@ -1,11 +1,10 @@
 //! The farm side of `relume bake`: `--guide-only` (the guide pass as a file, the first task
 //! of a farm job) and `--partition i/N` (one sample range, written as a partial stack that
-//! `relume merge` sums). See docs/farm.md.
+//! `relume merge` sums; written tile by tile as it is traced). See docs/farm.md.
 
 use std::path::{Path, PathBuf};
 
 use relume_engine::bake::farm::guide_file::{build_guide, read_guide, write_guide};
-use relume_engine::bake::farm::partial::write_partial;
 use relume_engine::bake::farm::partition::{bake_partition, Partition};
 use relume_engine::bake::BakeSettings;
 use relume_engine::scene::Scene;
@@ -68,10 +67,7 @@ pub fn partition(
     let guide = guide.map(|g| read_guide(&g)).transpose()?;
     let out = output.to_path_buf();
     let (header, warnings, bytes) = with_progress("baking partition", move |p| {
-        let (stack, warnings) =
-            bake_partition(&scene, Some(&scene_path), &settings, part, guide, &p)?;
-        let bytes = write_partial(&out, &stack)?;
-        Ok::<_, RelumeError>((stack.header, warnings, bytes))
+        bake_partition(&scene, Some(&scene_path), &settings, part, guide, &out, &p)
     })?;
     if json_out {
         super::print_json(&json!({
@@ -82,6 +78,8 @@ pub fn partition(
             "samples": header.samples,
             "spp": header.spp,
             "blocks": header.blocks.len(),
+            "layers_reached": header.layers_reached,
+            "tile_entries": header.tile_entries,
             "rays": header.rays,
             "seconds": header.seconds,
             "warnings": warnings,

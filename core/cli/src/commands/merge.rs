@@ -1,14 +1,16 @@
 //! `relume merge PART_0 … PART_N-1 -o STACK`: the last task of a farm bake. Checks that the
-//! partial stacks belong to one bake and cover its samples once, sums them in the bake's
-//! canonical order, finalises (average, grey detection, denoiser, layer dropping, header)
-//! and writes the stack atomically in the tiled format `relume bake` writes (docs/farm.md).
+//! partial stacks belong to one bake and cover its samples once, reads them side by side tile
+//! by tile, sums each tile in the bake's canonical order, finalises with the one-machine
+//! bake's streaming finish (average, grey detection, denoiser, layer dropping, header) and
+//! writes the stack atomically with its writer: the file is the one-machine bake's, byte for
+//! byte (docs/farm.md).
 //! Its peak memory is forecast from the parts' headers and held to `--memory-budget-mb`
 //! before any part's body is read, as a bake's is.
 
 use std::path::PathBuf;
 
 use relume_engine::bake::farm::partial::read_partial_header;
-use relume_engine::bake::farm::partition::merge_files_tiled_within;
+use relume_engine::bake::farm::partition::merge_files;
 use relume_engine::scene::file::load_scene;
 use relume_engine::stack::tiled::file::write_tiled_cancellable;
 use relume_engine::RelumeError;
@@ -79,7 +81,7 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
     let count = args.parts.len();
     let paths = args.parts.clone();
     let (stack, report, bytes) = with_progress("merging", move |p| {
-        let (stack, report) = merge_files_tiled_within(&scene, &paths, threads, budget, &p)?;
+        let (stack, report) = merge_files(&scene, &paths, threads, budget, &p)?;
         let bytes = write_tiled_cancellable(&output, &stack, &p)?;
         Ok::<_, RelumeError>((stack, report, bytes))
     })?;

@@ -4,11 +4,12 @@
 //! slot (direct) and per slot pair (one bounce). Every bake ends in a [`TiledStack`]: per
 //! 16×16 tile only the layers non-zero there ([`finish::finalise`]). A one-pass bake streams
 //! ([`schedule::stream`]): tile rows are traced in bands and finalised as soon as their
-//! denoiser window is traced, so its memory follows the data. A progressive bake (several
-//! passes) and a farm's merge keep full-frame accumulators per reached layer
-//! ([`schedule::blocks`]) — their memory stays dense, ≈ 12 bytes × reached layers × pixels
-//! — and cut the assembled layers into the same tiles with the same code, so they give the
-//! same stack. A layer whose three channels are bit-identical everywhere (its paths met no
+//! denoiser window is traced, so its memory follows the data. A farm's partitions stream
+//! too (their tiles' sums go to a file as they are traced) and its merge feeds the parts'
+//! summed tiles to the same streaming finish ([`farm`]). A progressive bake (several passes)
+//! keeps full-frame accumulators per reached layer ([`schedule::blocks`]) — its memory stays
+//! dense, ≈ 12 bytes × reached layers × pixels — and cuts the assembled layers into the same
+//! tiles with the same code, so it gives the same stack. A layer whose three channels are bit-identical everywhere (its paths met no
 //! colour: Table 1's grey layers) is stored with one channel, an all-zero layer is dropped,
 //! and the rest are RGB.
 //!

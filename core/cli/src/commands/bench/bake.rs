@@ -95,7 +95,7 @@ impl PathSink for NullSink {
 /// Runs the bench.
 pub fn bench_bake(scene: &Scene, settings: &BakeSettings) -> Result<BakeBench> {
     let progress = Progress::new();
-    let (stack, report) = relume_engine::bake::bake(scene, settings, &progress)?;
+    let (stack, report) = relume_engine::bake::bake_tiled(scene, settings, &progress)?;
     let (ctx, _) = BakeContext::new(scene, settings)?;
     let brdf = BasisBrdf { ctx: &ctx };
     let mut tracer = RecordingTracer { rays: Vec::new() };

@@ -43,6 +43,11 @@ impl<W: Write> PayloadWriter<'_, W> {
             .map_err(|e| RelumeError::io(path, e))
     }
 
+    /// Writes `bytes` as they are (a payload prepared elsewhere).
+    pub fn raw(&mut self, path: &Path, bytes: &[u8]) -> Result<()> {
+        self.bytes(path, bytes)
+    }
+
     /// Writes `values` as little-endian f32.
     pub fn f32s(&mut self, path: &Path, values: &[f32]) -> Result<()> {
         let mut buf = Vec::with_capacity(4 * values.len().min(1 << 16));

@@ -3,30 +3,39 @@
 //! A bake is a sum over eye samples, and every eye sample draws its random numbers from a
 //! counter-based stream indexed by (seed, pixel, sample) ([`crate::geometry::sampling`]), so
 //! partition `i` of `N` traces samples `[i·spp/N, (i+1)·spp/N)` exactly as a one-machine bake
-//! traces them. It writes a partial stack ([`crate::bake::farm::partial`]): per layer the sums of
-//! its samples in the aligned blocks of the canonical summation tree
-//! ([`crate::bake::schedule::blocks`]). Work that needs the whole frame runs once: the guide pass
-//! before the partitions ([`super::guide_file`]), and in [`merge`] the sum, the average, grey
-//! detection, the denoiser, layer dropping and the header — the same code as a one-machine bake, on
-//! the same bits, so the merged stack is bit-identical to it (`tests/farm.rs` checks every sample
-//! of every layer and the header, for 1, 2, 3 and 7 partitions).
+//! traces them. It streams a partial stack ([`crate::bake::farm::partial`]) tile by tile: per
+//! tile and per layer reached there the sums of its samples in the aligned blocks of the
+//! canonical summation tree ([`crate::bake::schedule::blocks`]). Work that needs the whole frame
+//! runs once: the guide pass before the partitions ([`super::guide_file`]), and in
+//! [`merge_files`] the sum, the average, grey detection, the denoiser, layer dropping and the
+//! header — the one-machine bake's streaming finish ([`crate::bake::schedule::stream`]) fed
+//! with the parts' tiles instead of traced ones, on the same bits, so the merged file is the
+//! one-machine bake's, byte for byte (`core/cli/tests/farm.rs`, `tests/farm.rs`).
 
 use std::ops::Range;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
+use rayon::prelude::*;
+
 use super::guide_file::GuideFile;
-use crate::bake::farm::partial::{BlockInfo, PartialHeader, PartialStack, PARTIAL_FORMAT_VERSION};
-use crate::bake::finish::assemble::assemble;
+use crate::bake::farm::partial::{
+    PartialHeader, PartialReader, PartialWriter, TileSums, PARTIAL_FORMAT_VERSION,
+};
+use crate::bake::finish::assemble::layer_report;
+use crate::bake::finish::denoise::{EyeFeatures, FEATURE_STRIDE};
+use crate::bake::path::vertex_brdf::BasisBrdf;
 use crate::bake::prepare::context::BakeContext;
-use crate::bake::schedule::blocks::BlockStore;
-use crate::bake::schedule::trace::trace_range;
+use crate::bake::schedule::blocks::{dyadic_blocks, siblings};
+use crate::bake::schedule::trace::trace_tile_records;
+use crate::bake::schedule::traced_tile::{rect_of, traced_from_sums, TracedTile};
+use crate::bake::schedule::{band, stream, tiles};
 use crate::bake::settings::{BakeSettings, IndirectSampling};
-use crate::bake::{finish::denoise, prepare::estimate, schedule::tiles, BakeReport};
+use crate::bake::{prepare::estimate, BakeReport};
 use crate::progress::{Progress, Stage};
 use crate::scene::{hash::scene_hash, Scene};
-use crate::stack::tiled::TiledStack;
-use crate::stack::TransferStack;
+use crate::stack::tiled::{tiles_along, TiledStack};
 use crate::{RelumeError, Result};
 
 /// Partition `index` of `count` (`--partition index/count`).
@@ -65,18 +74,22 @@ impl Partition {
 
 pub use crate::bake::settings::{normalized, settings_fingerprint};
 
-/// Bakes partition `partition` of `scene`: its eye samples, summed in the canonical tree.
-/// `guide` is the guide file of a guided bake (checked against the scene and settings);
-/// without one a guided partition runs the guide pass itself (deterministic: the same trees,
-/// at the cost of repeating it on every machine). `scene_path` is recorded for the merge.
+/// Bakes partition `partition` of `scene` into the partial stack `output`: its eye samples,
+/// summed in the canonical tree, traced in bands of tile rows and written tile by tile, so
+/// the partition holds the tiles in flight, not a frame per layer. `guide` is the guide file
+/// of a guided bake (checked against the scene and settings); without one a guided partition
+/// runs the guide pass itself (deterministic: the same trees, at the cost of repeating it on
+/// every machine). `scene_path` is recorded for the merge. Returns the file's header, the
+/// warnings and the bytes written.
 pub fn bake_partition(
     scene: &Scene,
     scene_path: Option<&Path>,
     settings: &BakeSettings,
     partition: Partition,
     guide: Option<GuideFile>,
+    output: &Path,
     progress: &Progress,
-) -> Result<(PartialStack, Vec<String>)> {
+) -> Result<(PartialHeader, Vec<String>, u64)> {
     let start = Instant::now();
     settings.validate()?;
     let samples = partition.samples(settings.spp);
@@ -93,7 +106,9 @@ pub fn bake_partition(
     let fingerprint = settings_fingerprint(settings);
     progress.set_stage(Stage::Setup);
     let (mut ctx, validation, prepared) = estimate::prepare_measured(scene, settings, progress)?;
-    let forecast = estimate::estimate_dense(&mut ctx, scene, 1, prepared, progress)?;
+    // The one-machine bake's streaming forecast: a partition holds what its trace holds
+    // (bands of sparse tiles), without the stack, so this errs towards refusing.
+    let forecast = estimate::estimate(&mut ctx, scene, 1, prepared, progress)?;
     crate::memory::check_budget(
         &format!(
             "this partition ({}×{}, {} of {} possible layers reached by a probe)",
@@ -139,34 +154,47 @@ pub fn bake_partition(
             "the guide file does not match the settings' sampling",
         ));
     }
-    let rays = std::sync::atomic::AtomicU64::new(0);
-    let mut store = BlockStore::default();
+    let rays = AtomicU64::new(0);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(settings.threads)
+        .build()
+        .map_err(|e| RelumeError::invalid("threads", e.to_string()))?;
+    let all = tiles::tiles(ctx.resolution);
+    let tx = tiles_along(ctx.resolution.width) as usize;
+    let rows = pool.install(|| band::default_band_rows(ctx.resolution.width, settings.threads, 0));
+    let blocks = dyadic_blocks(samples.start, samples.end);
+    let layer_count = ctx.layer_count();
+    let brdf = BasisBrdf { ctx: &ctx };
+    let mut writer = PartialWriter::create(output, layer_count)?;
     progress.set_stage(Stage::Tracing);
-    progress.start(tiles::tiles(ctx.resolution).len() as u64 * samples.len() as u64);
-    trace_range(
-        &ctx,
-        &mut store,
-        samples.start,
-        samples.end,
-        false,
-        progress,
-        &rays,
-    )?;
+    progress.start(all.len() as u64 * samples.len() as u64);
+    for band in all.chunks(rows * tx) {
+        progress.check()?;
+        let done: Vec<Result<Vec<TileSums>>> = pool.install(|| {
+            band.par_iter()
+                .map(|tile| {
+                    progress.check()?;
+                    let buf = trace_tile_records(
+                        &ctx,
+                        &brdf,
+                        blocks.len(),
+                        false,
+                        tile,
+                        samples.clone(),
+                        progress,
+                        &rays,
+                    )?
+                    .ok_or(RelumeError::Cancelled)?;
+                    progress.advance(samples.len() as u64);
+                    Ok(tile_sums(&buf, tile.pixels(), layer_count, blocks.len()))
+                })
+                .collect()
+        });
+        for tile in done {
+            writer.tile(&tile?)?;
+        }
+    }
     progress.check()?;
-    let blocks = store
-        .blocks
-        .iter()
-        .map(|b| BlockInfo {
-            samples: [b.range.start, b.range.end],
-            layers: b
-                .layers
-                .iter()
-                .enumerate()
-                .filter(|(_, l)| l.lock().is_ok_and(|l| l.is_some()))
-                .map(|(i, _)| i as u32)
-                .collect(),
-        })
-        .collect();
     let header = PartialHeader {
         format_version: PARTIAL_FORMAT_VERSION,
         engine_version: env!("CARGO_PKG_VERSION").into(),
@@ -180,19 +208,52 @@ pub fn bake_partition(
         guide_hash,
         width: ctx.resolution.width,
         height: ctx.resolution.height,
-        layer_count: ctx.layer_count() as u32,
-        blocks,
-        rays: rays.load(std::sync::atomic::Ordering::Relaxed),
-        seconds: start.elapsed().as_secs_f64(),
+        layer_count: layer_count as u32,
+        blocks: blocks.iter().map(|r| [r.start, r.end]).collect(),
+        layers_reached: 0,
+        tile_entries: 0,
+        largest_tile_bytes: 0,
+        bake_peak_bytes: forecast.peak_bytes,
+        rays: rays.load(Ordering::Relaxed),
+        seconds: 0.0,
     };
+    progress.set_stage(Stage::Writing);
+    let (mut header, bytes) = writer.finish(header)?;
+    header.seconds = start.elapsed().as_secs_f64();
     progress.set_stage(Stage::Done);
-    Ok((
-        PartialStack {
-            header,
-            blocks: store.blocks,
-        },
-        warnings,
-    ))
+    Ok((header, warnings, bytes))
+}
+
+/// A traced tile's records ([`trace_tile_records`]: `blocks` × `tp` pixels, block-major) as
+/// sparse sums: per block the features and the layers non-zero somewhere on the tile.
+fn tile_sums(buf: &[f32], tp: usize, layer_count: usize, blocks: usize) -> Vec<TileSums> {
+    let record = layer_count * 3 + FEATURE_STRIDE;
+    (0..blocks)
+        .map(|b| {
+            let rec = &buf[b * tp * record..(b + 1) * tp * record];
+            let mut features = Vec::with_capacity(tp * FEATURE_STRIDE);
+            let mut non_zero = vec![false; layer_count];
+            for p in 0..tp {
+                let r = &rec[p * record..(p + 1) * record];
+                features.extend_from_slice(&r[layer_count * 3..]);
+                for (seen, texel) in non_zero.iter_mut().zip(r.chunks_exact(3)) {
+                    *seen |= texel.iter().any(|v| *v != 0.0);
+                }
+            }
+            let layers = (0..layer_count)
+                .filter(|l| non_zero[*l])
+                .map(|l| {
+                    let mut sums = Vec::with_capacity(tp * 3);
+                    for p in 0..tp {
+                        let at = p * record + l * 3;
+                        sums.extend_from_slice(&rec[at..at + 3]);
+                    }
+                    (l as u32, sums)
+                })
+                .collect();
+            TileSums { features, layers }
+        })
+        .collect()
 }
 
 fn name(part: &(PathBuf, PartialHeader)) -> String {
@@ -307,78 +368,41 @@ pub fn check_parts(parts: &[(PathBuf, PartialHeader)]) -> Result<Vec<usize>> {
     Ok(order)
 }
 
-/// [`merge_tiled`], expanded to the dense stack ([`TiledStack::to_dense`]).
-pub fn merge(
-    scene: &Scene,
-    parts: Vec<(PathBuf, PartialStack)>,
-    threads: usize,
-    progress: &Progress,
-) -> Result<(TransferStack, BakeReport)> {
-    let (stack, report) = merge_tiled(scene, parts, threads, progress)?;
-    Ok((stack.to_dense()?, report))
-}
-
-/// Merges the partial stacks of one bake of `scene` (read from the paths beside them) into
-/// the stack a one-machine bake with the same settings makes, bit for bit: checks
-/// ([`check_parts`], and the scene's hash), sums in the canonical tree, finalises (as
-/// full frames: a merge's memory stays dense). `threads` (0: all cores) are the merge
-/// machine's. All parts in memory: see [`merge_files_tiled`] for the streaming form.
-pub fn merge_tiled(
-    scene: &Scene,
-    parts: Vec<(PathBuf, PartialStack)>,
-    threads: usize,
-    progress: &Progress,
-) -> Result<(TiledStack, BakeReport)> {
-    let headers: Vec<(PathBuf, PartialHeader)> = parts
+/// The merge's peak memory, forecast from the parts' headers alone (nothing of their bodies
+/// is read): the one-machine bake's forecast peak, which the parts record (the merge
+/// finalises as that bake does, its tiles summed from the parts instead of traced), plus
+/// per part its read buffer and, twice (read, then summed), its largest tile widened to RGB.
+pub fn merge_peak_bytes(headers: &[(PathBuf, PartialHeader)]) -> u64 {
+    let bake = headers
         .iter()
-        .map(|(p, s)| (p.clone(), s.header.clone()))
-        .collect();
-    let mut slots: Vec<Option<PartialStack>> = parts.into_iter().map(|(_, s)| Some(s)).collect();
-    merge_with(
-        scene,
-        headers,
-        |i| Ok(slots[i].take().expect("each part once")),
-        threads,
-        None,
-        progress,
-    )
+        .map(|(_, h)| h.bake_peak_bytes)
+        .max()
+        .unwrap_or(0);
+    let per_part =
+        |h: &PartialHeader| (1u64 << 20).saturating_add(h.largest_tile_bytes.saturating_mul(6));
+    headers
+        .iter()
+        .map(|(_, h)| per_part(h))
+        .fold(bake, u64::saturating_add)
 }
 
-/// [`merge_files_tiled`], expanded to the dense stack ([`TiledStack::to_dense`]).
+/// Merges the partial stack files `paths` of one bake of `scene` into the stack a
+/// one-machine bake with the same settings makes, bit for bit: checks every header
+/// ([`check_parts`], the scene's hash, the settings), forecasts the peak
+/// ([`merge_peak_bytes`]) and refuses a merge over `memory_budget` (`None`: the default
+/// budget, [`crate::memory::budget_bytes`]) before any part's body is read, then streams:
+/// the parts are read side by side tile by tile, each tile's blocks summed in the canonical
+/// tree and handed to the one-machine bake's streaming finish, which denoises, finalises and
+/// drops as that bake does. A part damaged on its way (its checksum) fails the merge before
+/// the stack is returned. `threads` (0: all cores) are the merge machine's.
 pub fn merge_files(
-    scene: &Scene,
-    paths: &[PathBuf],
-    threads: usize,
-    progress: &Progress,
-) -> Result<(TransferStack, BakeReport)> {
-    let (stack, report) = merge_files_tiled(scene, paths, threads, progress)?;
-    Ok((stack.to_dense()?, report))
-}
-
-/// [`merge_tiled`] of partial stack files: every header is checked first, then the parts
-/// are read one at a time in sample order and folded in as they come, so the merge holds
-/// at most ≈ log2(parts) + 1 blocks of sums (one, two… full-frame stacks of f32), not
-/// every part.
-pub fn merge_files_tiled(
-    scene: &Scene,
-    paths: &[PathBuf],
-    threads: usize,
-    progress: &Progress,
-) -> Result<(TiledStack, BakeReport)> {
-    merge_files_tiled_within(scene, paths, threads, None, progress)
-}
-
-/// [`merge_files_tiled`] within `memory_budget` bytes (`None`: the default budget,
-/// [`crate::memory::budget_bytes`]): the merge's peak is forecast from the parts' headers
-/// ([`merge_peak_bytes`]) and a merge over the budget is refused before any part's body is
-/// read.
-pub fn merge_files_tiled_within(
     scene: &Scene,
     paths: &[PathBuf],
     threads: usize,
     memory_budget: Option<u64>,
     progress: &Progress,
 ) -> Result<(TiledStack, BakeReport)> {
+    let start = Instant::now();
     let headers = paths
         .iter()
         .map(|p| {
@@ -388,90 +412,6 @@ pub fn merge_files_tiled_within(
             ))
         })
         .collect::<Result<Vec<_>>>()?;
-    merge_with(
-        scene,
-        headers,
-        |i| crate::bake::farm::partial::read_partial(&paths[i]),
-        threads,
-        memory_budget,
-        progress,
-    )
-}
-
-/// The merge's peak memory, forecast from the parts' headers alone (nothing of their
-/// bodies is read): the scene and its geometry (with the BVH build), then the larger of
-/// loading — the sums the store holds (at most ⌊log2 blocks⌋ + 1 blocks of every layer any
-/// part reached, in f32 RGB, with their features) and the part being read — and assembling
-/// — the folded sums, their averages and the stack at its precision, and the denoiser's
-/// weights and per-worker copies. Every layer counts three channels, so the forecast errs
-/// towards refusing.
-pub fn merge_peak_bytes(
-    scene: &Scene,
-    headers: &[(PathBuf, PartialHeader)],
-    threads: usize,
-) -> u64 {
-    let Some(h0) = headers.first().map(|(_, h)| h) else {
-        return 0;
-    };
-    let px = h0.width as u64 * h0.height as u64;
-    let feature = denoise::FEATURE_STRIDE as u64;
-    let layers = layers_in_parts(headers) as u64;
-    let block_bytes = |l: u64| px.saturating_mul(4 * (feature + 3 * l));
-    let largest_part = headers
-        .iter()
-        .map(|(_, h)| {
-            h.blocks
-                .iter()
-                .map(|b| block_bytes(b.layers.len() as u64))
-                .fold(0u64, u64::saturating_add)
-        })
-        .max()
-        .unwrap_or(0);
-    let blocks: u64 = headers.iter().map(|(_, h)| h.blocks.len() as u64).sum();
-    let held = (blocks.max(1).ilog2() as u64 + 1).saturating_mul(block_bytes(layers));
-    let loading = held.saturating_add(largest_part);
-    let sample = match h0.settings.precision {
-        crate::options::Precision::F16 => 2,
-        crate::options::Precision::F32 => 4,
-    };
-    let threads = if threads == 0 {
-        std::thread::available_parallelism().map_or(1, |n| n.get())
-    } else {
-        threads
-    } as u64;
-    let averaged = px.saturating_mul(layers).saturating_mul(12 + 3 * sample);
-    let denoise = px.saturating_mul(25 * 4 + threads * 12);
-    let assembling = block_bytes(layers)
-        .saturating_add(averaged)
-        .saturating_add(denoise);
-    let triangles = scene.triangle_count() as u64;
-    let geometry =
-        triangles * (estimate::BYTES_PER_TRIANGLE + estimate::BVH_BUILD_BYTES_PER_TRIANGLE);
-    estimate::scene_bytes(scene)
-        .saturating_add(geometry)
-        .saturating_add(loading.max(assembling))
-}
-
-/// Layers any block of any part reached.
-fn layers_in_parts(headers: &[(PathBuf, PartialHeader)]) -> usize {
-    let mut all: Vec<u32> = headers
-        .iter()
-        .flat_map(|(_, h)| h.blocks.iter().flat_map(|b| b.layers.iter().copied()))
-        .collect();
-    all.sort_unstable();
-    all.dedup();
-    all.len()
-}
-
-fn merge_with(
-    scene: &Scene,
-    headers: Vec<(PathBuf, PartialHeader)>,
-    mut load: impl FnMut(usize) -> Result<PartialStack>,
-    threads: usize,
-    memory_budget: Option<u64>,
-    progress: &Progress,
-) -> Result<(TiledStack, BakeReport)> {
-    let start = Instant::now();
     let order = check_parts(&headers)?;
     let h0 = &headers[0].1;
     let hash = scene_hash(scene);
@@ -494,17 +434,21 @@ fn merge_with(
             "their settings do not match their own fingerprint (damaged header, or another engine build)",
         ));
     }
-    let h = &headers[0].1;
+    let reached = headers
+        .iter()
+        .map(|(_, h)| h.layers_reached)
+        .max()
+        .unwrap_or(0);
     crate::memory::check_budget(
         &format!(
             "this merge ({} parts of {}×{}, {} of {} possible layers reached)",
             headers.len(),
-            h.width,
-            h.height,
-            layers_in_parts(&headers),
-            h.layer_count
+            h0.width,
+            h0.height,
+            reached,
+            h0.layer_count
         ),
-        merge_peak_bytes(scene, &headers, threads),
+        merge_peak_bytes(&headers),
         memory_budget,
     )?;
     progress.set_stage(Stage::Setup);
@@ -519,42 +463,72 @@ fn merge_with(
     }
     let rays: u64 = headers.iter().map(|(_, h)| h.rays).sum();
     let trace_seconds: f64 = headers.iter().map(|(_, h)| h.seconds).sum();
-    let mut store = BlockStore::default();
-    for i in order {
-        progress.check()?;
-        let part = load(i)?;
-        if part.header.samples != headers[i].1.samples
-            || part.header.settings_hash != h0.settings_hash
-        {
+    let mut readers = Vec::with_capacity(order.len());
+    for &i in &order {
+        let r = PartialReader::open(&paths[i])?;
+        if r.header.samples != headers[i].1.samples || r.header.settings_hash != h0.settings_hash {
             return Err(RelumeError::invalid(
                 "partial stacks",
                 format!("{} changed while the merge read it", headers[i].0.display()),
             ));
         }
-        for block in part.blocks {
-            store.push(block);
-        }
+        readers.push(r);
     }
-    progress.check()?;
-    let (sums, feature_sums) = store.fold();
-    let eye_features = denoise::EyeFeatures::from_sums(&ctx, &feature_sums, settings.spp);
-    drop(feature_sums);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
         .map_err(|e| RelumeError::invalid("threads", e.to_string()))?;
-    let (stack, mut report, _) = assemble(
+    let spp = settings.spp;
+    let rows = pool.install(|| {
+        band::default_band_rows(
+            ctx.resolution.width,
+            threads,
+            band::apron_rows(&settings.denoise),
+        )
+    });
+    progress.set_stage(Stage::Tracing);
+    progress.start(tiles::tiles(ctx.resolution).len() as u64 * spp as u64);
+    let streamed = stream::finish_streaming(
         &ctx,
         scene,
         &settings,
-        &sums,
-        &eye_features,
-        settings.spp,
+        rows,
         &pool,
         progress,
-        true,
-        false,
+        |band_tiles| {
+            let mut out = Vec::with_capacity(band_tiles.len());
+            for tile in band_tiles {
+                progress.check()?;
+                let mut store: Vec<(Range<u32>, TileSums)> = Vec::new();
+                for r in readers.iter_mut() {
+                    let ranges: Vec<[u32; 2]> = r.header.blocks.clone();
+                    for (range, sums) in ranges.into_iter().zip(r.tile(tile.pixels())?) {
+                        push_block(&mut store, range[0]..range[1], sums);
+                    }
+                }
+                let sums = fold_blocks(store);
+                out.push(traced_from_sums(
+                    rect_of(tile),
+                    sums.features,
+                    &sums.layers,
+                    spp,
+                )?);
+                progress.advance(spp as u64);
+            }
+            Ok::<Vec<TracedTile>, RelumeError>(out)
+        },
     )?;
+    for r in readers {
+        r.finish()?;
+    }
+    progress.set_stage(Stage::Finishing);
+    let (stack, mut report) = layer_report(
+        &ctx,
+        streamed.finished,
+        streamed.assembly_seconds,
+        streamed.denoise_seconds,
+    );
+    report.peak_accounted_bytes = streamed.peak_accounted_bytes;
     report.seconds = start.elapsed().as_secs_f64();
     report.setup_seconds = report.seconds - report.assembly_seconds;
     report.trace_seconds = trace_seconds;
@@ -566,6 +540,66 @@ fn merge_with(
     report.warnings = validation.warnings.into_iter().chain(own).collect();
     progress.set_stage(Stage::Done);
     Ok((stack, report))
+}
+
+/// Appends one tile's block (the next samples in order) and sums siblings as they meet —
+/// [`crate::bake::schedule::blocks::BlockStore::push`] on one tile's sparse sums.
+fn push_block(store: &mut Vec<(Range<u32>, TileSums)>, range: Range<u32>, sums: TileSums) {
+    store.push((range, sums));
+    while store.len() >= 2 {
+        let k = store.len() - 1;
+        if !siblings(&store[k - 1].0, &store[k].0) {
+            break;
+        }
+        let (right_range, right) = store.pop().expect("two blocks");
+        let left = store.last_mut().expect("two blocks");
+        absorb(&mut left.1, right);
+        left.0.end = right_range.end;
+    }
+}
+
+/// The right fold `b₀ + (b₁ + (…))` of a tile's blocks: its canonical sums.
+fn fold_blocks(mut store: Vec<(Range<u32>, TileSums)>) -> TileSums {
+    while store.len() >= 2 {
+        let (_, right) = store.pop().expect("two blocks");
+        absorb(&mut store.last_mut().expect("one block").1, right);
+    }
+    store.pop().map(|(_, s)| s).unwrap_or_default()
+}
+
+/// Adds `right` into `left`: per pixel left + right for a layer both hold, the one held
+/// otherwise (an absent layer is zeros, which are never added: exact, see `blocks`), and
+/// the features merged as the bake merges them.
+fn absorb(left: &mut TileSums, right: TileSums) {
+    for (a, b) in left
+        .features
+        .chunks_exact_mut(FEATURE_STRIDE)
+        .zip(right.features.chunks_exact(FEATURE_STRIDE))
+    {
+        EyeFeatures::merge(a, b);
+    }
+    let mut out = Vec::with_capacity(left.layers.len().max(right.layers.len()));
+    let mut mine = std::mem::take(&mut left.layers).into_iter().peekable();
+    let mut theirs = right.layers.into_iter().peekable();
+    loop {
+        let next = match (mine.peek(), theirs.peek()) {
+            (None, None) => break,
+            (Some(_), None) => mine.next(),
+            (None, Some(_)) => theirs.next(),
+            (Some((a, _)), Some((b, _))) if a < b => mine.next(),
+            (Some((a, _)), Some((b, _))) if b < a => theirs.next(),
+            _ => {
+                let (id, mut x) = mine.next().expect("peeked");
+                let (_, y) = theirs.next().expect("peeked");
+                for (p, q) in x.iter_mut().zip(&y) {
+                    *p += *q;
+                }
+                Some((id, x))
+            }
+        };
+        out.extend(next);
+    }
+    left.layers = out;
 }
 
 #[cfg(test)]

@@ -382,17 +382,6 @@ pub fn estimate(
     estimate_path(ctx, scene, passes, passes <= 1, prepared_bytes, progress)
 }
 
-/// [`estimate`] of the dense path whatever the passes (a farm partition: full-frame sums).
-pub fn estimate_dense(
-    ctx: &mut BakeContext,
-    scene: &Scene,
-    passes: usize,
-    prepared_bytes: Option<u64>,
-    progress: &Progress,
-) -> crate::Result<BakeEstimate> {
-    estimate_path(ctx, scene, passes, false, prepared_bytes, progress)
-}
-
 fn estimate_path(
     ctx: &mut BakeContext,
     scene: &Scene,

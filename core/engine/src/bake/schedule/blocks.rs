@@ -37,9 +37,10 @@
 //! are traced (one record per level, [`PixelTree`]), and each sample adds one record's worth
 //! of additions (amortised: the tree has one inner node per sample). A one-pass bake folds
 //! each pixel's tree in the tile and keeps no store ([`super::stream`]: the tree's root is
-//! all it needs). The store of the dense path keeps one full-frame image per block:
-//! popcount(samples so far) blocks between the passes of a progressive bake
-//! ([`crate::bake::doubling_passes`] of a power-of-two `spp` keeps one), a partition's blocks.
+//! all it needs), and neither does a farm's partition (it writes each tile's blocks as they
+//! are traced) or its merge (it sums one tile's blocks at a time). The store of the dense path
+//! keeps one full-frame image per block: popcount(samples so far) blocks between the passes
+//! of a progressive bake ([`crate::bake::doubling_passes`] of a power-of-two `spp` keeps one).
 
 use std::ops::Range;
 use std::sync::Mutex;
@@ -49,7 +50,7 @@ use crate::Result;
 
 /// Whether the aligned dyadic ranges `left` and `right` are the two children of one node.
 #[inline]
-fn siblings(left: &Range<u32>, right: &Range<u32>) -> bool {
+pub(crate) fn siblings(left: &Range<u32>, right: &Range<u32>) -> bool {
     let len = left.end - left.start;
     left.end == right.start
         && right.end - right.start == len

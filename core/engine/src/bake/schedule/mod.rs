@@ -3,10 +3,12 @@
 //!
 //! - [`tiles`]: tiled, parallel, cancellable per-pixel work whose result does not depend on
 //!   the thread count.
-//! - The dense schedule, for a progressive bake's passes and a farm's partitions: [`trace`]
-//!   traces a range of eye samples of every pixel, summed in the canonical order of
-//!   [`blocks`] and kept as full-frame layers.
-//! - The streaming schedule, for a one-pass bake: [`stream`] traces tile rows in bands
+//! - The dense schedule, for a progressive bake's passes: [`trace`] traces a range of eye
+//!   samples of every pixel, summed in the canonical order of [`blocks`] and kept as
+//!   full-frame layers (a farm's partition traces its tiles with the same
+//!   `trace_tile_records` and keeps them sparse).
+//! - The streaming schedule, for a one-pass bake and a farm's merge: [`stream`] traces (or
+//!   is handed) tile rows in bands
 //!   ([`band`]), keeps each traced tile as its sparse averages (`traced_tile`) and hands a
 //!   tile row to the finishing stage as soon as the rows its denoiser reads are traced, the
 //!   denoiser computing only where a layer can be non-zero ([`denoise_sparse`]).
@@ -23,4 +25,4 @@ pub(crate) mod passes;
 pub mod stream;
 pub mod tiles;
 pub mod trace;
-mod traced_tile;
+pub(crate) mod traced_tile;

@@ -12,7 +12,8 @@
 //! ([`super::band`]; `apron · 16` ≥ that radius), whose cut edges are treated like the image's: the row's output is then exactly what the
 //! whole-frame filter gives (errors from a cut edge travel at most the radius inwards), so
 //! this bake makes the same stack, bit for bit, as the dense path that filters full frames
-//! (a progressive bake's, a farm merge's). Each layer is filtered only on the tiles it is
+//! (a progressive bake's). A farm's merge runs this same walk on tiles summed from its parts
+//! ([`finish_streaming`]). Each layer is filtered only on the tiles it is
 //! present on plus the footprint, and only on the rows the finalised tiles need, so the
 //! filter's work follows the tile entries rather than layers × window.
 
@@ -61,6 +62,46 @@ pub(crate) fn bake_streaming(
     progress: &Progress,
     rays: &std::sync::atomic::AtomicU64,
 ) -> Result<Streamed> {
+    let brdf = BasisBrdf { ctx };
+    let spp = settings.spp;
+    finish_streaming(
+        ctx,
+        scene,
+        settings,
+        band_rows,
+        pool,
+        progress,
+        |band_tiles| {
+            let done: Vec<Result<TracedTile>> = pool.install(|| {
+                band_tiles
+                    .par_iter()
+                    .map(|tile| {
+                        progress.check()?;
+                        let t = trace_sparse(ctx, &brdf, tile, spp, progress, rays)?;
+                        progress.advance(spp as u64);
+                        Ok(t)
+                    })
+                    .collect()
+            });
+            done.into_iter().collect()
+        },
+    )
+}
+
+/// The streaming bake's walk over the frame with its tiles from `source`: given the next
+/// band's tiles (raster order), it returns them as [`TracedTile`]s in the same order — traced
+/// here ([`bake_streaming`]), or a farm merge's tiles summed from its parts. Everything
+/// after (the windows, the denoiser, finalising, the stack's finish) is the one code path.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn finish_streaming(
+    ctx: &BakeContext,
+    scene: &Scene,
+    settings: &BakeSettings,
+    band_rows: usize,
+    pool: &rayon::ThreadPool,
+    progress: &Progress,
+    mut source: impl FnMut(&[tiles::Tile]) -> Result<Vec<TracedTile>>,
+) -> Result<Streamed> {
     let res = ctx.resolution;
     let (width, height) = (res.width as usize, res.height as usize);
     let spp = settings.spp;
@@ -86,7 +127,6 @@ pub(crate) fn bake_streaming(
     let path_len: Vec<usize> = (0..layer_count)
         .map(|i| crate::bake::layout::layer_key(ctx, i).path.len())
         .collect();
-    let brdf = BasisBrdf { ctx };
     let plan = LatticePlan::new(ctx, settings.compression, &weights);
     let mut rows: Vec<Option<Vec<TracedTile>>> = (0..ty).map(|_| None).collect();
     let (mut traced, mut next, mut freed) = (0usize, 0usize, 0usize);
@@ -101,18 +141,7 @@ pub(crate) fn bake_streaming(
             progress.set_stage(Stage::Tracing);
             let upto = (traced + band).max(needed).min(ty);
             let band_tiles = &all[traced * tx..upto * tx];
-            let done: Vec<Result<TracedTile>> = pool.install(|| {
-                band_tiles
-                    .par_iter()
-                    .map(|tile| {
-                        progress.check()?;
-                        let t = trace_sparse(ctx, &brdf, tile, spp, progress, rays)?;
-                        progress.advance(spp as u64);
-                        Ok(t)
-                    })
-                    .collect()
-            });
-            let mut done = done.into_iter().collect::<Result<Vec<_>>>()?;
+            let mut done = source(band_tiles)?;
             for t in &done {
                 held_rows += t.bytes();
                 for l in &t.layers {

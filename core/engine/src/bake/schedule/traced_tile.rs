@@ -43,7 +43,7 @@ impl TracedTile {
     }
 }
 
-fn rect_of(tile: &Tile) -> TileRect {
+pub(crate) fn rect_of(tile: &Tile) -> TileRect {
     TileRect {
         x0: tile.x0,
         y0: tile.y0,
@@ -73,7 +73,6 @@ pub(crate) fn trace_sparse(
         let at = p * record + layer_count * 3;
         features.extend_from_slice(&buf[at..at + FEATURE_STRIDE]);
     }
-    let inv_spp = 1.0 / spp as f32;
     // Which layers are non-zero somewhere in the tile, in one pass over the records in
     // memory order (a layer's texels lie a whole record apart).
     let mut non_zero = vec![false; layer_count];
@@ -85,33 +84,70 @@ pub(crate) fn trace_sparse(
     }
     let mut layers = Vec::new();
     for layer in (0..layer_count).filter(|l| non_zero[*l]) {
-        let average = |p: usize| {
+        layers.push(traced_layer(layer as u32, tp, spp, |p| {
             let at = p * record + layer * 3;
-            [
-                buf[at] * inv_spp,
-                buf[at + 1] * inv_spp,
-                buf[at + 2] * inv_spp,
-            ]
-        };
-        // Grey by the averages' own comparison, as the stack's grey test makes it.
-        let grey = (0..tp).all(|p| {
-            let [r, g, b] = average(p);
-            r == g && g == b
-        });
-        let channels = if grey { 1 } else { 3 };
-        let mut data = crate::memory::try_with_capacity(tp * channels, "a tile's layer averages")?;
-        for p in 0..tp {
-            data.extend_from_slice(&average(p)[..channels]);
-        }
-        layers.push(TracedLayer {
-            id: layer as u32,
-            channels: channels as u8,
-            data,
-        });
+            [buf[at], buf[at + 1], buf[at + 2]]
+        })?);
     }
     Ok(TracedTile {
         rect: rect_of(tile),
         features,
         layers,
+    })
+}
+
+/// One layer's averages over a tile of `tp` pixels from its per-pixel RGB `sums` of `spp`
+/// samples: one channel when the averages are grey over the tile, else RGB. Shared by the
+/// bake's own tiles and a farm merge's, so both hold the same bits.
+pub(crate) fn traced_layer(
+    id: u32,
+    tp: usize,
+    spp: u32,
+    sums: impl Fn(usize) -> [f32; 3],
+) -> Result<TracedLayer> {
+    let inv_spp = 1.0 / spp as f32;
+    let average = |p: usize| {
+        let [r, g, b] = sums(p);
+        [r * inv_spp, g * inv_spp, b * inv_spp]
+    };
+    // Grey by the averages' own comparison, as the stack's grey test makes it.
+    let grey = (0..tp).all(|p| {
+        let [r, g, b] = average(p);
+        r == g && g == b
+    });
+    let channels = if grey { 1 } else { 3 };
+    let mut data = crate::memory::try_with_capacity(tp * channels, "a tile's layer averages")?;
+    for p in 0..tp {
+        data.extend_from_slice(&average(p)[..channels]);
+    }
+    Ok(TracedLayer {
+        id,
+        channels: channels as u8,
+        data,
+    })
+}
+
+/// A tile finished from its summed samples (a farm merge's): `features` are the pixels'
+/// feature sums, `layers` each layer's per-pixel RGB sums (sorted by id); layers zero over
+/// the tile are left out, as [`trace_sparse`] leaves them.
+pub(crate) fn traced_from_sums(
+    rect: TileRect,
+    features: Vec<f32>,
+    layers: &[(u32, Vec<f32>)],
+    spp: u32,
+) -> Result<TracedTile> {
+    let tp = rect.pixels();
+    let mut out = Vec::new();
+    for (id, sums) in layers {
+        if sums.iter().any(|v| *v != 0.0) {
+            out.push(traced_layer(*id, tp, spp, |p| {
+                [sums[3 * p], sums[3 * p + 1], sums[3 * p + 2]]
+            })?);
+        }
+    }
+    Ok(TracedTile {
+        rect,
+        features,
+        layers: out,
     })
 }
