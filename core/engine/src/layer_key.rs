@@ -22,6 +22,29 @@ pub enum PathVertex {
     /// BRDF and eye-diffuse slots, see [`crate::bssrdf::coefficients`]), so relight weights
     /// index the region's coefficients alike for both kinds of vertex. Named `E<r>s<slot>`.
     Subsurface { region: u16, basis: u16 },
+    /// Part `part` ([`PART_DIFFUSE`] or [`PART_GLOSSY`]) of editable region `region` at the
+    /// eye of a tail-edit layer: weighs the part's energy now over its energy at bake time
+    /// (`crate::relight::part_scales`). Named `P<region>d` or `P<region>g`.
+    Part { region: u16, part: u8 },
+    /// The tail-edit term of a layer: the path crossed `count` vertices beyond the first
+    /// bounce on editable region `region`, and (`bounce`) its bounce vertex lay on that
+    /// region too. Weighs S^b·(S^count − 1), S the region's energy scale: 0 at the
+    /// bake-time materials, so these layers only add what an edit changes in the tail.
+    /// Named `T<region>n<count>`, with a trailing `b` for `bounce`.
+    TailEdit { region: u16, count: u8, bounce: bool },
+}
+
+/// The diffuse part of a region's material (its Kd / Base Color term).
+pub const PART_DIFFUSE: u8 = 0;
+/// The glossy part of a region's material (its Ks / specular and metallic term).
+pub const PART_GLOSSY: u8 = 1;
+
+fn part_letter(part: u8) -> char {
+    if part == PART_DIFFUSE {
+        'd'
+    } else {
+        'g'
+    }
 }
 
 impl PathVertex {
@@ -34,6 +57,19 @@ impl PathVertex {
             PathVertex::Editable { region, basis } | PathVertex::Subsurface { region, basis } => {
                 Some((region, basis))
             }
+            PathVertex::Part { .. } | PathVertex::TailEdit { .. } => None,
+        }
+    }
+
+    /// The editable region whose material this vertex's weight depends on, any kind.
+    #[inline]
+    pub fn region(&self) -> Option<u16> {
+        match *self {
+            PathVertex::Fixed => None,
+            PathVertex::Editable { region, .. }
+            | PathVertex::Subsurface { region, .. }
+            | PathVertex::Part { region, .. }
+            | PathVertex::TailEdit { region, .. } => Some(region),
         }
     }
 }
@@ -58,9 +94,7 @@ impl LayerKey {
 
     /// Whether editable region `region` appears on this path (so its edits change the layer).
     pub fn contains_region(&self, region: u16) -> bool {
-        self.path
-            .iter()
-            .any(|v| matches!(v.slot(), Some((r, _)) if r == region))
+        self.path.iter().any(|v| v.region() == Some(region))
     }
 
     /// The EXR layer name: `World` for the empty path, else vertices joined by `_`, each `F`
@@ -85,6 +119,19 @@ impl LayerKey {
                 }
                 PathVertex::Subsurface { region, basis } => {
                     let _ = write!(s, "E{region}s{basis}");
+                }
+                PathVertex::Part { region, part } => {
+                    let _ = write!(s, "P{region}{}", part_letter(*part));
+                }
+                PathVertex::TailEdit {
+                    region,
+                    count,
+                    bounce,
+                } => {
+                    let _ = write!(s, "T{region}n{count}");
+                    if *bounce {
+                        s.push('b');
+                    }
                 }
             }
         }
@@ -113,6 +160,35 @@ impl LayerKey {
         for part in rest.split('_') {
             if part == "F" {
                 path.push(PathVertex::Fixed);
+            } else if let Some(body) = part.strip_prefix('P') {
+                let (region, part) = parse_part(body)?;
+                if part.1.is_empty() {
+                    path.push(PathVertex::Part {
+                        region,
+                        part: part.0,
+                    });
+                } else {
+                    return None;
+                }
+            } else if let Some(body) = part.strip_prefix('T') {
+                let (region, rest) = body.split_once('n')?;
+                let (digits, bounce) = match rest.strip_suffix('b') {
+                    Some(d) => (d, true),
+                    None => (rest, false),
+                };
+                let all_digits = |d: &str| !d.is_empty() && d.bytes().all(|b| b.is_ascii_digit());
+                if !all_digits(region) || !all_digits(digits) {
+                    return None;
+                }
+                let count: u8 = digits.parse().ok()?;
+                if count == 0 {
+                    return None;
+                }
+                path.push(PathVertex::TailEdit {
+                    region: region.parse().ok()?,
+                    count,
+                    bounce,
+                });
             } else {
                 let body = part.strip_prefix('E')?;
                 if let Some((r, b)) = body.split_once('b') {
@@ -134,6 +210,21 @@ impl LayerKey {
         }
         Some(LayerKey { path, light_group })
     }
+}
+
+/// `<region><d|g><rest>` → (region, (part, rest)).
+fn parse_part(body: &str) -> Option<(u16, (u8, &str))> {
+    let at = body.find(['d', 'g'])?;
+    let digits = &body[..at];
+    if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    let part = if &body[at..=at] == "d" {
+        PART_DIFFUSE
+    } else {
+        PART_GLOSSY
+    };
+    Some((digits.parse().ok()?, (part, &body[at + 1..])))
 }
 
 #[cfg(test)]
@@ -170,6 +261,28 @@ mod tests {
                 }],
                 light_group: 2,
             },
+            LayerKey {
+                path: vec![
+                    PathVertex::Part {
+                        region: 1,
+                        part: PART_GLOSSY,
+                    },
+                    PathVertex::TailEdit {
+                        region: 0,
+                        count: 3,
+                        bounce: true,
+                    },
+                ],
+                light_group: 1,
+            },
+            LayerKey::new(vec![
+                PathVertex::Fixed,
+                PathVertex::TailEdit {
+                    region: 12,
+                    count: 1,
+                    bounce: false,
+                },
+            ]),
         ];
         for k in keys {
             assert_eq!(
@@ -180,7 +293,8 @@ mod tests {
             );
         }
         for bad in [
-            "", "E0", "X1b2", "G0_F", "E1b2_", "Ea b", "E1s", "Es2", "E1x2",
+            "", "E0", "X1b2", "G0_F", "E1b2_", "Ea b", "E1s", "Es2", "E1x2", "P1", "P1d2", "Pd",
+            "T0n", "T0n0", "T0x1", "Tn1", "T0n1c", "T0n1bb", "T0d1",
         ] {
             assert_eq!(LayerKey::parse(bad), None, "{bad}");
         }

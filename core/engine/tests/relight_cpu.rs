@@ -64,23 +64,24 @@ fn layer_weight_is_the_product_along_the_path() {
         vec![Rgb::new(4.0, 0.5, 0.1)],
     ];
     assert_eq!(
-        layer_weight(&LayerKey::new(vec![]), &coefs),
+        layer_weight(&LayerKey::new(vec![]), &coefs, &[]),
         Rgb::ONE,
         "World"
     );
     assert_eq!(
-        layer_weight(&LayerKey::new(vec![PathVertex::Fixed]), &coefs),
+        layer_weight(&LayerKey::new(vec![PathVertex::Fixed]), &coefs, &[]),
         Rgb::ONE
     );
     assert_eq!(
         layer_weight(
             &LayerKey::new(vec![e(0, 1), PathVertex::Fixed, e(1, 0)]),
-            &coefs
+            &coefs,
+            &[]
         ),
         Rgb::new(1.0, 0.5, -0.1)
     );
     assert_eq!(
-        layer_weight(&LayerKey::new(vec![e(0, 0), e(0, 0)]), &coefs),
+        layer_weight(&LayerKey::new(vec![e(0, 0), e(0, 0)]), &coefs, &[]),
         Rgb::new(0.25, 4.0, 9.0),
         "a region met twice counts twice"
     );
@@ -88,7 +89,29 @@ fn layer_weight_is_the_product_along_the_path() {
         path: vec![e(1, 0)],
         light_group: 3,
     };
-    assert_eq!(layer_weight(&grouped, &coefs), Rgb::new(4.0, 0.5, 0.1));
+    assert_eq!(layer_weight(&grouped, &coefs, &[]), Rgb::new(4.0, 0.5, 0.1));
+    // Tail-edit layers: the eye part weighs its scale, the tail term S^b·(S^n − 1) with S
+    // the region's whole-material scale; with no scales (or scales of 1: the bake-time
+    // materials) a tail edit weighs exactly 0.
+    let tail = LayerKey::new(vec![
+        PathVertex::Part { region: 1, part: 0 },
+        PathVertex::TailEdit {
+            region: 0,
+            count: 2,
+            bounce: true,
+        },
+    ]);
+    assert_eq!(layer_weight(&tail, &coefs, &[]), Rgb::ZERO);
+    assert_eq!(layer_weight(&tail, &coefs, &[[Rgb::ONE; 3]; 2]), Rgb::ZERO);
+    let scales = [
+        [Rgb::ONE, Rgb::ONE, Rgb::new(2.0, 0.5, 1.0)],
+        [Rgb::new(3.0, 1.0, 0.0), Rgb::ONE, Rgb::ONE],
+    ];
+    // eye: (3, 1, 0); tail: S·(S² − 1) = (2·3, 0.5·(−0.75), 0).
+    assert_eq!(
+        layer_weight(&tail, &coefs, &scales),
+        Rgb::new(18.0, -0.375, 0.0)
+    );
 }
 
 #[test]
@@ -102,7 +125,7 @@ fn full_relight_matches_f64_reference() {
         // ~57 terms of magnitude ≤ ~20 rounded in f32: a few 1e-7 relative to the largest.
         assert_close(
             &img,
-            &reference(&stack, &coefs),
+            &reference(&stack, &coefs, &[]),
             2e-6,
             &format!("round {round}"),
         );
@@ -114,7 +137,7 @@ fn full_relight_matches_f64_reference() {
     let mut coefs = random_coefs(&mut rng, &[5, 3]);
     let img = r.relight(&coefs).unwrap().to_vec();
     coefs[0].truncate(3);
-    assert_close(&img, &reference(&stack, &coefs), 2e-6, "extra coefficients");
+    assert_close(&img, &reference(&stack, &coefs, &[]), 2e-6, "extra coefficients");
 }
 
 #[test]
@@ -191,7 +214,7 @@ fn incremental_skips_unchanged_bases_and_reads_less() {
     );
     assert_close(
         r.image(),
-        &reference(&stack, &coefs),
+        &reference(&stack, &coefs, &[]),
         2e-6,
         "after no-op edit",
     );
@@ -235,7 +258,7 @@ fn zero_rows_and_columns_are_skipped_and_correct() {
     let mut r = CpuRelighter::new(stack.clone()).unwrap();
     let coefs = random_coefs(&mut rng, &[2, 2]);
     let img = r.relight(&coefs).unwrap().to_vec();
-    assert_close(&img, &reference(&stack, &coefs), 2e-6, "sparse layers");
+    assert_close(&img, &reference(&stack, &coefs, &[]), 2e-6, "sparse layers");
     let s = r.last_stats();
     assert_eq!(s.layers_summed, 3, "the all-zero layer is not summed");
     // The tiled layout reads whole 16×16 tiles of the layers present there (the dense
@@ -284,7 +307,7 @@ fn zero_weight_layers_are_not_read() {
         random_coefs(&mut Rng::new(10), &[3]).remove(0),
     ];
     let img = r.relight(&coefs).unwrap().to_vec();
-    assert_close(&img, &reference(&stack, &coefs), 2e-6, "zero region");
+    assert_close(&img, &reference(&stack, &coefs, &[]), 2e-6, "zero region");
     let without = stack
         .layers
         .iter()

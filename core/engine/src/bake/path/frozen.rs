@@ -6,7 +6,7 @@
 use glam::{Vec2, Vec3};
 use std::f32::consts::FRAC_1_PI;
 
-use crate::bake::prepare::context::{BakeContext, PreparedRegion};
+use crate::bake::prepare::context::{BakeContext, PreparedRegion, RegionModel};
 use crate::brdf::{blinn_phong::lobe, BlinnPhong};
 use crate::Rgb;
 
@@ -39,4 +39,24 @@ pub fn blinn_phong_value(m: &BlinnPhong, albedo: Rgb, cos_delta: f32) -> Rgb {
 pub fn frozen_value(ctx: &BakeContext, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3) -> Rgb {
     let r = &ctx.regions[region as usize];
     r.frozen.value(albedo_at(r, uv), n, wi, wo)
+}
+
+/// [`frozen_value`] of an editable region as its diffuse and glossy parts, with the
+/// region's editable index; `None` for a fixed region (its material is never edited).
+#[inline]
+pub fn frozen_parts(
+    ctx: &BakeContext,
+    region: u32,
+    uv: Vec2,
+    n: Vec3,
+    wi: Vec3,
+    wo: Vec3,
+) -> Option<(u16, [Rgb; 2])> {
+    let r = &ctx.regions[region as usize];
+    match r.model {
+        RegionModel::Editable { index, .. } => {
+            Some((index, r.frozen.parts(albedo_at(r, uv), n, wi, wo)))
+        }
+        RegionModel::Fixed { .. } => None,
+    }
 }

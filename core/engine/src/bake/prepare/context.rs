@@ -269,11 +269,44 @@ impl BakeContext {
         self.slot_vertex.len()
     }
 
-    /// Layers one light group can fill: the world, one per slot, and with one bounce one per
-    /// (eye slot, bounce slot) pair.
+    /// Layers one light group can fill: the world, one per slot, with one bounce one per
+    /// (eye slot, bounce slot) pair, and with two or more the tail-edit layers
+    /// ([`Self::tail_edit_layers_per_group`]).
     pub fn layers_per_group(&self) -> usize {
         let s = self.slot_count();
-        1 + s + if self.settings.bounces >= 1 { s * s } else { 0 }
+        let pairs = if self.settings.bounces >= 1 { s * s } else { 0 };
+        1 + s + pairs + self.tail_edit_layers_per_group()
+    }
+
+    /// Number of editable regions.
+    pub fn editable_count(&self) -> usize {
+        self.regions
+            .iter()
+            .filter(|r| matches!(r.model, RegionModel::Editable { .. }))
+            .count()
+    }
+
+    /// The largest tail count the tail-edit layers keep apart (a path that crossed more
+    /// vertices of one part counts as this many): bounces − 1 up to
+    /// [`crate::bake::path::tail_edits::MAX_TAIL_COUNT`]; 0 when there is no tail (fewer
+    /// than two bounces) or nothing editable.
+    pub fn tail_edit_bins(&self) -> usize {
+        if self.settings.bounces < 2 || self.editable_count() == 0 {
+            return 0;
+        }
+        (self.settings.bounces as usize - 1).min(crate::bake::path::tail_edits::MAX_TAIL_COUNT)
+    }
+
+    /// Tail-edit layers per light group: per eye part (the fixed region or one part of an
+    /// editable region), tail region, tail count and whether the bounce vertex lay on that
+    /// region too ([`crate::layer_key::PathVertex::TailEdit`]).
+    pub fn tail_edit_layers_per_group(&self) -> usize {
+        let bins = self.tail_edit_bins();
+        if bins == 0 {
+            return 0;
+        }
+        let regions = self.editable_count();
+        (2 * regions + 1) * regions * bins * 2
     }
 
     /// Layers the bake can fill: [`Self::layers_per_group`] per light group.
