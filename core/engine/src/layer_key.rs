@@ -26,13 +26,23 @@ pub enum PathVertex {
     /// eye of a tail-edit layer: weighs the part's energy now over its energy at bake time
     /// (`crate::relight::part_scales`). Named `P<region>d` or `P<region>g`.
     Part { region: u16, part: u8 },
-    /// The tail-edit term of a layer: the path crossed `count` vertices beyond the first
-    /// bounce on editable region `region`, and (`bounce`) its bounce vertex lay on that
-    /// region too. Weighs S^b·(S^count − 1), S the region's energy scale: 0 at the
+    /// The tail-edit term of a layer: of the path's vertices beyond the first bounce,
+    /// `diffuse` reflected through editable region `region`'s diffuse part and `glossy`
+    /// through its glossy part; `bounce` is the part its bounce vertex reflected through
+    /// when that vertex lay on the region too ([`BOUNCE_ELSEWHERE`] otherwise). Weighs
+    /// s_b·(s_d^diffuse · s_g^glossy − 1), the s the region's part scales: 0 at the
     /// bake-time materials, so these layers only add what an edit changes in the tail.
-    /// Named `T<region>n<count>`, with a trailing `b` for `bounce`.
-    TailEdit { region: u16, count: u8, bounce: bool },
+    /// Named `T<region>d<diffuse>g<glossy>`, with `bd` or `bg` after it for the bounce part.
+    TailEdit {
+        region: u16,
+        diffuse: u8,
+        glossy: u8,
+        bounce: u8,
+    },
 }
+
+/// [`PathVertex::TailEdit::bounce`] when the bounce vertex is not on the tail's region.
+pub const BOUNCE_ELSEWHERE: u8 = 2;
 
 /// The diffuse part of a region's material (its Kd / Base Color term).
 pub const PART_DIFFUSE: u8 = 0;
@@ -125,12 +135,14 @@ impl LayerKey {
                 }
                 PathVertex::TailEdit {
                     region,
-                    count,
+                    diffuse,
+                    glossy,
                     bounce,
                 } => {
-                    let _ = write!(s, "T{region}n{count}");
-                    if *bounce {
+                    let _ = write!(s, "T{region}d{diffuse}g{glossy}");
+                    if *bounce != BOUNCE_ELSEWHERE {
                         s.push('b');
+                        s.push(part_letter(*bounce));
                     }
                 }
             }
@@ -171,22 +183,31 @@ impl LayerKey {
                     return None;
                 }
             } else if let Some(body) = part.strip_prefix('T') {
-                let (region, rest) = body.split_once('n')?;
-                let (digits, bounce) = match rest.strip_suffix('b') {
-                    Some(d) => (d, true),
-                    None => (rest, false),
+                let (region, rest) = body.split_once('d')?;
+                let (diffuse, rest) = rest.split_once('g')?;
+                let (glossy, bounce) = match rest.find('b') {
+                    Some(at) => (
+                        &rest[..at],
+                        match &rest[at..] {
+                            "bd" => PART_DIFFUSE,
+                            "bg" => PART_GLOSSY,
+                            _ => return None,
+                        },
+                    ),
+                    None => (rest, BOUNCE_ELSEWHERE),
                 };
                 let all_digits = |d: &str| !d.is_empty() && d.bytes().all(|b| b.is_ascii_digit());
-                if !all_digits(region) || !all_digits(digits) {
+                if !all_digits(region) || !all_digits(diffuse) || !all_digits(glossy) {
                     return None;
                 }
-                let count: u8 = digits.parse().ok()?;
-                if count == 0 {
+                let (diffuse, glossy): (u8, u8) = (diffuse.parse().ok()?, glossy.parse().ok()?);
+                if diffuse == 0 && glossy == 0 {
                     return None;
                 }
                 path.push(PathVertex::TailEdit {
                     region: region.parse().ok()?,
-                    count,
+                    diffuse,
+                    glossy,
                     bounce,
                 });
             } else {
@@ -269,8 +290,9 @@ mod tests {
                     },
                     PathVertex::TailEdit {
                         region: 0,
-                        count: 3,
-                        bounce: true,
+                        diffuse: 2,
+                        glossy: 1,
+                        bounce: PART_GLOSSY,
                     },
                 ],
                 light_group: 1,
@@ -279,8 +301,9 @@ mod tests {
                 PathVertex::Fixed,
                 PathVertex::TailEdit {
                     region: 12,
-                    count: 1,
-                    bounce: false,
+                    diffuse: 0,
+                    glossy: 1,
+                    bounce: BOUNCE_ELSEWHERE,
                 },
             ]),
         ];
@@ -294,7 +317,7 @@ mod tests {
         }
         for bad in [
             "", "E0", "X1b2", "G0_F", "E1b2_", "Ea b", "E1s", "Es2", "E1x2", "P1", "P1d2", "Pd",
-            "T0n", "T0n0", "T0x1", "Tn1", "T0n1c", "T0n1bb", "T0d1",
+            "T0d", "T0d0g0", "T0x1", "Td1g0", "T0d1g0c", "T0d1g0bb", "T0d1", "T0d1g0bx",
         ] {
             assert_eq!(LayerKey::parse(bad), None, "{bad}");
         }

@@ -153,8 +153,8 @@ fn relit_tail_follows_an_albedo_edit() {
     let (a, e) = (a as f64, edited as f64);
     let frozen: f64 = 1.0 + e * (1..=n).map(|k| a.powi(k as i32 - 1)).sum::<f64>();
     let exact: f64 = (0..=n).map(|k| e.powi(k as i32)).sum();
-    // What the tail-edit layers give: exact for tail counts up to MAX_TAIL_COUNT, paths
-    // with more tail vertices weighed as if they had that many.
+    // What the tail-edit layers give: exact while a path has at most MAX_TAIL_COUNT tail
+    // vertices on the region; later ones keep the bake-time albedo.
     let m = relume_engine::bake::path::tail_edits::MAX_TAIL_COUNT as i32;
     let lumped: f64 = (0..=n as i32)
         .map(|k| {

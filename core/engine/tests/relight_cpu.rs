@@ -90,27 +90,28 @@ fn layer_weight_is_the_product_along_the_path() {
         light_group: 3,
     };
     assert_eq!(layer_weight(&grouped, &coefs, &[]), Rgb::new(4.0, 0.5, 0.1));
-    // Tail-edit layers: the eye part weighs its scale, the tail term S^b·(S^n − 1) with S
-    // the region's whole-material scale; with no scales (or scales of 1: the bake-time
-    // materials) a tail edit weighs exactly 0.
+    // Tail-edit layers: the eye part weighs its scale, the tail term s_b·(s_d^i·s_g^j − 1);
+    // with no scales (or scales of 1: the bake-time materials) a tail edit weighs exactly 0.
     let tail = LayerKey::new(vec![
         PathVertex::Part { region: 1, part: 0 },
         PathVertex::TailEdit {
             region: 0,
-            count: 2,
-            bounce: true,
+            diffuse: 1,
+            glossy: 1,
+            bounce: 1,
         },
     ]);
     assert_eq!(layer_weight(&tail, &coefs, &[]), Rgb::ZERO);
-    assert_eq!(layer_weight(&tail, &coefs, &[[Rgb::ONE; 3]; 2]), Rgb::ZERO);
+    assert_eq!(layer_weight(&tail, &coefs, &[[Rgb::ONE; 2]; 2]), Rgb::ZERO);
     let scales = [
-        [Rgb::ONE, Rgb::ONE, Rgb::new(2.0, 0.5, 1.0)],
-        [Rgb::new(3.0, 1.0, 0.0), Rgb::ONE, Rgb::ONE],
+        [Rgb::new(3.0, 1.0, 1.0), Rgb::new(2.0, 0.5, 1.0)],
+        [Rgb::new(3.0, 1.0, 0.0), Rgb::ONE],
     ];
-    // eye: (3, 1, 0); tail: S·(S² − 1) = (2·3, 0.5·(−0.75), 0).
+    // eye (region 1, diffuse): (3, 1, 0); bounce (glossy) s_g · (s_d·s_g − 1):
+    // (2·5, 0.5·(−0.5), 0).
     assert_eq!(
         layer_weight(&tail, &coefs, &scales),
-        Rgb::new(18.0, -0.375, 0.0)
+        Rgb::new(30.0, -0.25, 0.0)
     );
 }
 

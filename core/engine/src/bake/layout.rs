@@ -13,7 +13,7 @@ pub(crate) struct DenseLayout {
     slots: usize,
     /// Layers per light group.
     per_group: usize,
-    /// Editable regions and tail counts of the tail-edit layers.
+    /// Editable regions and bins (pairs of tail counts) of the tail-edit layers.
     regions: usize,
     bins: usize,
 }
@@ -41,21 +41,21 @@ impl DenseLayout {
         group * self.per_group + 1 + s + eye as usize * s + bounce as usize
     }
     /// The tail-edit layer of `group` for eye part `eye` (0: the fixed region, 1 + 2r + p:
-    /// part p of editable region r), tail region `region`, tail count `count` (1..=bins) and
-    /// whether the bounce vertex lay on that region.
+    /// part p of editable region r), tail region `region`, bin `bin` (a pair of diffuse and
+    /// glossy counts, [`crate::bake::path::tail_edits::pair_of`] of `bin + 1`) and the
+    /// bounce vertex's part on that region (or [`crate::layer_key::BOUNCE_ELSEWHERE`]).
     #[inline]
     pub(crate) fn tail_edit(
         self,
         group: usize,
         eye: usize,
         region: usize,
-        count: usize,
-        bounce: bool,
+        bin: usize,
+        bounce: u8,
     ) -> usize {
         let s = self.slots;
         let base = 1 + s + s * s;
-        let within =
-            ((eye * self.regions + region) * self.bins + count - 1) * 2 + usize::from(bounce);
+        let within = ((eye * self.regions + region) * self.bins + bin) * 3 + bounce as usize;
         group * self.per_group + base + within
     }
 }
@@ -90,9 +90,9 @@ fn path_key(ctx: &BakeContext, layer: usize) -> LayerKey {
 fn tail_edit_key(ctx: &BakeContext, within: usize) -> LayerKey {
     let regions = ctx.editable_count();
     let bins = ctx.tail_edit_bins();
-    let bounce = within % 2 == 1;
-    let rest = within / 2;
-    let count = rest % bins + 1;
+    let bounce = (within % 3) as u8;
+    let rest = within / 3;
+    let (diffuse, glossy) = crate::bake::path::tail_edits::pair_of(rest % bins + 1);
     let rest = rest / bins;
     let region = rest % regions;
     let eye = rest / regions;
@@ -108,7 +108,8 @@ fn tail_edit_key(ctx: &BakeContext, within: usize) -> LayerKey {
         eye_vertex,
         PathVertex::TailEdit {
             region: region as u16,
-            count: count as u8,
+            diffuse: diffuse as u8,
+            glossy: glossy as u8,
             bounce,
         },
     ])

@@ -252,6 +252,6 @@ impl RelightBookkeeping {
 }
 
 /// The current part scales (empty when the stack has no tail-edit layers).
-fn scales_of(p: &Option<PartScales>) -> &[[Rgb; 3]] {
+fn scales_of(p: &Option<PartScales>) -> &[[Rgb; 2]] {
     p.as_ref().map_or(&[], |p| p.scales())
 }

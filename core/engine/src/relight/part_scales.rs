@@ -15,9 +15,8 @@
 //! the bake-time materials every scale is exactly 1 and every tail-edit layer weighs
 //! exactly 0. A Kd or Ks edit scales its part's energy exactly; a lobe-shape edit (the
 //! exponent, roughness) changes it only as much as the lobe's albedo changes, which is what
-//! a tail vertex sees of it on average. Tail vertices scale by the whole material's energy
-//! ratio ([`WHOLE`]), the eye vertex by its part's. A part a region did not have at bake
-//! time (energy 0 in a channel) scales by 1 there: such an edit keeps the frozen tail.
+//! a tail vertex sees of it on average. A part a region did not have at bake time (energy 0
+//! in a channel) scales by 1 there: such an edit keeps the frozen tail.
 
 use glam::Vec3;
 
@@ -29,9 +28,6 @@ use crate::{Result, Rgb};
 
 /// Below this a bake-time energy counts as absent (its scale stays 1).
 const ABSENT: f32 = 1e-6;
-
-/// Index of the whole material's scale in a region's scales (after diffuse and glossy).
-pub const WHOLE: usize = 2;
 
 /// The diffuse and glossy energy of one editable region for its slot coefficients `coefs`:
 /// the diffuse slot's coefficient (slot 0, albedo 1) and the other slots' coefficients
@@ -86,9 +82,8 @@ pub struct PartScales {
     albedos: Vec<Vec<f32>>,
     /// Per editable region, its part energies at bake time.
     bake: Vec<[Rgb; 2]>,
-    /// Per editable region, the current scale of its diffuse part, its glossy part and its
-    /// whole material.
-    scales: Vec<[Rgb; 3]>,
+    /// Per editable region, the current scale of its diffuse and its glossy part.
+    scales: Vec<[Rgb; 2]>,
 }
 
 /// Whether any of `keys` is a tail-edit layer (only those need part scales).
@@ -119,7 +114,7 @@ impl PartScales {
             bake.push(part_energies(&coefs, &a));
             albedos.push(a);
         }
-        let scales = vec![[Rgb::ONE; 3]; bake.len()];
+        let scales = vec![[Rgb::ONE; 2]; bake.len()];
         Ok(PartScales {
             albedos,
             bake,
@@ -144,30 +139,25 @@ impl PartScales {
             let r = |n: f32, b: f32| if b.abs() > ABSENT { n / b } else { 1.0 };
             Rgb::new(r(n.x, b.x), r(n.y, b.y), r(n.z, b.z))
         };
-        self.scales[region] = [
-            ratio(now[0], bake[0]),
-            ratio(now[1], bake[1]),
-            ratio(now[0] + now[1], bake[0] + bake[1]),
-        ];
+        self.scales[region] = [ratio(now[0], bake[0]), ratio(now[1], bake[1])];
     }
 
-    /// Per editable region, the scale of its diffuse part, its glossy part and its whole
-    /// material ([`WHOLE`]).
-    pub fn scales(&self) -> &[[Rgb; 3]] {
+    /// Per editable region, the scale of its diffuse and its glossy part.
+    pub fn scales(&self) -> &[[Rgb; 2]] {
         &self.scales
     }
 }
 
-/// The weight factor of a tail-edit term: S^b·(S^count − 1) per channel.
+/// The weight factor of a tail-edit term: s_b·(s_d^`diffuse`·s_g^`glossy` − 1) per
+/// channel, s_b the scale of the bounce vertex's part when it lay on the region (1 for
+/// [`crate::layer_key::BOUNCE_ELSEWHERE`]).
 #[inline]
-pub fn tail_edit_factor(s: Rgb, count: u8, bounce: bool) -> Rgb {
-    let p = |x: f32| {
-        let t = x.powi(count as i32) - 1.0;
-        if bounce {
-            x * t
-        } else {
-            t
-        }
+pub fn tail_edit_factor([sd, sg]: [Rgb; 2], diffuse: u8, glossy: u8, bounce: u8) -> Rgb {
+    let b = match bounce {
+        0 => sd,
+        1 => sg,
+        _ => Rgb::ONE,
     };
-    Rgb::new(p(s.x), p(s.y), p(s.z))
+    let p = |d: f32, g: f32| d.powi(diffuse as i32) * g.powi(glossy as i32) - 1.0;
+    b * Rgb::new(p(sd.x, sg.x), p(sd.y, sg.y), p(sd.z, sg.z))
 }

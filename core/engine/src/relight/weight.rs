@@ -3,7 +3,7 @@
 //! functions are the whole of the relight's arithmetic on weights; the CPU and the GPU
 //! relighters both use them (through [`super::RelightBookkeeping`]).
 
-use super::part_scales::{tail_edit_factor, WHOLE};
+use super::part_scales::tail_edit_factor;
 use crate::layer_key::{LayerKey, PathVertex};
 use crate::stack::{StackHeader, TransferStack};
 use crate::{RelumeError, Result, Rgb};
@@ -15,31 +15,33 @@ use crate::{RelumeError, Result, Rgb};
 /// the weight (see [`group_factors`]).
 ///
 /// A tail-edit layer's [`crate::layer_key::PathVertex::Part`] vertex weighs the part's
-/// scale (`part_scales[region][part]`) and its [`crate::layer_key::PathVertex::TailEdit`]
-/// vertex S^b·(S^count − 1), S the region's whole-material scale
-/// (`part_scales[region][WHOLE]`, [`super::part_scales`]); with no scale for a region (an
-/// empty `part_scales`) a part weighs 1 and a tail edit 0: the frozen tail.
+/// scale (`part_scales[region][part]`, [`super::part_scales`]) and its
+/// [`crate::layer_key::PathVertex::TailEdit`] vertex s_b·(s_d^i·s_g^j − 1)
+/// ([`super::part_scales::tail_edit_factor`]); with no scale for a region (an empty
+/// `part_scales`) a part weighs 1 and a tail edit 0: the frozen tail.
 ///
 /// # Panics
 /// If a vertex names a region or basis outside `coefs`; the relighters check shapes
 /// ([`super::StackShape`]) before calling it.
-pub fn layer_weight(key: &LayerKey, coefs: &[Vec<Rgb>], part_scales: &[[Rgb; 3]]) -> Rgb {
-    let scale = |region: u16, which: usize| {
+pub fn layer_weight(key: &LayerKey, coefs: &[Vec<Rgb>], part_scales: &[[Rgb; 2]]) -> Rgb {
+    let scales = |region: u16| {
         part_scales
             .get(region as usize)
-            .map_or(Rgb::ONE, |s| s[which])
+            .copied()
+            .unwrap_or([Rgb::ONE; 2])
     };
     key.path.iter().fold(Rgb::ONE, |w, v| match *v {
         PathVertex::Fixed => w,
         PathVertex::Editable { region, basis } | PathVertex::Subsurface { region, basis } => {
             w * coefs[region as usize][basis as usize]
         }
-        PathVertex::Part { region, part } => w * scale(region, (part & 1) as usize),
+        PathVertex::Part { region, part } => w * scales(region)[(part & 1) as usize],
         PathVertex::TailEdit {
             region,
-            count,
+            diffuse,
+            glossy,
             bounce,
-        } => w * tail_edit_factor(scale(region, WHOLE), count, bounce),
+        } => w * tail_edit_factor(scales(region), diffuse, glossy, bounce),
     })
 }
 

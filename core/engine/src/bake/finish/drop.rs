@@ -142,25 +142,27 @@ fn max_part_scales(ctx: &BakeContext) -> Vec<[f32; 2]> {
         .collect()
 }
 
-/// The largest |weight| factor of a tail-edit vertex given each part's largest scale (a
-/// tail term's whole-material scale is at most its larger part's).
+/// The largest |weight| factor of a tail-edit vertex given each part's largest scale.
 fn tail_vertex_bound(v: &PathVertex, scales: &[[f32; 2]]) -> f32 {
-    let s = |region: u16, part: Option<u8>| {
-        scales.get(region as usize).map_or(UNBOUNDED, |s| match part {
-            Some(p) => s[p as usize & 1],
-            None => s[0].max(s[1]),
-        })
-    };
+    let s = |region: u16| scales.get(region as usize).copied().unwrap_or([UNBOUNDED; 2]);
     match *v {
-        PathVertex::Part { region, part } => s(region, Some(part)),
+        PathVertex::Part { region, part } => s(region)[part as usize & 1],
         PathVertex::TailEdit {
             region,
-            count,
+            diffuse,
+            glossy,
             bounce,
-        } => s(region, None)
-            .powi(count as i32 + i32::from(bounce))
-            .max(1.0)
-            .min(UNBOUNDED),
+        } => {
+            let [d, g] = s(region);
+            let b = match bounce {
+                0 => d,
+                1 => g,
+                _ => 1.0,
+            };
+            (b * d.powi(diffuse as i32) * g.powi(glossy as i32))
+                .max(1.0)
+                .min(UNBOUNDED)
+        }
         _ => 1.0,
     }
 }

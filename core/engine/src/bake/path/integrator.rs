@@ -53,6 +53,7 @@ use crate::bake::path::mixture::DirectionMixture;
 use crate::bake::path::tail_edits::TailEdits;
 use crate::bake::prepare::context::{BakeContext, RegionModel};
 use crate::geometry::bvh::SurfaceHit;
+use crate::layer_key::{BOUNCE_ELSEWHERE, PART_DIFFUSE, PART_GLOSSY};
 use crate::geometry::sampling::{cosine_hemisphere, to_world, uniform_hemisphere, SampleStream};
 use crate::options::{IndirectSampling, MAX_BASES, MAX_GROUPS};
 use crate::Rgb;
@@ -97,8 +98,9 @@ pub trait VertexBrdf: Sync {
 }
 
 /// A vertex beyond the first bounce: [`VertexBrdf::tail`] as a one-slot BRDF, so
-/// [`direct_light`] serves it too.
-struct TailBrdf<'a, B: VertexBrdf>(&'a B);
+/// [`direct_light`] serves it too. When the path keeps a tail-edit record (`.1`), an
+/// editable region's value also gives its diffuse and glossy parts in slots 1 and 2.
+struct TailBrdf<'a, B: VertexBrdf>(&'a B, bool);
 
 impl<B: VertexBrdf> VertexBrdf for TailBrdf<'_, B> {
     #[inline]
@@ -112,6 +114,13 @@ impl<B: VertexBrdf> VertexBrdf for TailBrdf<'_, B> {
         out: &mut [Rgb; MAX_BASES],
     ) -> (u32, usize) {
         out[0] = self.0.tail(region, uv, n, wi, wo);
+        if self.1 {
+            if let Some((_, [d, g])) = self.0.tail_parts(region, uv, n, wi, wo) {
+                out[1] = d;
+                out[2] = g;
+                return (0, 3);
+            }
+        }
         (0, 1)
     }
     #[inline]
@@ -159,17 +168,18 @@ pub trait PathSink {
         false
     }
     /// Tail light of group `group` for the tail-edit layer of eye part `eye` (0: the fixed
-    /// region, 1 + 2r + p: part p of editable region r), tail region `part`, tail count
-    /// `count` and whether the bounce vertex lies on that region (`bounce`); see
-    /// [`crate::bake::path::tail_edits`].
+    /// region, 1 + 2r + p: part p of editable region r), tail region `region`, tail bin
+    /// `bin` (a pair of diffuse and glossy counts) and the part the bounce vertex reflected
+    /// through when on that region (`bounce`, else
+    /// [`crate::layer_key::BOUNCE_ELSEWHERE`]); see [`crate::bake::path::tail_edits`].
     #[inline]
     fn tail_edit(
         &mut self,
         _group: usize,
         _eye: usize,
-        _part: usize,
-        _count: usize,
-        _bounce: bool,
+        _region: usize,
+        _bin: usize,
+        _bounce: u8,
         _value: Rgb,
     ) {
     }
@@ -265,13 +275,13 @@ impl<S: PathSink> PathSink for FiniteOnly<'_, S> {
         &mut self,
         group: usize,
         eye: usize,
-        part: usize,
-        count: usize,
-        bounce: bool,
+        region: usize,
+        bin: usize,
+        bounce: u8,
         value: Rgb,
     ) {
         if self.keep(value) {
-            self.inner.tail_edit(group, eye, part, count, bounce, value);
+            self.inner.tail_edit(group, eye, region, bin, bounce, value);
         }
     }
 }
@@ -656,9 +666,9 @@ pub(crate) struct BounceParts {
     weight: f32,
 }
 
-/// Hands the tail-edit record of one indirect sample to `sink`: each (group, region, count)
-/// light of `edits` times the bounce vertex's bake-time BRDF (and whether that vertex lies
-/// on the region too) times the eye vertex's, split by its part (`eye_weight` is that
+/// Hands the tail-edit record of one indirect sample to `sink`: each (group, region, bin)
+/// light of `edits` times the bounce vertex's bake-time BRDF — split by its part when it
+/// lies on that region — times the eye vertex's, split by its part (`eye_weight` is that
 /// sample's cos θ over pdf and sample count).
 #[allow(clippy::too_many_arguments)]
 fn emit_tail_edits<B: VertexBrdf, S: PathSink>(
@@ -683,14 +693,26 @@ fn emit_tail_edits<B: VertexBrdf, S: PathSink>(
             1
         }
     };
-    edits.for_each(|group, region, count, light| {
-        // Whether the bounce vertex lies on the tail's region too.
-        let on_region = matches!(bounce.parts, Some((r, _)) if r == region);
-        let light = light * bounce.value * (bounce.weight * eye_weight);
-        for &(eye, f) in &eyes[..eye_count] {
-            let v = light * f;
-            if v != Rgb::ZERO {
-                sink.tail_edit(group, eye, region as usize, count, on_region, v);
+    edits.for_each(|group, region, bin, light| {
+        let light = light * (bounce.weight * eye_weight);
+        // The bounce vertex's BRDF, by the part it reflected through when on the region.
+        let mut at_bounce = [(BOUNCE_ELSEWHERE, Rgb::ZERO); 2];
+        let bounce_count = match bounce.parts {
+            Some((r, [d, g])) if r == region => {
+                at_bounce = [(PART_DIFFUSE, d), (PART_GLOSSY, g)];
+                2
+            }
+            _ => {
+                at_bounce[0].1 = bounce.value;
+                1
+            }
+        };
+        for &(part, fb) in &at_bounce[..bounce_count] {
+            for &(eye, f) in &eyes[..eye_count] {
+                let v = light * fb * f;
+                if v != Rgb::ZERO {
+                    sink.tail_edit(group, eye, region as usize, bin, part, v);
+                }
             }
         }
     });
@@ -716,7 +738,7 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
     out: &mut [Rgb],
     mut edits: Option<&mut TailEdits>,
 ) -> bool {
-    let tail = TailBrdf(brdf);
+    let tail = TailBrdf(brdf, edits.is_some());
     let max_bounce = ctx.settings.bounces;
     let mut values = [Rgb::ZERO; MAX_BASES];
     let mut light = [Rgb::ZERO; MAX_GROUPS * MAX_BASES];
@@ -776,10 +798,15 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
                     any = true;
                     if let Some(edits) = edits.as_deref_mut() {
                         match ctx.regions[hit.region as usize].model {
-                            RegionModel::Editable { index, .. } => {
-                                edits.record_at(g, index, throughput * l)
-                            }
-                            RegionModel::Fixed { .. } => edits.record(g, throughput * l),
+                            RegionModel::Editable { index, .. } if c == 3 => edits.record_at(
+                                g,
+                                index,
+                                [
+                                    throughput * light[g * MAX_BASES + 1],
+                                    throughput * light[g * MAX_BASES + 2],
+                                ],
+                            ),
+                            _ => edits.record(g, throughput * l),
                         }
                     }
                 }
@@ -795,8 +822,8 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
         let w = cos / next_pdf;
         throughput *= brdf.tail(hit.region, hit.uv, n, wi, wo) * w;
         if let Some(edits) = edits.as_deref_mut() {
-            if let RegionModel::Editable { index, .. } = ctx.regions[hit.region as usize].model {
-                edits.label(index);
+            if let Some((index, parts)) = brdf.tail_parts(hit.region, hit.uv, n, wi, wo) {
+                edits.label(index, parts);
             }
         }
         frozen *= crate::bake::path::frozen::frozen_value(ctx, hit.region, hit.uv, n, wi, wo) * w;

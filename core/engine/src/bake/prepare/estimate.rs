@@ -182,12 +182,12 @@ impl PathSink for ProbeSink<'_> {
         &mut self,
         group: usize,
         eye: usize,
-        part: usize,
-        count: usize,
-        bounce: bool,
+        region: usize,
+        bin: usize,
+        bounce: u8,
         v: Rgb,
     ) {
-        self.add(self.layout.tail_edit(group, eye, part, count, bounce), v);
+        self.add(self.layout.tail_edit(group, eye, region, bin, bounce), v);
     }
 }
 
