@@ -42,7 +42,11 @@ pub fn frozen_value(ctx: &BakeContext, region: u32, uv: Vec2, n: Vec3, wi: Vec3,
 }
 
 /// [`frozen_value`] of an editable region as its diffuse and glossy parts, with the
-/// region's editable index; `None` for a fixed region (its material is never edited).
+/// region's editable index; `None` for a fixed region (its material is never edited). The
+/// diffuse part is the diffuse basis slot's bake-time coefficient over π (times the
+/// texture), the glossy part the rest — which can dip below zero away from the lobe where
+/// the basis put the specular fit's constant into the diffuse slot: the split is the
+/// basis's, so each part scales as the relight reads it off the coefficients.
 #[inline]
 pub fn frozen_parts(
     ctx: &BakeContext,
@@ -55,7 +59,10 @@ pub fn frozen_parts(
     let r = &ctx.regions[region as usize];
     match r.model {
         RegionModel::Editable { index, .. } => {
-            Some((index, r.frozen.parts(albedo_at(r, uv), n, wi, wo)))
+            let albedo = albedo_at(r, uv);
+            let value = r.frozen.value(albedo, n, wi, wo);
+            let diffuse = r.tail_diffuse * albedo * FRAC_1_PI;
+            Some((index, [diffuse, value - diffuse]))
         }
         RegionModel::Fixed { .. } => None,
     }

@@ -25,7 +25,7 @@ use crate::Rgb;
 /// The most tail vertices on one region a path's record keeps apart; later ones on that
 /// region keep their bake-time material (each multiplies the light by an albedo, so their
 /// share is small). Blender's default light paths give the tail at most three vertices.
-pub const MAX_TAIL_COUNT: usize = 3;
+pub const MAX_TAIL_COUNT: usize = 4;
 /// Editable regions one path keeps apart (a path meeting more keeps the extra regions'
 /// bake-time materials).
 pub const MAX_TRACKED: usize = 8;
@@ -159,13 +159,16 @@ impl TailEdits {
 }
 
 /// The diffuse share f_d / (f_d + f_g) per channel (1 where the vertex reflects nothing:
-/// its light is 0 then anyway).
+/// its light is 0 then anyway). It leaves [0, 1] where the glossy part dips below zero
+/// (see [`crate::bake::path::frozen::frozen_parts`]); the weights stay exact in
+/// expectation, and the path's throughput carries the small total, so a large share
+/// multiplies a small light (bounded at ±10³ against rounding of a near-zero total).
 #[inline]
 fn share_of([d, g]: [Rgb; 2]) -> Rgb {
     let s = |d: f32, g: f32| {
         let t = d + g;
         if t > 0.0 {
-            (d / t).clamp(0.0, 1.0)
+            (d / t).clamp(-1e3, 1e3)
         } else {
             1.0
         }

@@ -15,6 +15,7 @@ use crate::bake::settings::BakeSettings;
 use crate::brdf::principled_basis::PrincipledBasis;
 use crate::brdf::{BasisConfig, BrdfBasis, MaterialSpec, RegionBasis};
 use crate::bssrdf::{SssBasis, SubsurfaceInfo};
+use crate::Rgb;
 use crate::geometry::{bvh::SceneGeometry, camera::CameraRays, lights::LightSet, texture::Texture};
 use crate::layer_key::PathVertex;
 use crate::options::{MAX_BASES, MAX_GROUPS};
@@ -47,6 +48,12 @@ pub struct PreparedRegion {
     /// bounce (the "frozen tail", see [`crate::bake::path::integrator`]), editable regions included
     /// (theirs as the mapped Blinn–Phong, see [`SurfaceBrdf`]).
     pub frozen: SurfaceBrdf,
+    /// An editable region's bake-time coefficient of its diffuse basis slot (Kd, plus the
+    /// constant of the specular fit when the basis puts it there): the part of the frozen
+    /// BRDF the tail-edit layers call diffuse, so that it scales exactly as the relight's
+    /// diffuse scale reads it off the coefficients ([`crate::relight::part_scales`]).
+    /// Zero for a fixed region.
+    pub tail_diffuse: Rgb,
 }
 
 /// Everything fixed for a bake.
@@ -185,8 +192,17 @@ impl BakeContext {
                     RegionBasis::BlinnPhong(_) => (cfg.ns_min, cfg.ns_max),
                     RegionBasis::Principled(b) => b.config().fitted_ns_range(),
                 };
+                // The bake-time coefficient of the diffuse slot, which the tail-edit
+                // layers split each tail vertex's BRDF by (see `PreparedRegion`).
+                let tail_diffuse = basis
+                    .slot_coefficients(count > basis.count(), &region.material)?
+                    .slots
+                    .first()
+                    .copied()
+                    .unwrap_or(Rgb::ZERO);
                 regions.push(PreparedRegion {
                     name: region.name.clone(),
+                    tail_diffuse,
                     model: RegionModel::Editable {
                         index: editable_index,
                         basis,
@@ -204,6 +220,7 @@ impl BakeContext {
                 let surface = SurfaceBrdf::exact(&region.material);
                 regions.push(PreparedRegion {
                     name: region.name.clone(),
+                    tail_diffuse: Rgb::ZERO,
                     model: RegionModel::Fixed {
                         material: surface.clone(),
                     },
