@@ -238,6 +238,6 @@ mod tests {
         }
         let total: f32 = e.dist[0].iter().map(|v| v.x).sum();
         assert!((total - 1.0).abs() < 1e-6, "{total}");
-        assert_eq!(e.dist[0][pair_index(1, 2)].x, 3.0 / 8.0);
+        assert_eq!(e.dist[0][pair_index(2, 2)].x, 6.0 / 16.0);
     }
 }
