@@ -22,6 +22,39 @@ pub enum PathVertex {
     /// BRDF and eye-diffuse slots, see [`crate::bssrdf::coefficients`]), so relight weights
     /// index the region's coefficients alike for both kinds of vertex. Named `E<r>s<slot>`.
     Subsurface { region: u16, basis: u16 },
+    /// Part `part` ([`PART_DIFFUSE`] or [`PART_GLOSSY`]) of editable region `region` at the
+    /// eye of a tail-edit layer: weighs the part's energy now over its energy at bake time
+    /// (`crate::relight::part_scales`). Named `P<region>d` or `P<region>g`.
+    Part { region: u16, part: u8 },
+    /// The tail-edit term of a layer: of the path's vertices beyond the first bounce,
+    /// `diffuse` reflected through editable region `region`'s diffuse part and `glossy`
+    /// through its glossy part; `bounce` is the part its bounce vertex reflected through
+    /// when that vertex lay on the region too ([`BOUNCE_ELSEWHERE`] otherwise). Weighs
+    /// s_b·(s_d^diffuse · s_g^glossy − 1), the s the region's part scales: 0 at the
+    /// bake-time materials, so these layers only add what an edit changes in the tail.
+    /// Named `T<region>d<diffuse>g<glossy>`, with `bd` or `bg` after it for the bounce part.
+    TailEdit {
+        region: u16,
+        diffuse: u8,
+        glossy: u8,
+        bounce: u8,
+    },
+}
+
+/// [`PathVertex::TailEdit::bounce`] when the bounce vertex is not on the tail's region.
+pub const BOUNCE_ELSEWHERE: u8 = 2;
+
+/// The diffuse part of a region's material (its Kd / Base Color term).
+pub const PART_DIFFUSE: u8 = 0;
+/// The glossy part of a region's material (its Ks / specular and metallic term).
+pub const PART_GLOSSY: u8 = 1;
+
+fn part_letter(part: u8) -> char {
+    if part == PART_DIFFUSE {
+        'd'
+    } else {
+        'g'
+    }
 }
 
 impl PathVertex {
@@ -34,6 +67,19 @@ impl PathVertex {
             PathVertex::Editable { region, basis } | PathVertex::Subsurface { region, basis } => {
                 Some((region, basis))
             }
+            PathVertex::Part { .. } | PathVertex::TailEdit { .. } => None,
+        }
+    }
+
+    /// The editable region whose material this vertex's weight depends on, any kind.
+    #[inline]
+    pub fn region(&self) -> Option<u16> {
+        match *self {
+            PathVertex::Fixed => None,
+            PathVertex::Editable { region, .. }
+            | PathVertex::Subsurface { region, .. }
+            | PathVertex::Part { region, .. }
+            | PathVertex::TailEdit { region, .. } => Some(region),
         }
     }
 }
@@ -58,9 +104,7 @@ impl LayerKey {
 
     /// Whether editable region `region` appears on this path (so its edits change the layer).
     pub fn contains_region(&self, region: u16) -> bool {
-        self.path
-            .iter()
-            .any(|v| matches!(v.slot(), Some((r, _)) if r == region))
+        self.path.iter().any(|v| v.region() == Some(region))
     }
 
     /// The EXR layer name: `World` for the empty path, else vertices joined by `_`, each `F`
@@ -85,6 +129,21 @@ impl LayerKey {
                 }
                 PathVertex::Subsurface { region, basis } => {
                     let _ = write!(s, "E{region}s{basis}");
+                }
+                PathVertex::Part { region, part } => {
+                    let _ = write!(s, "P{region}{}", part_letter(*part));
+                }
+                PathVertex::TailEdit {
+                    region,
+                    diffuse,
+                    glossy,
+                    bounce,
+                } => {
+                    let _ = write!(s, "T{region}d{diffuse}g{glossy}");
+                    if *bounce != BOUNCE_ELSEWHERE {
+                        s.push('b');
+                        s.push(part_letter(*bounce));
+                    }
                 }
             }
         }
@@ -113,6 +172,44 @@ impl LayerKey {
         for part in rest.split('_') {
             if part == "F" {
                 path.push(PathVertex::Fixed);
+            } else if let Some(body) = part.strip_prefix('P') {
+                let (region, part) = parse_part(body)?;
+                if part.1.is_empty() {
+                    path.push(PathVertex::Part {
+                        region,
+                        part: part.0,
+                    });
+                } else {
+                    return None;
+                }
+            } else if let Some(body) = part.strip_prefix('T') {
+                let (region, rest) = body.split_once('d')?;
+                let (diffuse, rest) = rest.split_once('g')?;
+                let (glossy, bounce) = match rest.find('b') {
+                    Some(at) => (
+                        &rest[..at],
+                        match &rest[at..] {
+                            "bd" => PART_DIFFUSE,
+                            "bg" => PART_GLOSSY,
+                            _ => return None,
+                        },
+                    ),
+                    None => (rest, BOUNCE_ELSEWHERE),
+                };
+                let all_digits = |d: &str| !d.is_empty() && d.bytes().all(|b| b.is_ascii_digit());
+                if !all_digits(region) || !all_digits(diffuse) || !all_digits(glossy) {
+                    return None;
+                }
+                let (diffuse, glossy): (u8, u8) = (diffuse.parse().ok()?, glossy.parse().ok()?);
+                if diffuse == 0 && glossy == 0 {
+                    return None;
+                }
+                path.push(PathVertex::TailEdit {
+                    region: region.parse().ok()?,
+                    diffuse,
+                    glossy,
+                    bounce,
+                });
             } else {
                 let body = part.strip_prefix('E')?;
                 if let Some((r, b)) = body.split_once('b') {
@@ -134,6 +231,21 @@ impl LayerKey {
         }
         Some(LayerKey { path, light_group })
     }
+}
+
+/// `<region><d|g><rest>` → (region, (part, rest)).
+fn parse_part(body: &str) -> Option<(u16, (u8, &str))> {
+    let at = body.find(['d', 'g'])?;
+    let digits = &body[..at];
+    if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    let part = if &body[at..=at] == "d" {
+        PART_DIFFUSE
+    } else {
+        PART_GLOSSY
+    };
+    Some((digits.parse().ok()?, (part, &body[at + 1..])))
 }
 
 #[cfg(test)]
@@ -170,6 +282,30 @@ mod tests {
                 }],
                 light_group: 2,
             },
+            LayerKey {
+                path: vec![
+                    PathVertex::Part {
+                        region: 1,
+                        part: PART_GLOSSY,
+                    },
+                    PathVertex::TailEdit {
+                        region: 0,
+                        diffuse: 2,
+                        glossy: 1,
+                        bounce: PART_GLOSSY,
+                    },
+                ],
+                light_group: 1,
+            },
+            LayerKey::new(vec![
+                PathVertex::Fixed,
+                PathVertex::TailEdit {
+                    region: 12,
+                    diffuse: 0,
+                    glossy: 1,
+                    bounce: BOUNCE_ELSEWHERE,
+                },
+            ]),
         ];
         for k in keys {
             assert_eq!(
@@ -180,7 +316,8 @@ mod tests {
             );
         }
         for bad in [
-            "", "E0", "X1b2", "G0_F", "E1b2_", "Ea b", "E1s", "Es2", "E1x2",
+            "", "E0", "X1b2", "G0_F", "E1b2_", "Ea b", "E1s", "Es2", "E1x2", "P1", "P1d2", "Pd",
+            "T0d", "T0d0g0", "T0x1", "Td1g0", "T0d1g0c", "T0d1g0bb", "T0d1", "T0d1g0bx",
         ] {
             assert_eq!(LayerKey::parse(bad), None, "{bad}");
         }

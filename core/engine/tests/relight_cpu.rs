@@ -64,23 +64,24 @@ fn layer_weight_is_the_product_along_the_path() {
         vec![Rgb::new(4.0, 0.5, 0.1)],
     ];
     assert_eq!(
-        layer_weight(&LayerKey::new(vec![]), &coefs),
+        layer_weight(&LayerKey::new(vec![]), &coefs, &[]),
         Rgb::ONE,
         "World"
     );
     assert_eq!(
-        layer_weight(&LayerKey::new(vec![PathVertex::Fixed]), &coefs),
+        layer_weight(&LayerKey::new(vec![PathVertex::Fixed]), &coefs, &[]),
         Rgb::ONE
     );
     assert_eq!(
         layer_weight(
             &LayerKey::new(vec![e(0, 1), PathVertex::Fixed, e(1, 0)]),
-            &coefs
+            &coefs,
+            &[]
         ),
         Rgb::new(1.0, 0.5, -0.1)
     );
     assert_eq!(
-        layer_weight(&LayerKey::new(vec![e(0, 0), e(0, 0)]), &coefs),
+        layer_weight(&LayerKey::new(vec![e(0, 0), e(0, 0)]), &coefs, &[]),
         Rgb::new(0.25, 4.0, 9.0),
         "a region met twice counts twice"
     );
@@ -88,7 +89,30 @@ fn layer_weight_is_the_product_along_the_path() {
         path: vec![e(1, 0)],
         light_group: 3,
     };
-    assert_eq!(layer_weight(&grouped, &coefs), Rgb::new(4.0, 0.5, 0.1));
+    assert_eq!(layer_weight(&grouped, &coefs, &[]), Rgb::new(4.0, 0.5, 0.1));
+    // Tail-edit layers: the eye part weighs its scale, the tail term s_b·(s_d^i·s_g^j − 1);
+    // with no scales (or scales of 1: the bake-time materials) a tail edit weighs exactly 0.
+    let tail = LayerKey::new(vec![
+        PathVertex::Part { region: 1, part: 0 },
+        PathVertex::TailEdit {
+            region: 0,
+            diffuse: 1,
+            glossy: 1,
+            bounce: 1,
+        },
+    ]);
+    assert_eq!(layer_weight(&tail, &coefs, &[]), Rgb::ZERO);
+    assert_eq!(layer_weight(&tail, &coefs, &[[Rgb::ONE; 2]; 2]), Rgb::ZERO);
+    let scales = [
+        [Rgb::new(3.0, 1.0, 1.0), Rgb::new(2.0, 0.5, 1.0)],
+        [Rgb::new(3.0, 1.0, 0.0), Rgb::ONE],
+    ];
+    // eye (region 1, diffuse): (3, 1, 0); bounce (glossy) s_g · (s_d·s_g − 1):
+    // (2·5, 0.5·(−0.5), 0).
+    assert_eq!(
+        layer_weight(&tail, &coefs, &scales),
+        Rgb::new(30.0, -0.25, 0.0)
+    );
 }
 
 #[test]

@@ -2,7 +2,7 @@
 //! index arithmetic that the bake's tiles, the memory probe and the assembly share.
 
 use crate::bake::prepare::context::BakeContext;
-use crate::layer_key::LayerKey;
+use crate::layer_key::{LayerKey, PathVertex};
 use crate::options::LightGrouping;
 
 /// Where each path signature sits among a bake's dense layer indices: per light group the
@@ -13,6 +13,9 @@ pub(crate) struct DenseLayout {
     slots: usize,
     /// Layers per light group.
     per_group: usize,
+    /// Editable regions and bins (pairs of tail counts) of the tail-edit layers.
+    regions: usize,
+    bins: usize,
 }
 
 impl DenseLayout {
@@ -20,6 +23,8 @@ impl DenseLayout {
         DenseLayout {
             slots: ctx.slot_count(),
             per_group: ctx.layers_per_group(),
+            regions: ctx.editable_count(),
+            bins: ctx.tail_edit_bins(),
         }
     }
     #[inline]
@@ -34,6 +39,24 @@ impl DenseLayout {
     pub(crate) fn bounce(self, group: usize, eye: u32, bounce: u32) -> usize {
         let s = self.slots;
         group * self.per_group + 1 + s + eye as usize * s + bounce as usize
+    }
+    /// The tail-edit layer of `group` for eye part `eye` (0: the fixed region, 1 + 2r + p:
+    /// part p of editable region r), tail region `region`, bin `bin` (a pair of diffuse and
+    /// glossy counts, [`crate::bake::path::tail_edits::pair_of`] of `bin + 1`) and the
+    /// bounce vertex's part on that region (or [`crate::layer_key::BOUNCE_ELSEWHERE`]).
+    #[inline]
+    pub(crate) fn tail_edit(
+        self,
+        group: usize,
+        eye: usize,
+        region: usize,
+        bin: usize,
+        bounce: u8,
+    ) -> usize {
+        let s = self.slots;
+        let base = 1 + s + s * s;
+        let within = ((eye * self.regions + region) * self.bins + bin) * 3 + bounce as usize;
+        group * self.per_group + base + within
     }
 }
 
@@ -55,8 +78,39 @@ fn path_key(ctx: &BakeContext, layer: usize) -> LayerKey {
         LayerKey::new(vec![])
     } else if layer <= s {
         LayerKey::new(vec![ctx.slot_vertex[layer - 1]])
-    } else {
+    } else if layer < 1 + s + s * s {
         let pair = layer - 1 - s;
         LayerKey::new(vec![ctx.slot_vertex[pair / s], ctx.slot_vertex[pair % s]])
+    } else {
+        tail_edit_key(ctx, layer - 1 - s - s * s)
     }
+}
+
+/// The key of tail-edit layer number `within` (see [`DenseLayout::tail_edit`]).
+fn tail_edit_key(ctx: &BakeContext, within: usize) -> LayerKey {
+    let regions = ctx.editable_count();
+    let bins = ctx.tail_edit_bins();
+    let bounce = (within % 3) as u8;
+    let rest = within / 3;
+    let (diffuse, glossy) = crate::bake::path::tail_edits::pair_of(rest % bins + 1);
+    let rest = rest / bins;
+    let region = rest % regions;
+    let eye = rest / regions;
+    let eye_vertex = if eye == 0 {
+        PathVertex::Fixed
+    } else {
+        PathVertex::Part {
+            region: ((eye - 1) / 2) as u16,
+            part: ((eye - 1) % 2) as u8,
+        }
+    };
+    LayerKey::new(vec![
+        eye_vertex,
+        PathVertex::TailEdit {
+            region: region as u16,
+            diffuse: diffuse as u8,
+            glossy: glossy as u8,
+            bounce,
+        },
+    ])
 }

@@ -17,6 +17,7 @@ use crate::stack::{StackHeader, TransferStack};
 use crate::{RelumeError, Result, Rgb};
 
 use super::layer_sum::{LayerSum, RelightStats};
+use super::part_scales::{has_tail_edits, PartScales};
 use super::shape::StackShape;
 use super::weight::{group_factors_of, layer_weight};
 
@@ -36,6 +37,9 @@ pub struct RelightBookkeeping {
     shape: StackShape,
     /// Coefficients of the current image.
     coefs: Vec<Vec<Rgb>>,
+    /// The part scales of `coefs` when the stack has tail-edit layers
+    /// ([`super::part_scales`]); `None` otherwise (no layer needs them).
+    part_scales: Option<PartScales>,
     /// Weight × group factor of every layer for `coefs` (without the layer's scale).
     weights: Vec<Rgb>,
     /// Scratch handed to the sum: per layer, weight (or weight change) × scale.
@@ -83,6 +87,11 @@ impl RelightBookkeeping {
     ) -> Result<Self> {
         let (keys, scales): (Vec<LayerKey>, Vec<f32>) = layers.into_iter().unzip();
         let group_factors = group_factors_of(&header, keys.iter(), None)?;
+        let part_scales = if has_tail_edits(keys.iter()) {
+            Some(PartScales::for_header(&header)?)
+        } else {
+            None
+        };
         let n_layers = keys.len();
         Ok(RelightBookkeeping {
             header,
@@ -90,6 +99,7 @@ impl RelightBookkeeping {
             scales,
             shape,
             coefs: Vec::new(),
+            part_scales,
             weights: vec![Rgb::ZERO; n_layers],
             effective: vec![Rgb::ZERO; n_layers],
             group_factors,
@@ -143,6 +153,9 @@ impl RelightBookkeeping {
     ) -> std::result::Result<(), S::Error> {
         self.shape.check_coefs(coefs)?;
         self.coefs = coefs.to_vec();
+        if let Some(p) = &mut self.part_scales {
+            p.set(coefs);
+        }
         self.full_sum(sum)
     }
 
@@ -185,14 +198,19 @@ impl RelightBookkeeping {
             .into());
         }
         self.coefs[region] = coefs.to_vec();
+        if let Some(p) = &mut self.part_scales {
+            p.set_region(region, coefs);
+        }
         self.edits_since_full += 1;
         if self.edits_since_full >= FULL_RESUM_EVERY {
             return self.full_sum(sum);
         }
         let layers = &self.shape.region_layers[region];
+        let part_scales = scales_of(&self.part_scales);
         for &l in layers {
             let key = &self.keys[l as usize];
-            let new = layer_weight(key, &self.coefs) * self.group_factors[key.light_group as usize];
+            let new = layer_weight(key, &self.coefs, part_scales)
+                * self.group_factors[key.light_group as usize];
             let delta = new - self.weights[l as usize];
             self.weights[l as usize] = new;
             self.effective[l as usize] = delta * self.scales[l as usize];
@@ -214,8 +232,10 @@ impl RelightBookkeeping {
 
     /// Recomputes every weight from `self.coefs` and re-sums every layer.
     fn full_sum<S: LayerSum>(&mut self, sum: &mut S) -> std::result::Result<(), S::Error> {
+        let part_scales = scales_of(&self.part_scales);
         for (l, key) in self.keys.iter().enumerate() {
-            let w = layer_weight(key, &self.coefs) * self.group_factors[key.light_group as usize];
+            let w = layer_weight(key, &self.coefs, part_scales)
+                * self.group_factors[key.light_group as usize];
             self.weights[l] = w;
             self.effective[l] = w * self.scales[l];
         }
@@ -229,4 +249,9 @@ impl RelightBookkeeping {
         };
         Ok(())
     }
+}
+
+/// The current part scales (empty when the stack has no tail-edit layers).
+fn scales_of(p: &Option<PartScales>) -> &[[Rgb; 2]] {
+    p.as_ref().map_or(&[], |p| p.scales())
 }

@@ -10,6 +10,8 @@
 //!
 //! Module map (one concept per file):
 //! - `weight`: [`layer_weight`] and [`group_factors`], the arithmetic on weights.
+//! - [`part_scales`]: how much each part of an editable material reflects now against at
+//!   bake time, what the tail-edit layers (edits beyond the first bounce) weigh by.
 //! - `shape`: [`StackShape`], the checks on a stack and on an edit's coefficients, and
 //!   which layers each editable region appears in.
 //! - `layer_sum`: the [`LayerSum`] trait a device implements (full sum, incremental add).
@@ -36,6 +38,7 @@ mod cpu_sum;
 mod finite;
 pub(crate) mod kernels;
 mod layer_sum;
+pub mod part_scales;
 mod region_entries;
 mod shape;
 mod tile_accumulators;

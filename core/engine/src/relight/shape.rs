@@ -97,7 +97,7 @@ impl StackShape {
                 });
             }
             for v in &key.path {
-                if let Some((region, basis)) = v.slot() {
+                if let Some(region) = v.region() {
                     let r = region as usize;
                     if r >= n_edit {
                         return Err(RelumeError::IndexOutOfRange {
@@ -106,7 +106,9 @@ impl StackShape {
                             len: n_edit,
                         });
                     }
-                    basis_counts[r] = basis_counts[r].max(basis as usize + 1);
+                    if let Some((_, basis)) = v.slot() {
+                        basis_counts[r] = basis_counts[r].max(basis as usize + 1);
+                    }
                     if region_layers[r].last() != Some(&(i as u32)) {
                         region_layers[r].push(i as u32);
                     }

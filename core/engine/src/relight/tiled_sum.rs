@@ -65,6 +65,13 @@ pub fn layer_weights(
     coefs: &[Vec<Rgb>],
     group_factors: &[Rgb],
 ) -> Result<Vec<Rgb>> {
+    let scales = if super::part_scales::has_tail_edits(stack.layers.iter().map(|l| &l.key)) {
+        let mut scales = super::part_scales::PartScales::for_header(&stack.header)?;
+        scales.set(coefs);
+        scales.scales().to_vec()
+    } else {
+        Vec::new()
+    };
     stack
         .layers
         .iter()
@@ -87,7 +94,7 @@ pub fn layer_weights(
                     index: info.key.light_group as u64,
                     len: group_factors.len(),
                 })?;
-            Ok(layer_weight(&info.key, coefs) * *factor)
+            Ok(layer_weight(&info.key, coefs, &scales) * *factor)
         })
         .collect()
 }

@@ -3,7 +3,8 @@
 //! functions are the whole of the relight's arithmetic on weights; the CPU and the GPU
 //! relighters both use them (through [`super::RelightBookkeeping`]).
 
-use crate::layer_key::LayerKey;
+use super::part_scales::tail_edit_factor;
+use crate::layer_key::{LayerKey, PathVertex};
 use crate::stack::{StackHeader, TransferStack};
 use crate::{RelumeError, Result, Rgb};
 
@@ -13,20 +14,41 @@ use crate::{RelumeError, Result, Rgb};
 /// weighs like an editable one: its `basis` is the region's coefficient slot. The light group is not part of
 /// the weight (see [`group_factors`]).
 ///
+/// A tail-edit layer's [`crate::layer_key::PathVertex::Part`] vertex weighs the part's
+/// scale (`part_scales[region][part]`, [`super::part_scales`]) and its
+/// [`crate::layer_key::PathVertex::TailEdit`] vertex s_b·(s_d^i·s_g^j − 1)
+/// ([`super::part_scales::tail_edit_factor`]); with no scale for a region (an empty
+/// `part_scales`) a part weighs 1 and a tail edit 0: the frozen tail.
+///
 /// # Panics
 /// If a vertex names a region or basis outside `coefs`; the relighters check shapes
 /// ([`super::StackShape`]) before calling it.
-pub fn layer_weight(key: &LayerKey, coefs: &[Vec<Rgb>]) -> Rgb {
-    key.path.iter().fold(Rgb::ONE, |w, v| match v.slot() {
-        None => w,
-        Some((region, basis)) => w * coefs[region as usize][basis as usize],
+pub fn layer_weight(key: &LayerKey, coefs: &[Vec<Rgb>], part_scales: &[[Rgb; 2]]) -> Rgb {
+    let scales = |region: u16| {
+        part_scales
+            .get(region as usize)
+            .copied()
+            .unwrap_or([Rgb::ONE; 2])
+    };
+    key.path.iter().fold(Rgb::ONE, |w, v| match *v {
+        PathVertex::Fixed => w,
+        PathVertex::Editable { region, basis } | PathVertex::Subsurface { region, basis } => {
+            w * coefs[region as usize][basis as usize]
+        }
+        PathVertex::Part { region, part } => w * scales(region)[(part & 1) as usize],
+        PathVertex::TailEdit {
+            region,
+            diffuse,
+            glossy,
+            bounce,
+        } => w * tail_edit_factor(scales(region), diffuse, glossy, bounce),
     })
 }
 
 /// The factor of every layer-key light group (index 0: all lights; g + 1: group g): the
 /// colour factored out of its layers at bake time, times the group's live `gains` (one per
 /// group of the header, unit when `None`). A layer's weight is
-/// `layer_weight(key, coefs) · factors[key.light_group]`.
+/// `layer_weight(key, coefs, part_scales) · factors[key.light_group]`.
 ///
 /// Errors: not one gain per light group of the header (the groups are listed), a gain that
 /// is not finite, a factor that is not a finite non-negative colour, a layer that names a

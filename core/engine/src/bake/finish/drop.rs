@@ -100,16 +100,71 @@ fn max_coefficients(ctx: &BakeContext) -> Vec<Vec<f32>> {
     out
 }
 
+/// The product along `key`'s path of `per_slot` for slot vertices and `other` for the
+/// tail-edit vertices (a part, a tail term); the fixed vertex counts `one`.
 fn path_product<T: Copy>(
     key: &LayerKey,
     per_slot: &[Vec<T>],
     one: T,
     mul: impl Fn(T, T) -> T,
+    other: impl Fn(&PathVertex) -> T,
 ) -> T {
-    key.path.iter().fold(one, |w, v| match v.slot() {
-        None => w,
-        Some((region, basis)) => mul(w, per_slot[region as usize][basis as usize]),
+    key.path.iter().fold(one, |w, v| match (v.slot(), v) {
+        (_, PathVertex::Fixed) => w,
+        (Some((region, basis)), _) => mul(w, per_slot[region as usize][basis as usize]),
+        (None, v) => mul(w, other(v)),
     })
+}
+
+/// Per editable region, the largest scale each part (diffuse, glossy) can take against the
+/// bake-time materials: Kd and Ks are at most 1, so a part scales by at most one over its
+/// bake-time Kd or Ks (the smallest channel; the glossy energy the relight reads off the lobe
+/// coefficients follows Ks), capped at 10³ (a part nearly absent at bake time keeps its
+/// layers unless they are negligible even so).
+fn max_part_scales(ctx: &BakeContext) -> Vec<[f32; 2]> {
+    ctx.regions
+        .iter()
+        .filter(|r| matches!(r.model, RegionModel::Editable { .. }))
+        .map(|r| {
+            let (kd, ks) = match &r.frozen {
+                crate::bake::path::surface_brdf::SurfaceBrdf::BlinnPhong(m) => (m.kd, m.ks),
+                _ => ([0.0; 3], [0.0; 3]),
+            };
+            [kd, ks].map(|k| {
+                let least = k.iter().copied().fold(f32::INFINITY, f32::min);
+                if least > 0.0 {
+                    (1.0 / least).clamp(1.0, 1e3)
+                } else {
+                    1e3
+                }
+            })
+        })
+        .collect()
+}
+
+/// The largest |weight| factor of a tail-edit vertex given each part's largest scale.
+fn tail_vertex_bound(v: &PathVertex, scales: &[[f32; 2]]) -> f32 {
+    let s = |region: u16| scales.get(region as usize).copied().unwrap_or([UNBOUNDED; 2]);
+    match *v {
+        PathVertex::Part { region, part } => s(region)[part as usize & 1],
+        PathVertex::TailEdit {
+            region,
+            diffuse,
+            glossy,
+            bounce,
+        } => {
+            let [d, g] = s(region);
+            let b = match bounce {
+                0 => d,
+                1 => g,
+                _ => 1.0,
+            };
+            (b * d.powi(diffuse as i32) * g.powi(glossy as i32))
+                .max(1.0)
+                .min(UNBOUNDED)
+        }
+        _ => 1.0,
+    }
 }
 
 /// The tint of the light group of `key` (see [`crate::stack::StackHeader::group_tint`]).
@@ -141,7 +196,15 @@ pub fn bake_time_weights(ctx: &BakeContext, scene: &Scene, keys: &[LayerKey]) ->
     let coefs = bake_time_coefficients(ctx, scene)?;
     Ok(keys
         .iter()
-        .map(|key| path_product(key, &coefs, Rgb::ONE, |a, b| a * b) * key_tint(ctx, key))
+        .map(|key| {
+            // At the bake-time materials every part scale is 1: a part weighs 1 and a
+            // tail-edit term 0.
+            let tail = |v: &PathVertex| match v {
+                PathVertex::TailEdit { .. } => Rgb::ZERO,
+                _ => Rgb::ONE,
+            };
+            path_product(key, &coefs, Rgb::ONE, |a, b| a * b, tail) * key_tint(ctx, key)
+        })
         .collect())
 }
 
@@ -166,11 +229,14 @@ pub fn choose_negligible(
     let mut bound = 0.0f64;
     if budget > 0.0 && reference > 0.0 {
         let maxima = max_coefficients(ctx);
+        let part_scales = max_part_scales(ctx);
         let mut order: Vec<(f64, usize)> = layers
             .iter()
             .enumerate()
             .map(|(i, l)| {
-                let w = path_product(&l.key, &maxima, 1.0f32, |a, b| a * b) as f64;
+                let w = path_product(&l.key, &maxima, 1.0f32, |a, b| a * b, |v| {
+                    tail_vertex_bound(v, &part_scales)
+                }) as f64;
                 let spread = if l.channels == 1 { 3f64.sqrt() } else { 1.0 };
                 (
                     w * key_tint(ctx, &l.key).max_element() as f64 * spread * l.norm,

@@ -6,7 +6,7 @@
 use glam::{Vec2, Vec3};
 use std::f32::consts::FRAC_1_PI;
 
-use crate::bake::prepare::context::{BakeContext, PreparedRegion};
+use crate::bake::prepare::context::{BakeContext, PreparedRegion, RegionModel};
 use crate::brdf::{blinn_phong::lobe, BlinnPhong};
 use crate::Rgb;
 
@@ -39,4 +39,31 @@ pub fn blinn_phong_value(m: &BlinnPhong, albedo: Rgb, cos_delta: f32) -> Rgb {
 pub fn frozen_value(ctx: &BakeContext, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3) -> Rgb {
     let r = &ctx.regions[region as usize];
     r.frozen.value(albedo_at(r, uv), n, wi, wo)
+}
+
+/// [`frozen_value`] of an editable region as its diffuse and glossy parts, with the
+/// region's editable index; `None` for a fixed region (its material is never edited). The
+/// diffuse part is the diffuse basis slot's bake-time coefficient over π (times the
+/// texture), the glossy part the rest — which can dip below zero away from the lobe where
+/// the basis put the specular fit's constant into the diffuse slot: the split is the
+/// basis's, so each part scales as the relight reads it off the coefficients.
+#[inline]
+pub fn frozen_parts(
+    ctx: &BakeContext,
+    region: u32,
+    uv: Vec2,
+    n: Vec3,
+    wi: Vec3,
+    wo: Vec3,
+) -> Option<(u16, [Rgb; 2])> {
+    let r = &ctx.regions[region as usize];
+    match r.model {
+        RegionModel::Editable { index, .. } => {
+            let albedo = albedo_at(r, uv);
+            let value = r.frozen.value(albedo, n, wi, wo);
+            let diffuse = r.tail_diffuse * albedo * FRAC_1_PI;
+            Some((index, [diffuse, value - diffuse]))
+        }
+        RegionModel::Fixed { .. } => None,
+    }
 }

@@ -50,8 +50,10 @@ use crate::bake::path::mis::{
     emission_along, indirect_pdf, power_heuristic, traces_bsdf_ray, BsdfStrategy,
 };
 use crate::bake::path::mixture::DirectionMixture;
-use crate::bake::prepare::context::BakeContext;
+use crate::bake::path::tail_edits::TailEdits;
+use crate::bake::prepare::context::{BakeContext, RegionModel};
 use crate::geometry::bvh::SurfaceHit;
+use crate::layer_key::{BOUNCE_ELSEWHERE, PART_DIFFUSE, PART_GLOSSY};
 use crate::geometry::sampling::{cosine_hemisphere, to_world, uniform_hemisphere, SampleStream};
 use crate::options::{IndirectSampling, MAX_BASES, MAX_GROUPS};
 use crate::Rgb;
@@ -78,11 +80,27 @@ pub trait VertexBrdf: Sync {
 
     /// The one BRDF value at a vertex beyond the first bounce (the frozen tail, no cosine).
     fn tail(&self, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3) -> Rgb;
+
+    /// [`Self::tail`] of an editable region as its diffuse and glossy parts, with the
+    /// region's editable index, for the tail-edit layers
+    /// ([`crate::bake::path::tail_edits`]); `None` for a fixed region and for BRDFs that
+    /// keep no such layers (the reference renderer's).
+    fn tail_parts(
+        &self,
+        _region: u32,
+        _uv: Vec2,
+        _n: Vec3,
+        _wi: Vec3,
+        _wo: Vec3,
+    ) -> Option<(u16, [Rgb; 2])> {
+        None
+    }
 }
 
 /// A vertex beyond the first bounce: [`VertexBrdf::tail`] as a one-slot BRDF, so
-/// [`direct_light`] serves it too.
-struct TailBrdf<'a, B: VertexBrdf>(&'a B);
+/// [`direct_light`] serves it too. When the path keeps a tail-edit record (`.1`), an
+/// editable region's value also gives its diffuse and glossy parts in slots 1 and 2.
+struct TailBrdf<'a, B: VertexBrdf>(&'a B, bool);
 
 impl<B: VertexBrdf> VertexBrdf for TailBrdf<'_, B> {
     #[inline]
@@ -96,6 +114,13 @@ impl<B: VertexBrdf> VertexBrdf for TailBrdf<'_, B> {
         out: &mut [Rgb; MAX_BASES],
     ) -> (u32, usize) {
         out[0] = self.0.tail(region, uv, n, wi, wo);
+        if self.1 {
+            if let Some((_, [d, g])) = self.0.tail_parts(region, uv, n, wi, wo) {
+                out[1] = d;
+                out[2] = g;
+                return (0, 3);
+            }
+        }
         (0, 1)
     }
     #[inline]
@@ -136,6 +161,28 @@ pub trait PathSink {
     /// bake's denoiser steers by; nothing by default).
     #[inline]
     fn eye_hit(&mut self, _region: u32, _normal: Vec3, _position: Vec3) {}
+    /// Whether this sink keeps tail-edit layers (then the integrator labels tail vertices
+    /// and calls [`Self::tail_edit`]; the bake's sinks do, nothing else needs to).
+    #[inline]
+    fn tail_edits(&self) -> bool {
+        false
+    }
+    /// Tail light of group `group` for the tail-edit layer of eye part `eye` (0: the fixed
+    /// region, 1 + 2r + p: part p of editable region r), tail region `region`, tail bin
+    /// `bin` (a pair of diffuse and glossy counts) and the part the bounce vertex reflected
+    /// through when on that region (`bounce`, else
+    /// [`crate::layer_key::BOUNCE_ELSEWHERE`]); see [`crate::bake::path::tail_edits`].
+    #[inline]
+    fn tail_edit(
+        &mut self,
+        _group: usize,
+        _eye: usize,
+        _region: usize,
+        _bin: usize,
+        _bounce: u8,
+        _value: Rgb,
+    ) {
+    }
 }
 
 /// Ray queries, counted (and recordable for throughput measurements).
@@ -217,6 +264,24 @@ impl<S: PathSink> PathSink for FiniteOnly<'_, S> {
     fn eye_hit(&mut self, region: u32, normal: Vec3, position: Vec3) {
         if normal.is_finite() && position.is_finite() {
             self.inner.eye_hit(region, normal, position);
+        }
+    }
+    #[inline]
+    fn tail_edits(&self) -> bool {
+        self.inner.tail_edits()
+    }
+    #[inline]
+    fn tail_edit(
+        &mut self,
+        group: usize,
+        eye: usize,
+        region: usize,
+        bin: usize,
+        bounce: u8,
+        value: Rgb,
+    ) {
+        if self.keep(value) {
+            self.inner.tail_edit(group, eye, region, bin, bounce, value);
         }
     }
 }
@@ -408,7 +473,9 @@ fn trace_path<B: VertexBrdf, S: PathSink, T: Tracer>(
         );
         if bounce_rays {
             let mut tail = stream.branch();
-            frozen_tail(
+            let mut edits = (settings.bounces >= 2 && sink.tail_edits())
+                .then(|| TailEdits::new(groups));
+            let bounce_parts = frozen_tail(
                 ctx,
                 brdf,
                 tracer,
@@ -418,7 +485,20 @@ fn trace_path<B: VertexBrdf, S: PathSink, T: Tracer>(
                 &mut values,
                 &mut bounce_light,
                 (&mut bounce_first, &mut bounce_count),
+                edits.as_mut(),
             );
+            if let (Some(edits), Some(bounce_parts)) = (&edits, bounce_parts) {
+                emit_tail_edits(
+                    sink,
+                    brdf,
+                    &hit,
+                    wi,
+                    wo,
+                    weight,
+                    edits,
+                    &bounce_parts,
+                );
+            }
         }
         for (e, value) in eye_values.iter().enumerate().take(eye_count) {
             let fe = *value * weight;
@@ -535,13 +615,13 @@ fn frozen_tail<B: VertexBrdf, T: Tracer>(
     values: &mut [Rgb; MAX_BASES],
     light: &mut [Rgb; MAX_GROUPS * MAX_BASES],
     (first, count): (&mut u32, &mut usize),
-) {
+    edits: Option<&mut TailEdits>,
+) -> Option<BounceParts> {
     let n = hit.shading_normal;
-    let Some((wi, cos, pdf)) = continuation(ctx, hit, wo, stream) else {
-        return;
-    };
+    let (wi, cos, pdf) = continuation(ctx, hit, wo, stream)?;
     let groups = ctx.lights.groups.len();
     let mut radiance = [Rgb::ZERO; MAX_GROUPS];
+    let tracking = edits.is_some();
     if !tail_radiance(
         ctx,
         brdf,
@@ -551,8 +631,9 @@ fn frozen_tail<B: VertexBrdf, T: Tracer>(
         pdf,
         stream,
         &mut radiance[..groups],
+        edits,
     ) {
-        return;
+        return None;
     }
     let (f, c) = brdf.eval(hit.region, hit.uv, n, wi, wo, values);
     if *count == 0 {
@@ -570,6 +651,71 @@ fn frozen_tail<B: VertexBrdf, T: Tracer>(
             *l += *v * *r * w;
         }
     }
+    tracking.then(|| BounceParts {
+        parts: brdf.tail_parts(hit.region, hit.uv, n, wi, wo),
+        value: brdf.tail(hit.region, hit.uv, n, wi, wo),
+        weight: w,
+    })
+}
+
+/// The bounce vertex's bake-time BRDF along the tail's first direction, for the tail-edit
+/// layers: its parts when editable, its value, and cos θ over the direction's pdf.
+pub(crate) struct BounceParts {
+    parts: Option<(u16, [Rgb; 2])>,
+    value: Rgb,
+    weight: f32,
+}
+
+/// Hands the tail-edit record of one indirect sample to `sink`: each (group, region, bin)
+/// light of `edits` times the bounce vertex's bake-time BRDF — split by its part when it
+/// lies on that region — times the eye vertex's, split by its part (`eye_weight` is that
+/// sample's cos θ over pdf and sample count).
+#[allow(clippy::too_many_arguments)]
+fn emit_tail_edits<B: VertexBrdf, S: PathSink>(
+    sink: &mut S,
+    brdf: &B,
+    hit: &SurfaceHit,
+    wi: Vec3,
+    wo: Vec3,
+    eye_weight: f32,
+    edits: &TailEdits,
+    bounce: &BounceParts,
+) {
+    let n = hit.shading_normal;
+    let mut eyes = [(0usize, Rgb::ZERO); 2];
+    let eye_count = match brdf.tail_parts(hit.region, hit.uv, n, wi, wo) {
+        Some((r, [d, g])) => {
+            eyes = [(1 + 2 * r as usize, d), (2 + 2 * r as usize, g)];
+            2
+        }
+        None => {
+            eyes[0] = (0, brdf.tail(hit.region, hit.uv, n, wi, wo));
+            1
+        }
+    };
+    edits.for_each(|group, region, bin, light| {
+        let light = light * (bounce.weight * eye_weight);
+        // The bounce vertex's BRDF, by the part it reflected through when on the region.
+        let mut at_bounce = [(BOUNCE_ELSEWHERE, Rgb::ZERO); 2];
+        let bounce_count = match bounce.parts {
+            Some((r, [d, g])) if r == region => {
+                at_bounce = [(PART_DIFFUSE, d), (PART_GLOSSY, g)];
+                2
+            }
+            _ => {
+                at_bounce[0].1 = bounce.value;
+                1
+            }
+        };
+        for &(part, fb) in &at_bounce[..bounce_count] {
+            for &(eye, f) in &eyes[..eye_count] {
+                let v = light * fb * f;
+                if v != Rgb::ZERO {
+                    sink.tail_edit(group, eye, region as usize, bin, part, v);
+                }
+            }
+        }
+    });
 }
 
 /// The radiance, per light group, that arrives at `from` along `dir` (drawn there from its
@@ -590,8 +736,9 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
     pdf: f32,
     stream: &mut SampleStream,
     out: &mut [Rgb],
+    mut edits: Option<&mut TailEdits>,
 ) -> bool {
-    let tail = TailBrdf(brdf);
+    let tail = TailBrdf(brdf, edits.is_some());
     let max_bounce = ctx.settings.bounces;
     let mut values = [Rgb::ZERO; MAX_BASES];
     let mut light = [Rgb::ZERO; MAX_GROUPS * MAX_BASES];
@@ -612,10 +759,13 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
         let emitted = &mut emitted[..out.len()];
         emitted.fill(Rgb::ZERO);
         if emission_along(ctx, &vertex, dir, pdf, next.as_ref(), emitted) {
-            for (o, e) in out.iter_mut().zip(emitted.iter()) {
+            for (g, (o, e)) in out.iter_mut().zip(emitted.iter()).enumerate() {
                 if *e != Rgb::ZERO {
                     *o += throughput * *e;
                     any = true;
+                    if let Some(edits) = edits.as_deref_mut() {
+                        edits.record(g, throughput * *e);
+                    }
                 }
             }
         }
@@ -646,6 +796,19 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
                 if l != Rgb::ZERO {
                     *o += throughput * l;
                     any = true;
+                    if let Some(edits) = edits.as_deref_mut() {
+                        match ctx.regions[hit.region as usize].model {
+                            RegionModel::Editable { index, .. } if c == 3 => edits.record_at(
+                                g,
+                                index,
+                                [
+                                    throughput * light[g * MAX_BASES + 1],
+                                    throughput * light[g * MAX_BASES + 2],
+                                ],
+                            ),
+                            _ => edits.record(g, throughput * l),
+                        }
+                    }
                 }
             }
         }
@@ -658,6 +821,11 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
         };
         let w = cos / next_pdf;
         throughput *= brdf.tail(hit.region, hit.uv, n, wi, wo) * w;
+        if let Some(edits) = edits.as_deref_mut() {
+            if let Some((index, parts)) = brdf.tail_parts(hit.region, hit.uv, n, wi, wo) {
+                edits.label(index, parts);
+            }
+        }
         frozen *= crate::bake::path::frozen::frozen_value(ctx, hit.region, hit.uv, n, wi, wo) * w;
         bounce += 1;
         if bounce >= RR_START && bounce <= max_bounce {

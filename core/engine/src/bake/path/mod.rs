@@ -6,7 +6,9 @@
 //!   [`integrator::VertexBrdf`] for the values at each vertex.
 //! - [`vertex_brdf`]: the three vertex BRDFs (the bake's basis values, the true
 //!   Blinn–Phong, the projected reconstruction); [`surface_brdf`] and [`frozen`]: the
-//!   bake-time material, where the material is not edited and for Russian roulette.
+//!   bake-time material, where the material is not edited and for Russian roulette;
+//!   [`tail_edits`]: which editable parts a path's later vertices reflected at, for the
+//!   tail-edit layers that let those vertices follow albedo edits.
 //! - [`mixture`], [`guide`] and [`guide_tree`]: how indirect directions are drawn (cosine
 //!   and lobes, or the guide pass's per-tile trees); [`mis`]: how light samples and
 //!   BSDF-sampled rays are weighed against each other.
@@ -23,4 +25,5 @@ pub mod integrator;
 pub mod mis;
 pub mod mixture;
 pub mod surface_brdf;
+pub mod tail_edits;
 pub mod vertex_brdf;

@@ -43,16 +43,26 @@ impl SurfaceBrdf {
     /// when either direction is below the surface (as Cycles' microfacet closures are).
     #[inline]
     pub fn value(&self, albedo: Rgb, n: Vec3, wi: Vec3, wo: Vec3) -> Rgb {
+        let [diffuse, glossy] = self.parts(albedo, n, wi, wo);
+        glossy + diffuse
+    }
+
+    /// [`Self::value`] as its diffuse and glossy parts (their sum is the value): what the
+    /// tail-edit layers label each later vertex with.
+    #[inline]
+    pub fn parts(&self, albedo: Rgb, n: Vec3, wi: Vec3, wo: Vec3) -> [Rgb; 2] {
         match self {
             SurfaceBrdf::BlinnPhong(m) => {
                 let h = (wi + wo).normalize_or_zero();
-                Rgb::from(m.kd) * albedo * FRAC_1_PI
-                    + Rgb::from(m.ks) * lobe(m.ns as f64, n.dot(h) as f64) as f32
+                [
+                    Rgb::from(m.kd) * albedo * FRAC_1_PI,
+                    Rgb::from(m.ks) * lobe(m.ns as f64, n.dot(h) as f64) as f32,
+                ]
             }
             SurfaceBrdf::Principled(p) => {
                 let (cos_i, cos_o) = (n.dot(wi), n.dot(wo));
                 if !(cos_i > 0.0 && cos_o > 0.0) {
-                    return Rgb::ZERO;
+                    return [Rgb::ZERO; 2];
                 }
                 let h = (wi + wo).normalize_or_zero();
                 let (glossy, diffuse) = p.eval_parts(
@@ -61,8 +71,10 @@ impl SurfaceBrdf {
                     n.dot(h) as f64,
                     wo.dot(h) as f64,
                 );
-                Rgb::new(glossy[0] as f32, glossy[1] as f32, glossy[2] as f32)
-                    + Rgb::new(diffuse[0] as f32, diffuse[1] as f32, diffuse[2] as f32) * albedo
+                [
+                    Rgb::new(diffuse[0] as f32, diffuse[1] as f32, diffuse[2] as f32) * albedo,
+                    Rgb::new(glossy[0] as f32, glossy[1] as f32, glossy[2] as f32),
+                ]
             }
         }
     }

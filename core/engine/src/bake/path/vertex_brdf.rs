@@ -28,6 +28,19 @@ impl VertexBrdf for BasisBrdf<'_> {
         frozen_value(self.ctx, region, uv, n, wi, wo)
     }
 
+    /// The bake labels its tail vertices for the tail-edit layers.
+    #[inline]
+    fn tail_parts(
+        &self,
+        region: u32,
+        uv: Vec2,
+        n: Vec3,
+        wi: Vec3,
+        wo: Vec3,
+    ) -> Option<(u16, [Rgb; 2])> {
+        crate::bake::path::frozen::frozen_parts(self.ctx, region, uv, n, wi, wo)
+    }
+
     #[inline]
     fn eval(
         &self,

@@ -15,6 +15,7 @@ use crate::bake::settings::BakeSettings;
 use crate::brdf::principled_basis::PrincipledBasis;
 use crate::brdf::{BasisConfig, BrdfBasis, MaterialSpec, RegionBasis};
 use crate::bssrdf::{SssBasis, SubsurfaceInfo};
+use crate::Rgb;
 use crate::geometry::{bvh::SceneGeometry, camera::CameraRays, lights::LightSet, texture::Texture};
 use crate::layer_key::PathVertex;
 use crate::options::{MAX_BASES, MAX_GROUPS};
@@ -47,6 +48,12 @@ pub struct PreparedRegion {
     /// bounce (the "frozen tail", see [`crate::bake::path::integrator`]), editable regions included
     /// (theirs as the mapped Blinn–Phong, see [`SurfaceBrdf`]).
     pub frozen: SurfaceBrdf,
+    /// An editable region's bake-time coefficient of its diffuse basis slot (Kd, plus the
+    /// constant of the specular fit when the basis puts it there): the part of the frozen
+    /// BRDF the tail-edit layers call diffuse, so that it scales exactly as the relight's
+    /// diffuse scale reads it off the coefficients ([`crate::relight::part_scales`]).
+    /// Zero for a fixed region.
+    pub tail_diffuse: Rgb,
 }
 
 /// Everything fixed for a bake.
@@ -185,8 +192,17 @@ impl BakeContext {
                     RegionBasis::BlinnPhong(_) => (cfg.ns_min, cfg.ns_max),
                     RegionBasis::Principled(b) => b.config().fitted_ns_range(),
                 };
+                // The bake-time coefficient of the diffuse slot, which the tail-edit
+                // layers split each tail vertex's BRDF by (see `PreparedRegion`).
+                let tail_diffuse = basis
+                    .slot_coefficients(count > basis.count(), &region.material)?
+                    .slots
+                    .first()
+                    .copied()
+                    .unwrap_or(Rgb::ZERO);
                 regions.push(PreparedRegion {
                     name: region.name.clone(),
+                    tail_diffuse,
                     model: RegionModel::Editable {
                         index: editable_index,
                         basis,
@@ -204,6 +220,7 @@ impl BakeContext {
                 let surface = SurfaceBrdf::exact(&region.material);
                 regions.push(PreparedRegion {
                     name: region.name.clone(),
+                    tail_diffuse: Rgb::ZERO,
                     model: RegionModel::Fixed {
                         material: surface.clone(),
                     },
@@ -269,11 +286,45 @@ impl BakeContext {
         self.slot_vertex.len()
     }
 
-    /// Layers one light group can fill: the world, one per slot, and with one bounce one per
-    /// (eye slot, bounce slot) pair.
+    /// Layers one light group can fill: the world, one per slot, with one bounce one per
+    /// (eye slot, bounce slot) pair, and with two or more the tail-edit layers
+    /// ([`Self::tail_edit_layers_per_group`]).
     pub fn layers_per_group(&self) -> usize {
         let s = self.slot_count();
-        1 + s + if self.settings.bounces >= 1 { s * s } else { 0 }
+        let pairs = if self.settings.bounces >= 1 { s * s } else { 0 };
+        1 + s + pairs + self.tail_edit_layers_per_group()
+    }
+
+    /// Number of editable regions.
+    pub fn editable_count(&self) -> usize {
+        self.regions
+            .iter()
+            .filter(|r| matches!(r.model, RegionModel::Editable { .. }))
+            .count()
+    }
+
+    /// Bins of the tail-edit layers: the pairs of diffuse and glossy counts, (0, 0) left
+    /// out, whose total is at most the tail's length (bounces − 1) and
+    /// [`crate::bake::path::tail_edits::MAX_TAIL_COUNT`]; 0 when there is no tail (fewer
+    /// than two bounces) or nothing editable.
+    pub fn tail_edit_bins(&self) -> usize {
+        if self.settings.bounces < 2 || self.editable_count() == 0 {
+            return 0;
+        }
+        let t = (self.settings.bounces as usize - 1).min(crate::bake::path::tail_edits::MAX_TAIL_COUNT);
+        (t + 1) * (t + 2) / 2 - 1
+    }
+
+    /// Tail-edit layers per light group: per eye part (the fixed region or one part of an
+    /// editable region), tail region, bin and the bounce vertex's part on that region or
+    /// none ([`crate::layer_key::PathVertex::TailEdit`]).
+    pub fn tail_edit_layers_per_group(&self) -> usize {
+        let bins = self.tail_edit_bins();
+        if bins == 0 {
+            return 0;
+        }
+        let regions = self.editable_count();
+        (2 * regions + 1) * regions * bins * 3
     }
 
     /// Layers the bake can fill: [`Self::layers_per_group`] per light group.

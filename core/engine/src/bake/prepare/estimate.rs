@@ -175,6 +175,20 @@ impl PathSink for ProbeSink<'_> {
         self.eye_regions.push(region.min(self.no_region));
         self.hit = true;
     }
+    fn tail_edits(&self) -> bool {
+        true
+    }
+    fn tail_edit(
+        &mut self,
+        group: usize,
+        eye: usize,
+        region: usize,
+        bin: usize,
+        bounce: u8,
+        v: Rgb,
+    ) {
+        self.add(self.layout.tail_edit(group, eye, region, bin, bounce), v);
+    }
 }
 
 /// A set of layer (or region) indices, sorted, without repeats.

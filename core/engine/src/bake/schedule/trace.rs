@@ -51,6 +51,22 @@ impl PathSink for TileSink<'_> {
     fn eye_hit(&mut self, region: u32, normal: glam::Vec3, position: glam::Vec3) {
         denoise::EyeFeatures::add(self.features, region, normal, position);
     }
+    #[inline]
+    fn tail_edits(&self) -> bool {
+        true
+    }
+    #[inline]
+    fn tail_edit(
+        &mut self,
+        group: usize,
+        eye: usize,
+        region: usize,
+        bin: usize,
+        bounce: u8,
+        v: Rgb,
+    ) {
+        self.add(self.layout.tail_edit(group, eye, region, bin, bounce), v);
+    }
 }
 
 /// Traces eye samples `samples` of every pixel of `tile` into per-pixel records (layer sums
