@@ -174,7 +174,10 @@ fn relit_tail_follows_an_albedo_edit() {
     );
     assert!((relit / lumped - 1.0).abs() < 0.01, "{relit} vs {lumped}");
     assert!((relit / truth - 1.0).abs() < 0.015, "{relit} vs {truth}");
-    assert!((frozen / truth - 1.0) > 0.3, "the edit must be one the frozen tail misses");
+    assert!(
+        (frozen / truth - 1.0) > 0.3,
+        "the edit must be one the frozen tail misses"
+    );
     assert!((truth / exact - 1.0).abs() < 0.01, "{truth} vs {exact}");
     // At the bake-time albedo the relit image is the full path-traced one.
     let expected_at_bake: f64 = (0..=n).map(|k| a.powi(k as i32)).sum::<f64>() / (1.0 - 0.0);

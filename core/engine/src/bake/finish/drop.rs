@@ -144,7 +144,12 @@ fn max_part_scales(ctx: &BakeContext) -> Vec<[f32; 2]> {
 
 /// The largest |weight| factor of a tail-edit vertex given each part's largest scale.
 fn tail_vertex_bound(v: &PathVertex, scales: &[[f32; 2]]) -> f32 {
-    let s = |region: u16| scales.get(region as usize).copied().unwrap_or([UNBOUNDED; 2]);
+    let s = |region: u16| {
+        scales
+            .get(region as usize)
+            .copied()
+            .unwrap_or([UNBOUNDED; 2])
+    };
     match *v {
         PathVertex::Part { region, part } => s(region)[part as usize & 1],
         PathVertex::TailEdit {
@@ -159,9 +164,7 @@ fn tail_vertex_bound(v: &PathVertex, scales: &[[f32; 2]]) -> f32 {
                 1 => g,
                 _ => 1.0,
             };
-            (b * d.powi(diffuse as i32) * g.powi(glossy as i32))
-                .max(1.0)
-                .min(UNBOUNDED)
+            (b * d.powi(diffuse as i32) * g.powi(glossy as i32)).clamp(1.0, UNBOUNDED)
         }
         _ => 1.0,
     }
@@ -234,9 +237,13 @@ pub fn choose_negligible(
             .iter()
             .enumerate()
             .map(|(i, l)| {
-                let w = path_product(&l.key, &maxima, 1.0f32, |a, b| a * b, |v| {
-                    tail_vertex_bound(v, &part_scales)
-                }) as f64;
+                let w = path_product(
+                    &l.key,
+                    &maxima,
+                    1.0f32,
+                    |a, b| a * b,
+                    |v| tail_vertex_bound(v, &part_scales),
+                ) as f64;
                 let spread = if l.channels == 1 { 3f64.sqrt() } else { 1.0 };
                 (
                     w * key_tint(ctx, &l.key).max_element() as f64 * spread * l.norm,

@@ -53,8 +53,8 @@ use crate::bake::path::mixture::DirectionMixture;
 use crate::bake::path::tail_edits::TailEdits;
 use crate::bake::prepare::context::{BakeContext, RegionModel};
 use crate::geometry::bvh::SurfaceHit;
-use crate::layer_key::{BOUNCE_ELSEWHERE, PART_DIFFUSE, PART_GLOSSY};
 use crate::geometry::sampling::{cosine_hemisphere, to_world, uniform_hemisphere, SampleStream};
+use crate::layer_key::{BOUNCE_ELSEWHERE, PART_DIFFUSE, PART_GLOSSY};
 use crate::options::{IndirectSampling, MAX_BASES, MAX_GROUPS};
 use crate::Rgb;
 
@@ -473,8 +473,8 @@ fn trace_path<B: VertexBrdf, S: PathSink, T: Tracer>(
         );
         if bounce_rays {
             let mut tail = stream.branch();
-            let mut edits = (settings.bounces >= 2 && sink.tail_edits())
-                .then(|| TailEdits::new(groups));
+            let mut edits =
+                (settings.bounces >= 2 && sink.tail_edits()).then(|| TailEdits::new(groups));
             let bounce_parts = frozen_tail(
                 ctx,
                 brdf,
@@ -488,16 +488,7 @@ fn trace_path<B: VertexBrdf, S: PathSink, T: Tracer>(
                 edits.as_mut(),
             );
             if let (Some(edits), Some(bounce_parts)) = (&edits, bounce_parts) {
-                emit_tail_edits(
-                    sink,
-                    brdf,
-                    &hit,
-                    wi,
-                    wo,
-                    weight,
-                    edits,
-                    &bounce_parts,
-                );
+                emit_tail_edits(sink, brdf, &hit, wi, wo, weight, edits, &bounce_parts);
             }
         }
         for (e, value) in eye_values.iter().enumerate().take(eye_count) {

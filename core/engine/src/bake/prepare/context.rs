@@ -15,11 +15,11 @@ use crate::bake::settings::BakeSettings;
 use crate::brdf::principled_basis::PrincipledBasis;
 use crate::brdf::{BasisConfig, BrdfBasis, MaterialSpec, RegionBasis};
 use crate::bssrdf::{SssBasis, SubsurfaceInfo};
-use crate::Rgb;
 use crate::geometry::{bvh::SceneGeometry, camera::CameraRays, lights::LightSet, texture::Texture};
 use crate::layer_key::PathVertex;
 use crate::options::{MAX_BASES, MAX_GROUPS};
 use crate::scene::{validate::validate_scene, validate::ValidationReport, Resolution, Scene};
+use crate::Rgb;
 use crate::{RelumeError, Result};
 
 /// How a region reflects.
@@ -311,7 +311,8 @@ impl BakeContext {
         if self.settings.bounces < 2 || self.editable_count() == 0 {
             return 0;
         }
-        let t = (self.settings.bounces as usize - 1).min(crate::bake::path::tail_edits::MAX_TAIL_COUNT);
+        let t =
+            (self.settings.bounces as usize - 1).min(crate::bake::path::tail_edits::MAX_TAIL_COUNT);
         (t + 1) * (t + 2) / 2 - 1
     }
 
