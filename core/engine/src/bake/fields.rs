@@ -67,7 +67,8 @@ bake_fields! {
     indirect_samples: u32,
     /// Indirect bounces as Cycles' Max Bounces counts them (0: direct light only; 1: one
     /// bounce, the paper's, exact under edits; more: bounces 2.. traced with the bake-time
-    /// materials, the "frozen tail"), at most 128. With a bounce budget it is the cap, and
+    /// materials, following albedo and colour edits through the tail-edit layers), at most
+    /// 128. With a bounce budget it is the cap, and
     /// the bake measures how many the scene needs; a preset sets 12, Blender's default.
     bounces: u32,
     /// Share of the image's light the bounces past the baked count may leave out, in
