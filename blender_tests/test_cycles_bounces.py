@@ -2,8 +2,9 @@
 Glossy 4): every bounce, not just the first.
 
 Relume bakes the first bounce exactly (layers keyed by region and basis) and the later ones
-as a "frozen tail" with the bake-time materials, folded into the one-bounce layers
-(core/engine/src/bake/path/integrator.rs). The add-on caps the bounce count at what Cycles gives
+with the bake-time materials, folded into the one-bounce layers, beside tail-edit layers that
+carry albedo edits to them (core/engine/src/bake/path/integrator.rs, tail_edits.rs). The
+add-on caps the bounce count at what Cycles gives
 the scene's surfaces (`cycles_bounce_cap`: Max Bounces limited by the larger of Diffuse and
 Glossy, 4 at the defaults) and the final preset bakes as many as the scene needs up to that
 (its 0.5 % light budget, measured by a pre-pass). Relit at the bake-time materials, the

@@ -10,8 +10,9 @@ roughness range), then for each edit — roughness 0.25 → 0.6, base colour blu
 metallic 0 → 1, each from the baked values — relit with `api.render` and compared with a
 Cycles render of the same scene with the same edit, at the same bounces: one bounce on both
 sides, and Blender's default light paths (the add-on takes the bounce cap from the scene;
-bounces after the first are Relume's frozen tail, traced with the bake-time materials, so an
-edit reaches them only through the first bounce's keyed vertices: an approximation this test
+bounces after the first are traced with the bake-time materials, and an edit reaches them
+through the first bounce's keyed vertices and, for its diffuse and glossy energy, through the
+tail-edit layers — its lobe shape stays the bake-time one there: an approximation this test
 measures); and one bounce with the sphere baked in the basis of Principled lobes
 (`lobe="principled"`), where no Blinn–Phong mapping stands between the material and Cycles.
 
@@ -21,7 +22,7 @@ goal: each edit within the tolerance the unedited pair meets — the baseline's 
 (the mapping's and the bake's, which an edit carries along) with `EDIT_MARGIN` to spare,
 plus the references' noise. Beside the Cycles comparison each edit is also baked afresh
 with the edited material: the relit-vs-rebaked tile error is what relighting adds (basis
-projection; at the default bounces also the frozen tail), apart from the Principled →
+projection; at the default bounces also the tail's approximation), apart from the Principled →
 Blinn–Phong mapping both images share.
 
 Asserted: the goal where it holds (`GOAL_ASSERTED`; the other cases are recorded with the
@@ -60,20 +61,20 @@ EDITS = {
 EDIT_MARGIN = 0.25
 NOISE_ALLOWANCE = 3.0
 #: Where the issue's goal (an edit within the baseline's tolerance) is asserted. The other
-#: cases are measured and recorded, with what keeps them out: at Blender's default bounces a
-#: base colour edit of a sphere this large also changes light that reaches the camera after
-#: it at the third vertex or later, which the frozen tail keeps at the bake-time colour; a
-#: metallic edit is as far from Cycles as a fresh bake of the metal (the Principled →
-#: Blinn–Phong mapping of a smooth metal), which the relit-vs-rebaked figure shows.
+#: cases are measured and recorded, with what keeps them out: a metallic edit is as far from
+#: Cycles as a fresh bake of the metal (the Principled → Blinn–Phong mapping of a smooth
+#: metal), which the relit-vs-rebaked figure shows. At Blender's default bounces the base
+#: colour edit also changes light that meets the sphere at the third vertex or later, which
+#: the tail-edit layers carry (2026-11-28: 1.93 % against a tolerance of 4.70 %).
 GOAL_ASSERTED = {("one", "roughness_0.25_to_0.6"), ("one", "base_colour_blue_to_orange"),
-                 ("default", "roughness_0.25_to_0.6"),
+                 ("default", "roughness_0.25_to_0.6"), ("default", "base_colour_blue_to_orange"),
                  # In the basis of Principled lobes every edit, the metallic one included
                  # (2026-11-27: baseline 0.68 %, edits 0.52 / 0.74 / 1.92 %).
                  ("one_principled", "roughness_0.25_to_0.6"),
                  ("one_principled", "base_colour_blue_to_orange"),
                  ("one_principled", "metallic_0_to_1")}
 #: What relighting may add to a fresh bake with the edited material (tile rel. L2): at one
-#: bounce the basis projection only; at the default bounces also the frozen tail. Bounds on
+#: bounce the basis projection only; at the default bounces also the tail. Bounds on
 #: what was measured when the test was written (docs/fidelity.md), with room for the two
 #: bakes' noise; an approximation's size, not a goal.
 RELIGHT_BOUND = {"one": 0.02, "default": 0.08, "one_principled": 0.02}
