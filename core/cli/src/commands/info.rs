@@ -1,8 +1,10 @@
 //! `relume info STACK.exr`: what a stack file holds — its size, layers listed and stored,
-//! tile entries, stored bytes against the dense layout's — as text or JSON.
+//! tile entries, stored bytes against the dense layout's, and what its tail-edit layers
+//! cost — as text or JSON.
 
 use std::path::Path;
 
+use relume_engine::layer_key::PathVertex;
 use relume_engine::stack::tiled::{file::read_tiled, STACK_TILE};
 use relume_engine::RelumeError;
 use serde_json::json;
@@ -16,6 +18,23 @@ pub fn run(path: &Path, json_out: bool) -> Result<(), RelumeError> {
     let h = &stack.header;
     let stored = stack.sample_bytes();
     let dense = stack.dense_sample_bytes();
+    // The tail-edit layers (edits reaching bounces past the second vertex): how many are
+    // stored and what they cost.
+    let layer_bytes = stack.layer_bytes();
+    let tail: Vec<usize> = stack
+        .layers
+        .iter()
+        .enumerate()
+        .filter(|(_, l)| {
+            l.key
+                .path
+                .iter()
+                .any(|v| matches!(v, PathVertex::TailEdit { .. }))
+        })
+        .map(|(i, _)| i)
+        .filter(|&i| layer_bytes[i] > 0)
+        .collect();
+    let tail_bytes: usize = tail.iter().map(|&i| layer_bytes[i]).sum();
     let figures = json!({
         "command": "info",
         "path": path.display().to_string(),
@@ -34,6 +53,9 @@ pub fn run(path: &Path, json_out: bool) -> Result<(), RelumeError> {
         "file_bytes": file_bytes,
         "editable_regions": h.regions.iter().filter(|r| r.editable).map(|r| &r.name).collect::<Vec<_>>(),
         "light_groups": h.light_groups.iter().map(|g| &g.name).collect::<Vec<_>>(),
+        "bounces": h.bounces,
+        "tail_edit_layers_stored": tail.len(),
+        "tail_edit_bytes": tail_bytes,
     });
     if json_out {
         super::print_json(&figures);
@@ -60,6 +82,23 @@ pub fn run(path: &Path, json_out: bool) -> Result<(), RelumeError> {
             stack.memory_bytes() as f64 / 1e6,
             file_bytes as f64 / 1e6
         );
+        if h.bounces >= 2 && tail.is_empty() {
+            println!(
+                "  {} bounces: later vertices with the bake-time materials; no tail-edit \
+                 layers, so edits reach only the first two vertices (a stack from an older \
+                 build, or with nothing editable)",
+                h.bounces
+            );
+        } else if h.bounces >= 2 {
+            println!(
+                "  {} bounces: later vertices with the bake-time materials; {} tail-edit layers \
+                 carry albedo edits to them ({:.2} MB, {:.1} % of the stored values)",
+                h.bounces,
+                tail.len(),
+                tail_bytes as f64 / 1e6,
+                100.0 * tail_bytes as f64 / stored.max(1) as f64
+            );
+        }
     }
     Ok(())
 }
