@@ -1,8 +1,8 @@
 //! An editable Principled region baked in the basis of Cycles' Principled lobes
-//! (`BakeSettings::principled_basis`): relit at its bake-time material it matches Cycles'
-//! Principled evaluated exactly (the same region baked as fixed), within the basis' error;
-//! relit after an edit it equals a bake of the edited material (linearity); a roughness
-//! below the basis' range is reported. The basis here is a small configuration, so that the
+//! (`BakeSettings::principled_basis`) with its bake-time lobe as a slot of its own: relit at
+//! its bake-time material it is Cycles' Principled evaluated exactly (the same region baked
+//! as fixed); relit after an edit it is the edited material within the basis' error; a
+//! roughness below the basis' range is reported. The basis here is a small configuration, so that the
 //! test runs unoptimised in seconds; the full size's errors are in
 //! docs/principled_basis_study.md (part 6).
 mod common;
@@ -110,33 +110,47 @@ fn relit_principled_region_matches_the_exact_material() {
         let (relit, bases) = bake_and_relight(&editable, &[]);
         assert!(matches!(
             bases.bases[0],
-            relume_engine::brdf::RegionBasis::Principled(_)
+            relume_engine::brdf::RegionBasis::PrincipledWithBakeLobe(..)
         ));
         let (exact, _) = bake_and_relight(&fixed, &[]);
         let e = rel_l2(&sphere_rgb(&relit), &sphere_rgb(&exact));
-        eprintln!("metallic {metallic}, roughness {roughness}: relit vs exact {e:.4}");
-        assert!(e < 0.03, "metallic {metallic}, roughness {roughness}: {e}");
+        eprintln!("metallic {metallic}, roughness {roughness}: relit vs exact {e:.2e}");
+        // The bake-time slot is the material itself, evaluated as the fixed region is, on
+        // the same paths: only the stack's storage rounding is left.
+        assert!(e < 1e-3, "metallic {metallic}, roughness {roughness}: {e}");
     }
 }
 
 #[test]
-fn a_relit_edit_equals_a_bake_of_the_edited_material() {
+fn a_relit_edit_is_the_edited_material_within_the_basis_error() {
+    // After an edit the bake-time slot keeps what of the bake-time lobe fits the edited
+    // one and the basis carries the rest: against the edited material baked as a fixed
+    // region (exact; the same paths, since uniform sampling does not depend on the
+    // material) what is left is the projection's error, which the relight at the bake-time
+    // material does not have.
     let before = principled([0.9, 0.65, 0.35], 1.0, 0.3);
     for after in [
         principled([0.9, 0.65, 0.35], 1.0, 0.6),
         principled([0.3, 0.6, 0.2], 1.0, 0.3),
         principled([0.2, 0.35, 0.7], 0.0, 0.4),
+        principled([0.9, 0.65, 0.35], 1.0, 0.25),
     ] {
         let (relit, _) = bake_and_relight(
             &common::furnace(before.clone(), true, SIZE),
             std::slice::from_ref(&after),
         );
-        let (rebaked, _) = bake_and_relight(&common::furnace(after.clone(), true, SIZE), &[]);
-        let e = rel_l2(&sphere_rgb(&relit), &sphere_rgb(&rebaked));
-        eprintln!("edit to {after:?}: relit vs rebaked {e:.2e}");
-        // The same paths (uniform sampling does not depend on the material); f16 storage.
-        assert!(e < 2e-3, "{after:?}: {e}");
+        let (exact, _) = bake_and_relight(&common::furnace(after.clone(), false, SIZE), &[]);
+        let e = rel_l2(&sphere_rgb(&relit), &sphere_rgb(&exact));
+        eprintln!("edit to {after:?}: relit vs exact {e:.2e}");
+        assert!(e < 0.03, "{after:?}: {e}");
     }
+    // Back at the bake-time material the relight is the bake's exact lobe again.
+    let (relit, _) = bake_and_relight(
+        &common::furnace(before.clone(), true, SIZE),
+        std::slice::from_ref(&before),
+    );
+    let (exact, _) = bake_and_relight(&common::furnace(before, false, SIZE), &[]);
+    assert!(rel_l2(&sphere_rgb(&relit), &sphere_rgb(&exact)) < 1e-3);
 }
 
 #[test]

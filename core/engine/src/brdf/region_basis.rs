@@ -10,14 +10,19 @@ use glam::Vec3;
 use super::basis::coefficients::slot_coefficients;
 use super::basis::BrdfBasis;
 use super::material::MaterialSpec;
-use super::principled_basis::{Cosines, PrincipledBasis, MAX_SLOTS};
+use super::principled_basis::{BakeLobe, Cosines, PrincipledBasis, MAX_SLOTS};
 use crate::{RelumeError, Result, Rgb};
 
 /// An editable region's basis.
 #[derive(Clone)]
 pub enum RegionBasis {
     BlinnPhong(Arc<BrdfBasis>),
+    /// The Principled basis alone (stacks baked before the bake-time slot).
     Principled(Arc<PrincipledBasis>),
+    /// The Principled basis with the region's bake-time lobe as one more slot, last
+    /// ([`BakeLobe`]): what a bake in the Principled basis makes. The bake evaluates that
+    /// slot exactly (its value is RGB, so [`Self::eval`] leaves it to the caller).
+    PrincipledWithBakeLobe(Arc<PrincipledBasis>, Arc<BakeLobe>),
 }
 
 /// A material's coefficients on a region's basis, and what it could not be given exactly.
@@ -35,6 +40,23 @@ impl RegionBasis {
         match self {
             RegionBasis::BlinnPhong(b) => b.count(),
             RegionBasis::Principled(b) => b.count(),
+            RegionBasis::PrincipledWithBakeLobe(b, _) => b.count() + 1,
+        }
+    }
+
+    /// The Principled basis, if this is one (with or without the bake-time slot).
+    pub fn principled(&self) -> Option<&Arc<PrincipledBasis>> {
+        match self {
+            RegionBasis::BlinnPhong(_) => None,
+            RegionBasis::Principled(b) | RegionBasis::PrincipledWithBakeLobe(b, _) => Some(b),
+        }
+    }
+
+    /// The slot of the bake-time lobe, if this basis has one.
+    pub fn bake_lobe_slot(&self) -> Option<usize> {
+        match self {
+            RegionBasis::PrincipledWithBakeLobe(b, _) => Some(b.count()),
+            _ => None,
         }
     }
 
@@ -43,7 +65,7 @@ impl RegionBasis {
     pub fn spec_constant(&self) -> bool {
         match self {
             RegionBasis::BlinnPhong(b) => b.spec_constant(),
-            RegionBasis::Principled(_) => true,
+            RegionBasis::Principled(_) | RegionBasis::PrincipledWithBakeLobe(..) => true,
         }
     }
 
@@ -51,17 +73,18 @@ impl RegionBasis {
     pub fn blinn_phong(&self) -> Option<&Arc<BrdfBasis>> {
         match self {
             RegionBasis::BlinnPhong(b) => Some(b),
-            RegionBasis::Principled(_) => None,
+            RegionBasis::Principled(_) | RegionBasis::PrincipledWithBakeLobe(..) => None,
         }
     }
 
-    /// Every basis function's value for light from `wi` seen from `wo` at normal `n`.
+    /// Every basis function's value for light from `wi` seen from `wo` at normal `n` (the
+    /// bake-time slot, which is RGB, set to 0: see [`RegionBasis::PrincipledWithBakeLobe`]).
     #[inline]
     pub fn eval(&self, n: Vec3, wi: Vec3, wo: Vec3, out: &mut [f32]) {
         let h = (wi + wo).normalize_or_zero();
         match self {
             RegionBasis::BlinnPhong(b) => b.eval(n.dot(h), out),
-            RegionBasis::Principled(b) => {
+            RegionBasis::Principled(b) | RegionBasis::PrincipledWithBakeLobe(b, _) => {
                 let count = b.count();
                 let mut v = [0.0f64; MAX_SLOTS];
                 b.eval(
@@ -75,6 +98,9 @@ impl RegionBasis {
                 );
                 for (o, x) in out.iter_mut().zip(&v[..count]) {
                     *o = *x as f32;
+                }
+                if let Some(extra) = out.get_mut(count) {
+                    *extra = 0.0;
                 }
             }
         }
@@ -94,7 +120,7 @@ impl RegionBasis {
                 slots: slot_coefficients(b, textured, &m.to_blinn_phong()),
                 below_range: false,
             }),
-            RegionBasis::Principled(b) => {
+            RegionBasis::Principled(_) | RegionBasis::PrincipledWithBakeLobe(..) => {
                 let MaterialSpec::Principled(p) = m else {
                     return Err(RelumeError::Materials(
                         "this region was baked with the Principled basis (lobe \"principled\"): \
@@ -107,16 +133,44 @@ impl RegionBasis {
                         "a textured region cannot use the Principled basis".into(),
                     ));
                 }
-                let c = b.material_coefficients(&p.bsdf);
+                let (slots, below_range) = match self {
+                    RegionBasis::PrincipledWithBakeLobe(b, lobe) => {
+                        let c = b.anchored_coefficients(lobe, &p.bsdf);
+                        (c.slots, c.below_range)
+                    }
+                    RegionBasis::Principled(b) => {
+                        let c = b.material_coefficients(&p.bsdf);
+                        (c.slots, c.below_range)
+                    }
+                    RegionBasis::BlinnPhong(_) => unreachable!("matched above"),
+                };
                 Ok(RegionCoefficients {
-                    slots: c
-                        .slots
+                    slots: slots
                         .iter()
                         .map(|s| Rgb::new(s[0] as f32, s[1] as f32, s[2] as f32))
                         .collect(),
-                    below_range: c.below_range,
+                    below_range,
                 })
             }
         }
+    }
+
+    /// `coefs` (this basis' slot coefficients) with the bake-time slot's weight folded into
+    /// the basis slots it projects to: the same material seen through the basis alone, for
+    /// what reads energies off the basis slots ([`crate::relight::part_scales`]). Other
+    /// bases: `coefs` as they are.
+    pub fn fold_bake_lobe(&self, coefs: &[Rgb]) -> Vec<Rgb> {
+        let RegionBasis::PrincipledWithBakeLobe(b, lobe) = self else {
+            return coefs.to_vec();
+        };
+        let n = b.count();
+        let alpha = coefs.get(n).copied().unwrap_or(Rgb::ZERO);
+        let mut out: Vec<Rgb> = coefs.iter().take(n).copied().collect();
+        for (k, o) in out.iter_mut().enumerate() {
+            let p = lobe.projection(k);
+            *o += alpha * Rgb::new(p[0] as f32, p[1] as f32, p[2] as f32);
+        }
+        out.extend(coefs.iter().skip(n + 1).copied());
+        out
     }
 }

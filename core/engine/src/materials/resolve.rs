@@ -113,6 +113,7 @@ mod tests {
             textured: false,
             subsurface: None,
             principled_basis: None,
+            principled_basis_with_bake_lobe: None,
         }
     }
     #[test]

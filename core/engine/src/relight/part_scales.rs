@@ -82,6 +82,9 @@ pub struct PartScales {
     albedos: Vec<Vec<f32>>,
     /// Per editable region, its part energies at bake time.
     bake: Vec<[Rgb; 2]>,
+    /// Per editable region with a bake-time slot ([`RegionBasis::fold_bake_lobe`]): that
+    /// slot's index and the basis' projection of the bake-time lobe, slot by slot.
+    bake_lobes: Vec<Option<(usize, Vec<Rgb>)>>,
     /// Per editable region, the current scale of its diffuse and its glossy part.
     scales: Vec<[Rgb; 2]>,
 }
@@ -108,16 +111,25 @@ impl PartScales {
             .collect();
         let mut albedos = Vec::new();
         let mut bake = Vec::new();
+        let mut bake_lobes = Vec::new();
         for (r, m) in materials.iter().enumerate() {
-            let a = basis_albedos(&bases.bases[r], bases.textured[r]);
-            let coefs = bases.region_coefficients(r, m)?;
+            let basis = &bases.bases[r];
+            let a = basis_albedos(basis, bases.textured[r]);
+            let lobe = basis.bake_lobe_slot().map(|k| {
+                let mut unit = vec![Rgb::ZERO; k + 1];
+                unit[k] = Rgb::ONE;
+                (k, basis.fold_bake_lobe(&unit))
+            });
+            let coefs = fold(&bases.region_coefficients(r, m)?, lobe.as_ref());
             bake.push(part_energies(&coefs, &a));
             albedos.push(a);
+            bake_lobes.push(lobe);
         }
         let scales = vec![[Rgb::ONE; 2]; bake.len()];
         Ok(PartScales {
             albedos,
             bake,
+            bake_lobes,
             scales,
         })
     }
@@ -134,7 +146,8 @@ impl PartScales {
         let Some(bake) = self.bake.get(region) else {
             return;
         };
-        let now = part_energies(coefs, &self.albedos[region]);
+        let coefs = fold(coefs, self.bake_lobes[region].as_ref());
+        let now = part_energies(&coefs, &self.albedos[region]);
         let ratio = |n: Rgb, b: Rgb| {
             let r = |n: f32, b: f32| if b.abs() > ABSENT { n / b } else { 1.0 };
             Rgb::new(r(n.x, b.x), r(n.y, b.y), r(n.z, b.z))
@@ -146,6 +159,22 @@ impl PartScales {
     pub fn scales(&self) -> &[[Rgb; 2]] {
         &self.scales
     }
+}
+
+/// `coefs` with a bake-time slot's weight `α` moved onto the basis slots as `α` times the
+/// basis' projection of the bake-time lobe (`lobe`: the slot and that projection), so that
+/// the energies read off the basis slots count it; without a bake-time slot, `coefs`.
+fn fold(coefs: &[Rgb], lobe: Option<&(usize, Vec<Rgb>)>) -> Vec<Rgb> {
+    let Some((k, projection)) = lobe else {
+        return coefs.to_vec();
+    };
+    let alpha = coefs.get(*k).copied().unwrap_or(Rgb::ZERO);
+    let mut out: Vec<Rgb> = coefs.iter().take(*k).copied().collect();
+    for (o, p) in out.iter_mut().zip(projection) {
+        *o += alpha * *p;
+    }
+    out.extend(coefs.iter().skip(k + 1).copied());
+    out
 }
 
 /// The weight factor of a tail-edit term: s_b·(s_d^`diffuse`·s_g^`glossy` − 1) per

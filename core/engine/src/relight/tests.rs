@@ -29,6 +29,7 @@ fn header(width: u32, height: u32) -> StackHeader {
         textured: false,
         subsurface: None,
         principled_basis: None,
+        principled_basis_with_bake_lobe: None,
     };
     StackHeader {
         format_version: STACK_FORMAT_VERSION,

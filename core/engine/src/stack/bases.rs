@@ -32,7 +32,18 @@ impl StackBases {
         let mut subsurface = Vec::new();
         let mut sss_cache: HashMap<String, Arc<SssBasis>> = HashMap::new();
         for region in header.regions.iter().filter(|r| r.editable) {
-            if let Some(cfg) = &region.principled_basis {
+            if let Some(cfg) = &region.principled_basis_with_bake_lobe {
+                let b = PrincipledBasis::shared(cfg)?;
+                let crate::brdf::MaterialSpec::Principled(p) = &region.material else {
+                    return Err(RelumeError::Basis(format!(
+                        "editable region \"{}\" has its bake-time lobe as a slot but no \
+                         Principled material in the stack header",
+                        region.name
+                    )));
+                };
+                let lobe = Arc::new(b.bake_lobe(&p.bsdf));
+                bases.push(RegionBasis::PrincipledWithBakeLobe(b, lobe));
+            } else if let Some(cfg) = &region.principled_basis {
                 bases.push(RegionBasis::Principled(PrincipledBasis::shared(cfg)?));
             } else {
                 let cfg = region.basis.as_ref().ok_or_else(|| {
@@ -196,7 +207,9 @@ impl StackBases {
     pub fn ns_out_of_range(&self, region: usize, material: &MaterialSpec) -> Option<NsOutOfRange> {
         let basis = match self.bases.get(region)? {
             RegionBasis::BlinnPhong(b) => b,
-            RegionBasis::Principled(b) => return principled_out_of_range(region, b, material),
+            RegionBasis::Principled(b) | RegionBasis::PrincipledWithBakeLobe(b, _) => {
+                return principled_out_of_range(region, b, material)
+            }
         };
         let cfg = basis.config();
         let m = material.to_blinn_phong();

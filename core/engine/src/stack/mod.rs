@@ -97,6 +97,13 @@ pub struct RegionInfo {
     /// a build that does not know this field refuses the region rather than misreading it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub principled_basis: Option<crate::brdf::principled_basis::PrincipledBasisConfig>,
+    /// The Principled basis of an editable region baked in it with its bake-time lobe as
+    /// one more slot ([`crate::brdf::RegionBasis::PrincipledWithBakeLobe`]; then `basis` and
+    /// `principled_basis` are `None`, so a build that does not know this slot refuses the
+    /// region rather than relighting without it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub principled_basis_with_bake_lobe:
+        Option<crate::brdf::principled_basis::PrincipledBasisConfig>,
 }
 
 impl RegionInfo {
@@ -106,6 +113,23 @@ impl RegionInfo {
         cfg: Option<crate::brdf::principled_basis::PrincipledBasisConfig>,
     ) -> RegionInfo {
         self.principled_basis = cfg;
+        self
+    }
+
+    /// This record with the Principled basis it was baked in (`None`: none), that basis
+    /// with the bake-time slot when `with_bake_lobe`.
+    pub fn with_principled(
+        mut self,
+        cfg: Option<crate::brdf::principled_basis::PrincipledBasisConfig>,
+        with_bake_lobe: bool,
+    ) -> RegionInfo {
+        if with_bake_lobe {
+            self.principled_basis = None;
+            self.principled_basis_with_bake_lobe = cfg;
+        } else {
+            self.principled_basis = cfg;
+            self.principled_basis_with_bake_lobe = None;
+        }
         self
     }
 
@@ -120,6 +144,7 @@ impl RegionInfo {
             textured: region.editable && region.albedo_texture.is_some(),
             subsurface: None,
             principled_basis: None,
+            principled_basis_with_bake_lobe: None,
         }
     }
 }

@@ -48,5 +48,6 @@ pub fn blinn_phong_region(
         textured: false,
         subsurface: None,
         principled_basis: None,
+        principled_basis_with_bake_lobe: None,
     }
 }

@@ -16,7 +16,6 @@ use crate::bake::layout::layer_key;
 use crate::bake::prepare::context::{basis_config_for, BakeContext, RegionModel};
 use crate::bake::report::BakeReport;
 use crate::bake::settings::BakeSettings;
-use crate::brdf::RegionBasis;
 use crate::layer_key::LayerKey;
 use crate::options::LightGrouping;
 use crate::progress::{Progress, Stage};
@@ -234,12 +233,12 @@ pub(crate) fn stack_header(
             .zip(&ctx.translucent)
             .zip(&ctx.regions)
             .map(|((r, t), prepared)| {
-                let principled = match &prepared.model {
-                    RegionModel::Editable {
-                        basis: RegionBasis::Principled(b),
-                        ..
-                    } => Some(b.config().clone()),
-                    _ => None,
+                let (principled, with_bake_lobe) = match &prepared.model {
+                    RegionModel::Editable { basis, .. } => (
+                        basis.principled().map(|b| b.config().clone()),
+                        basis.bake_lobe_slot().is_some(),
+                    ),
+                    _ => (None, false),
                 };
                 RegionInfo {
                     subsurface: t.as_ref().map(|t| t.info.clone()),
@@ -249,7 +248,7 @@ pub(crate) fn stack_header(
                             .then(|| basis_config_for(&settings.basis, r.ns_range)),
                     )
                 }
-                .with_principled_basis(principled)
+                .with_principled(principled, with_bake_lobe)
             })
             .collect(),
         lights: scene.lights.clone(),

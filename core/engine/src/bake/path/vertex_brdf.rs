@@ -63,8 +63,11 @@ impl VertexBrdf for BasisBrdf<'_> {
                 if r.texture.is_some() {
                     out[0] *= albedo_at(r, uv);
                 }
-                // The untextured constant slot of a textured region (see `BakeContext::lay_out`).
-                if r.slot_count as usize > count {
+                if let Some(k) = basis.bake_lobe_slot() {
+                    // The bake-time lobe, exactly (untextured: the basis refuses textures).
+                    out[k] = r.frozen.value(Rgb::ONE, n, wi, wo);
+                } else if r.slot_count as usize > count {
+                    // The untextured constant slot of a textured region (see `BakeContext::lay_out`).
                     out[count] = Rgb::splat(scratch[0]);
                 }
                 (r.first_slot, r.slot_count as usize)
@@ -104,12 +107,14 @@ impl<'a> MaterialBrdf<'a> {
                 .zip(&materials)
                 .map(|(b, m)| match b {
                     RegionBasis::BlinnPhong(b) => Ok(b.split_coefficients(m)),
-                    RegionBasis::Principled(_) => Err(RelumeError::Materials(
-                        "the projected reference reconstructs Blinn–Phong materials in the \
+                    RegionBasis::Principled(_) | RegionBasis::PrincipledWithBakeLobe(..) => {
+                        Err(RelumeError::Materials(
+                            "the projected reference reconstructs Blinn–Phong materials in the \
                          Blinn–Phong basis; this scene has a region baked with the Principled \
                          basis"
-                            .into(),
-                    )),
+                                .into(),
+                        ))
+                    }
                 })
                 .collect::<Result<Vec<_>>>()?;
             Some(split)

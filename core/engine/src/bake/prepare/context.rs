@@ -111,7 +111,14 @@ impl BakeContext {
             if region.editable {
                 let cfg = basis_config_for(&settings.basis, region.ns_range);
                 let basis = match principled_basis_for(settings, region, texture.is_some()) {
-                    Ok(Some(pcfg)) => RegionBasis::Principled(PrincipledBasis::shared(pcfg)?),
+                    Ok(Some(pcfg)) => {
+                        let b = PrincipledBasis::shared(pcfg)?;
+                        let MaterialSpec::Principled(p) = &region.material else {
+                            unreachable!("principled_basis_for takes Principled materials only")
+                        };
+                        let lobe = Arc::new(b.bake_lobe(&p.bsdf));
+                        RegionBasis::PrincipledWithBakeLobe(b, lobe)
+                    }
                     other => {
                         if let Err(why) = other {
                             report.warnings.push(why);
@@ -190,16 +197,22 @@ impl BakeContext {
                 }
                 let (lo, hi) = match &basis {
                     RegionBasis::BlinnPhong(_) => (cfg.ns_min, cfg.ns_max),
-                    RegionBasis::Principled(b) => b.config().fitted_ns_range(),
+                    RegionBasis::Principled(b) | RegionBasis::PrincipledWithBakeLobe(b, _) => {
+                        b.config().fitted_ns_range()
+                    }
                 };
                 // The bake-time coefficient of the diffuse slot, which the tail-edit
                 // layers split each tail vertex's BRDF by (see `PreparedRegion`).
                 let tail_diffuse = basis
-                    .slot_coefficients(count > basis.count(), &region.material)?
-                    .slots
+                    .fold_bake_lobe(
+                        &basis
+                            .slot_coefficients(count > basis.count(), &region.material)?
+                            .slots,
+                    )
                     .first()
                     .copied()
                     .unwrap_or(Rgb::ZERO);
+                let with_bake_lobe = basis.bake_lobe_slot().is_some();
                 regions.push(PreparedRegion {
                     name: region.name.clone(),
                     tail_diffuse,
@@ -211,7 +224,13 @@ impl BakeContext {
                     first_slot,
                     slot_count: count as u32,
                     mixture: DirectionMixture::editable(&material, lo, hi),
-                    frozen: SurfaceBrdf::BlinnPhong(material),
+                    // A region with its bake-time lobe as a slot is evaluated exactly
+                    // there, so its tail is too; others see their Blinn–Phong mapping.
+                    frozen: if with_bake_lobe {
+                        SurfaceBrdf::exact(&region.material)
+                    } else {
+                        SurfaceBrdf::BlinnPhong(material)
+                    },
                 });
                 editable_index += 1;
             } else {

@@ -719,7 +719,9 @@ fn forecast(
                     })
                 }
                 super::context::RegionModel::Editable {
-                    basis: crate::brdf::RegionBasis::Principled(basis),
+                    basis:
+                        crate::brdf::RegionBasis::Principled(basis)
+                        | crate::brdf::RegionBasis::PrincipledWithBakeLobe(basis, _),
                     ..
                 } => {
                     let r_min = basis.config().roughness_min;
