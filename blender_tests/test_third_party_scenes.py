@@ -147,3 +147,82 @@ def test_default_bake_with_two_editable_materials_is_not_lost(addon, prefs, tmp_
     image = np.asarray(relume.read_exr(addon.api.render(str(tmp_path / "relume.exr"), denoise="none")))
     assert np.isfinite(image).all() and image[..., :3].max() > 0
     assert sum(counts.values()) == 0, counts
+
+
+#: Edits of the bunny's editable materials after one bake (material, input, value).
+BUNNY_EDITS = {
+    "ground_roughness_0.15_to_0.3": ("GroundTile", "Roughness", 0.3),
+    "ground_colour_to_rust": ("GroundTile", "Base Color", (0.55, 0.25, 0.12, 1.0)),
+    "bunny_metallic_0_to_1": ("BunnyTerracotta", "Metallic", 1.0),
+}
+
+
+def test_bunny_with_editable_materials_against_cycles(addon, prefs, tmp_path, results_file):
+    """The bunny's ground (Principled, roughness 0.15, reflecting the sky and the bunny) and
+    the bunny ticked Editable, baked once (final preset, one bounce as the file's light
+    paths): in the Blinn–Phong basis (the default) the ground loses its reflections; in the
+    basis of Principled lobes with each region's bake-time lobe as a slot of its own
+    (`lobe="principled"`) the unedited image is the bake-time materials evaluated as Cycles
+    does. Then edits of the ground and the bunny, relit from that one bake, each against
+    Cycles rendered with the same values: the relit image over the whole frame and the
+    ground's pixels (the reflection region) alone."""
+    import relume
+
+    _open("bunny.blend")
+    scene = bpy.context.scene
+    ids, names = cy.material_ids(scene, tmp_path / "ids.exr")
+    ground = ids == names.index("Ground")
+    for m in ("GroundTile", "BunnyTerracotta"):
+        bpy.data.materials[m].relume.editable = True
+
+    def compare(image, c1, c2):
+        reference = 0.5 * (c1 + c2)
+        assert image.shape == reference.shape and np.isfinite(image).all()
+        return {
+            "block8_rel_l2": cy.rel_l2(cy.block_mean(image, BLOCK), cy.block_mean(reference, BLOCK)),
+            "mean_ratio": float(image.sum() / reference.sum()),
+            "ground_mean_ratio": float(image[ground].sum() / reference[ground].sum()),
+            "cycles_tile_noise": cy.noise_of_mean(cy.block_mean(c1, BLOCK), cy.block_mean(c2, BLOCK)),
+        }
+
+    def relit(name):
+        out = addon.api.render(str(tmp_path / f"{name}.exr"), denoise="none")
+        return np.asarray(relume.read_exr(out), dtype=np.float64)[..., :3]
+
+    c1, _ = cy.render_cycles(scene, tmp_path / "c1.exr", CYCLES_SPP // 2, seed=1, bounces=1)
+    c2, _ = cy.render_cycles(scene, tmp_path / "c2.exr", CYCLES_SPP // 2, seed=2, bounces=1)
+    addon.api.export()
+    figures = {"ground_pixels": int(ground.sum())}
+    for lobe in ("blinn-phong", "principled"):
+        report = addon.api.bake(settings=relume.BakeSettings.preset("final", seed=0, bounces=1, lobe=lobe))
+        figures[lobe] = {"layers": report.get("layers"), **compare(relit(lobe), c1, c2)}
+    # The Principled bake is the last one: the edits relight it.
+    edits = {}
+    for edit, (material, name, value) in BUNNY_EDITS.items():
+        inputs = bpy.data.materials[material].node_tree.nodes["Principled BSDF"].inputs
+        before = inputs[name].default_value
+        before = tuple(before) if hasattr(before, "__len__") else before
+        inputs[name].default_value = value
+        bpy.context.view_layer.update()
+        e1, _ = cy.render_cycles(scene, tmp_path / f"{edit}_c1.exr", CYCLES_SPP // 2, seed=1, bounces=1)
+        e2, _ = cy.render_cycles(scene, tmp_path / f"{edit}_c2.exr", CYCLES_SPP // 2, seed=2, bounces=1)
+        edits[edit] = compare(relit(edit), e1, e2)
+        inputs[name].default_value = before
+        bpy.context.view_layer.update()
+    figures["principled_edits"] = edits
+    _RESULTS["bunny_editable"] = figures
+    print("\n[third-party] bunny.blend, ground and bunny editable:")
+    for lobe in ("blinn-phong", "principled"):
+        f = figures[lobe]
+        print(f"  {lobe}: tiles {f['block8_rel_l2']:.2%}, mean {f['mean_ratio']:.3f}, ground mean"
+              f" {f['ground_mean_ratio']:.3f}, {f['layers']} layers")
+    for edit, f in edits.items():
+        print(f"  principled, {edit}: tiles {f['block8_rel_l2']:.2%}, mean {f['mean_ratio']:.3f},"
+              f" ground mean {f['ground_mean_ratio']:.3f}, Cycles noise {f['cycles_tile_noise']:.2%}")
+    # Measured 2026-11-28: Blinn–Phong basis 11.9 % (ground 0.943); Principled 1.16 % (ground
+    # 0.999); the edits 1.4–2.4 % with the ground within 1 %. Asserted: the unedited image as
+    # the fixed scene's bound, every edit within 4 % on tiles and 3 % on the ground's mean.
+    p = figures["principled"]
+    assert p["block8_rel_l2"] <= 0.03 and abs(p["ground_mean_ratio"] - 1.0) <= 0.02, figures
+    for edit, f in edits.items():
+        assert f["block8_rel_l2"] <= 0.04 and abs(f["ground_mean_ratio"] - 1.0) <= 0.03, (edit, f)

@@ -305,3 +305,39 @@ def sky_image(width: int = 64, height: int = 32) -> dict:
             blob = 40.0 * math.exp(-(ang / math.radians(6.0)) ** 2)
             rows.extend((base + blob * np.array([1.0, 0.85, 0.6])).tolist())
     return {"width": width, "height": height, "rgb": rows}
+
+
+def material_ids(scene, path) -> tuple[np.ndarray, list[str]]:
+    """Per pixel the index of the object it shows (-1: background or mixed), from a Cycles
+    render with every object's material an Emission of value (index + 1)/64."""
+    names = [o.name for o in scene.objects if o.type == "MESH"]
+    saved = {}
+    for k, name in enumerate(names):
+        obj = bpy.data.objects[name]
+        mat = bpy.data.materials.new(f"id {name}")
+        mat.use_nodes = True
+        tree = mat.node_tree
+        tree.nodes.remove(tree.nodes["Principled BSDF"])
+        em = tree.nodes.new("ShaderNodeEmission")
+        em.inputs["Color"].default_value = ((k + 1) / 64.0, 0.0, 0.0, 1.0)
+        em.inputs["Strength"].default_value = 1.0
+        tree.links.new(em.outputs["Emission"], tree.nodes["Material Output"].inputs["Surface"])
+        saved[name] = obj.data.materials[0]
+        obj.data.materials[0] = mat
+    try:
+        image, _ = render_cycles(scene, path, 16, seed=1, bounces=0)
+    finally:
+        for name, mat in saved.items():
+            bpy.data.objects[name].data.materials[0] = mat
+        bpy.context.view_layer.update()
+    value = image[..., 0] * 64.0 - 1.0
+    ids = np.rint(value).astype(int)
+    pure = (np.abs(value - ids) < 1e-3) & (image[..., 1] == 0.0) & (ids >= 0)
+    ids[~pure] = -1
+    # Keep pixels whose four neighbours show the same object.
+    padded = np.pad(ids, 1, constant_values=-1)
+    same = np.ones_like(pure)
+    for dy, dx in ((0, 1), (2, 1), (1, 0), (1, 2)):
+        same &= padded[dy:dy + ids.shape[0], dx:dx + ids.shape[1]] == ids
+    ids[~same] = -1
+    return ids, names

@@ -48,6 +48,7 @@ pub fn bench_denoise(
             textured: false,
             subsurface: None,
             principled_basis: None,
+            principled_basis_with_bake_lobe: None,
         })
         .collect();
     let materials = resolve_materials(&regions, &MaterialsFile::default())?;
