@@ -33,6 +33,10 @@ pub enum PathVertex {
     /// s_b·(s_d^diffuse · s_g^glossy − 1), the s the region's part scales: 0 at the
     /// bake-time materials, so these layers only add what an edit changes in the tail.
     /// Named `T<region>d<diffuse>g<glossy>`, with `bd` or `bg` after it for the bounce part.
+    /// The bake writes only [`BOUNCE_ELSEWHERE`] terms, the bounce vertex's part folded
+    /// into the counts (`crate::bake::path::tail_edits::fold_bounce`: one layer where the
+    /// part kept apart took three); `bd`/`bg` layers of the first tail-edit stacks still
+    /// read and weigh as they were written.
     TailEdit {
         region: u16,
         diffuse: u8,

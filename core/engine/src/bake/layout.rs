@@ -2,7 +2,7 @@
 //! index arithmetic that the bake's tiles, the memory probe and the assembly share.
 
 use crate::bake::prepare::context::BakeContext;
-use crate::layer_key::{LayerKey, PathVertex};
+use crate::layer_key::{LayerKey, PathVertex, BOUNCE_ELSEWHERE};
 use crate::options::LightGrouping;
 
 /// Where each path signature sits among a bake's dense layer indices: per light group the
@@ -13,7 +13,7 @@ pub(crate) struct DenseLayout {
     slots: usize,
     /// Layers per light group.
     per_group: usize,
-    /// Editable regions and bins (pairs of tail counts) of the tail-edit layers.
+    /// Editable regions and bins (monomials of the part scales) of the tail-edit layers.
     regions: usize,
     bins: usize,
 }
@@ -41,21 +41,13 @@ impl DenseLayout {
         group * self.per_group + 1 + s + eye as usize * s + bounce as usize
     }
     /// The tail-edit layer of `group` for eye part `eye` (0: the fixed region, 1 + 2r + p:
-    /// part p of editable region r), tail region `region`, bin `bin` (a pair of diffuse and
-    /// glossy counts, [`crate::bake::path::tail_edits::pair_of`] of `bin + 1`) and the
-    /// bounce vertex's part on that region (or [`crate::layer_key::BOUNCE_ELSEWHERE`]).
+    /// part p of editable region r), tail region `region` and bin `bin` (the monomial
+    /// [`crate::bake::path::tail_edits::pair_of`] of `bin + 1`).
     #[inline]
-    pub(crate) fn tail_edit(
-        self,
-        group: usize,
-        eye: usize,
-        region: usize,
-        bin: usize,
-        bounce: u8,
-    ) -> usize {
+    pub(crate) fn tail_edit(self, group: usize, eye: usize, region: usize, bin: usize) -> usize {
         let s = self.slots;
         let base = 1 + s + s * s;
-        let within = ((eye * self.regions + region) * self.bins + bin) * 3 + bounce as usize;
+        let within = (eye * self.regions + region) * self.bins + bin;
         group * self.per_group + base + within
     }
 }
@@ -90,10 +82,8 @@ fn path_key(ctx: &BakeContext, layer: usize) -> LayerKey {
 fn tail_edit_key(ctx: &BakeContext, within: usize) -> LayerKey {
     let regions = ctx.editable_count();
     let bins = ctx.tail_edit_bins();
-    let bounce = (within % 3) as u8;
-    let rest = within / 3;
-    let (diffuse, glossy) = crate::bake::path::tail_edits::pair_of(rest % bins + 1);
-    let rest = rest / bins;
+    let (diffuse, glossy) = crate::bake::path::tail_edits::pair_of(within % bins + 1);
+    let rest = within / bins;
     let region = rest % regions;
     let eye = rest / regions;
     let eye_vertex = if eye == 0 {
@@ -110,7 +100,7 @@ fn tail_edit_key(ctx: &BakeContext, within: usize) -> LayerKey {
             region: region as u16,
             diffuse: diffuse as u8,
             glossy: glossy as u8,
-            bounce,
+            bounce: BOUNCE_ELSEWHERE,
         },
     ])
 }

@@ -56,14 +56,31 @@ pub fn frozen_parts(
     wi: Vec3,
     wo: Vec3,
 ) -> Option<(u16, [Rgb; 2])> {
+    match ctx.regions[region as usize].model {
+        RegionModel::Editable { .. } => frozen_value_and_parts(ctx, region, uv, n, wi, wo).1,
+        RegionModel::Fixed { .. } => None,
+    }
+}
+
+/// [`frozen_value`] and [`frozen_parts`] from one evaluation of the material (a fixed
+/// region's parts are `None`, as there).
+#[inline]
+pub fn frozen_value_and_parts(
+    ctx: &BakeContext,
+    region: u32,
+    uv: Vec2,
+    n: Vec3,
+    wi: Vec3,
+    wo: Vec3,
+) -> (Rgb, Option<(u16, [Rgb; 2])>) {
     let r = &ctx.regions[region as usize];
+    let albedo = albedo_at(r, uv);
+    let value = r.frozen.value(albedo, n, wi, wo);
     match r.model {
         RegionModel::Editable { index, .. } => {
-            let albedo = albedo_at(r, uv);
-            let value = r.frozen.value(albedo, n, wi, wo);
             let diffuse = r.tail_diffuse * albedo * FRAC_1_PI;
-            Some((index, [diffuse, value - diffuse]))
+            (value, Some((index, [diffuse, value - diffuse])))
         }
-        RegionModel::Fixed { .. } => None,
+        RegionModel::Fixed { .. } => (value, None),
     }
 }

@@ -50,11 +50,10 @@ use crate::bake::path::mis::{
     emission_along, indirect_pdf, power_heuristic, traces_bsdf_ray, BsdfStrategy,
 };
 use crate::bake::path::mixture::DirectionMixture;
-use crate::bake::path::tail_edits::TailEdits;
+use crate::bake::path::tail_edits::{fold_bounce, TailEdits};
 use crate::bake::prepare::context::{BakeContext, RegionModel};
 use crate::geometry::bvh::SurfaceHit;
 use crate::geometry::sampling::{cosine_hemisphere, to_world, uniform_hemisphere, SampleStream};
-use crate::layer_key::{BOUNCE_ELSEWHERE, PART_DIFFUSE, PART_GLOSSY};
 use crate::options::{IndirectSampling, MAX_BASES, MAX_GROUPS};
 use crate::Rgb;
 
@@ -95,6 +94,32 @@ pub trait VertexBrdf: Sync {
     ) -> Option<(u16, [Rgb; 2])> {
         None
     }
+
+    /// [`Self::tail`] and [`Self::tail_parts`] of one vertex, for BRDFs that get both from
+    /// one evaluation (the bake's: a tail-edit vertex needs both, and a BRDF is the costly
+    /// part of a tail vertex after its rays).
+    #[inline]
+    fn tail_with_parts(
+        &self,
+        region: u32,
+        uv: Vec2,
+        n: Vec3,
+        wi: Vec3,
+        wo: Vec3,
+    ) -> (Rgb, Option<(u16, [Rgb; 2])>) {
+        (
+            self.tail(region, uv, n, wi, wo),
+            self.tail_parts(region, uv, n, wi, wo),
+        )
+    }
+
+    /// Whether [`Self::tail`] is the bake-time material ([`crate::bake::path::frozen::frozen_value`])
+    /// itself, so that Russian roulette can reuse its value instead of evaluating it again;
+    /// not for the reference renderer, whose tail has the edited materials.
+    #[inline]
+    fn tail_is_frozen(&self) -> bool {
+        false
+    }
 }
 
 /// A vertex beyond the first bounce: [`VertexBrdf::tail`] as a one-slot BRDF, so
@@ -113,13 +138,16 @@ impl<B: VertexBrdf> VertexBrdf for TailBrdf<'_, B> {
         wo: Vec3,
         out: &mut [Rgb; MAX_BASES],
     ) -> (u32, usize) {
-        out[0] = self.0.tail(region, uv, n, wi, wo);
-        if self.1 {
-            if let Some((_, [d, g])) = self.0.tail_parts(region, uv, n, wi, wo) {
-                out[1] = d;
-                out[2] = g;
-                return (0, 3);
-            }
+        if !self.1 {
+            out[0] = self.0.tail(region, uv, n, wi, wo);
+            return (0, 1);
+        }
+        let (value, parts) = self.0.tail_with_parts(region, uv, n, wi, wo);
+        out[0] = value;
+        if let Some((_, [d, g])) = parts {
+            out[1] = d;
+            out[2] = g;
+            return (0, 3);
         }
         (0, 1)
     }
@@ -168,21 +196,11 @@ pub trait PathSink {
         false
     }
     /// Tail light of group `group` for the tail-edit layer of eye part `eye` (0: the fixed
-    /// region, 1 + 2r + p: part p of editable region r), tail region `region`, tail bin
-    /// `bin` (a pair of diffuse and glossy counts) and the part the bounce vertex reflected
-    /// through when on that region (`bounce`, else
-    /// [`crate::layer_key::BOUNCE_ELSEWHERE`]); see [`crate::bake::path::tail_edits`].
+    /// region, 1 + 2r + p: part p of editable region r), tail region `region` and bin `bin`
+    /// (a monomial of the region's part scales, the bounce vertex folded in); see
+    /// [`crate::bake::path::tail_edits`].
     #[inline]
-    fn tail_edit(
-        &mut self,
-        _group: usize,
-        _eye: usize,
-        _region: usize,
-        _bin: usize,
-        _bounce: u8,
-        _value: Rgb,
-    ) {
-    }
+    fn tail_edit(&mut self, _group: usize, _eye: usize, _region: usize, _bin: usize, _value: Rgb) {}
 }
 
 /// Ray queries, counted (and recordable for throughput measurements).
@@ -271,17 +289,9 @@ impl<S: PathSink> PathSink for FiniteOnly<'_, S> {
         self.inner.tail_edits()
     }
     #[inline]
-    fn tail_edit(
-        &mut self,
-        group: usize,
-        eye: usize,
-        region: usize,
-        bin: usize,
-        bounce: u8,
-        value: Rgb,
-    ) {
+    fn tail_edit(&mut self, group: usize, eye: usize, region: usize, bin: usize, value: Rgb) {
         if self.keep(value) {
-            self.inner.tail_edit(group, eye, region, bin, bounce, value);
+            self.inner.tail_edit(group, eye, region, bin, value);
         }
     }
 }
@@ -642,10 +652,13 @@ fn frozen_tail<B: VertexBrdf, T: Tracer>(
             *l += *v * *r * w;
         }
     }
-    tracking.then(|| BounceParts {
-        parts: brdf.tail_parts(hit.region, hit.uv, n, wi, wo),
-        value: brdf.tail(hit.region, hit.uv, n, wi, wo),
-        weight: w,
+    tracking.then(|| {
+        let (value, parts) = brdf.tail_with_parts(hit.region, hit.uv, n, wi, wo);
+        BounceParts {
+            parts,
+            value,
+            weight: w,
+        }
     })
 }
 
@@ -658,9 +671,9 @@ pub(crate) struct BounceParts {
 }
 
 /// Hands the tail-edit record of one indirect sample to `sink`: each (group, region, bin)
-/// light of `edits` times the bounce vertex's bake-time BRDF — split by its part when it
-/// lies on that region — times the eye vertex's, split by its part (`eye_weight` is that
-/// sample's cos θ over pdf and sample count).
+/// light of `edits` times the eye vertex's bake-time BRDF, split by its part, and the bounce
+/// vertex's, folded into the monomial bins by its part when it lies on that region
+/// ([`fold_bounce`]; `eye_weight` is that sample's cos θ over pdf and sample count).
 #[allow(clippy::too_many_arguments)]
 fn emit_tail_edits<B: VertexBrdf, S: PathSink>(
     sink: &mut S,
@@ -686,25 +699,17 @@ fn emit_tail_edits<B: VertexBrdf, S: PathSink>(
     };
     edits.for_each(|group, region, bin, light| {
         let light = light * (bounce.weight * eye_weight);
-        // The bounce vertex's BRDF, by the part it reflected through when on the region.
-        let mut at_bounce = [(BOUNCE_ELSEWHERE, Rgb::ZERO); 2];
-        let bounce_count = match bounce.parts {
-            Some((r, [d, g])) if r == region => {
-                at_bounce = [(PART_DIFFUSE, d), (PART_GLOSSY, g)];
-                2
-            }
-            _ => {
-                at_bounce[0].1 = bounce.value;
-                1
-            }
+        // The bounce vertex's BRDF parts when it lies on the tail's region.
+        let on = match bounce.parts {
+            Some((r, parts)) if r == region => Some(parts),
+            _ => None,
         };
-        for &(part, fb) in &at_bounce[..bounce_count] {
-            for &(eye, f) in &eyes[..eye_count] {
-                let v = light * fb * f;
+        for &(eye, f) in &eyes[..eye_count] {
+            fold_bounce(bin, light * f, on, bounce.value, |b, v| {
                 if v != Rgb::ZERO {
-                    sink.tail_edit(group, eye, region as usize, bin, part, v);
+                    sink.tail_edit(group, eye, region as usize, b, v);
                 }
-            }
+            });
         }
     });
 }
@@ -811,13 +816,23 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
             break;
         };
         let w = cos / next_pdf;
-        throughput *= brdf.tail(hit.region, hit.uv, n, wi, wo) * w;
-        if let Some(edits) = edits.as_deref_mut() {
-            if let Some((index, parts)) = brdf.tail_parts(hit.region, hit.uv, n, wi, wo) {
-                edits.label(index, parts);
+        let value = match edits.as_deref_mut() {
+            Some(edits) => {
+                let (value, parts) = brdf.tail_with_parts(hit.region, hit.uv, n, wi, wo);
+                if let Some((index, parts)) = parts {
+                    edits.label(index, parts);
+                }
+                value
             }
-        }
-        frozen *= crate::bake::path::frozen::frozen_value(ctx, hit.region, hit.uv, n, wi, wo) * w;
+            None => brdf.tail(hit.region, hit.uv, n, wi, wo),
+        };
+        throughput *= value * w;
+        let bake_time = if brdf.tail_is_frozen() {
+            value
+        } else {
+            crate::bake::path::frozen::frozen_value(ctx, hit.region, hit.uv, n, wi, wo)
+        };
+        frozen *= bake_time * w;
         bounce += 1;
         if bounce >= RR_START && bounce <= max_bounce {
             let q = crate::luminance(frozen).clamp(RR_MIN_SURVIVAL, 1.0);

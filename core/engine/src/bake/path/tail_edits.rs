@@ -18,6 +18,12 @@
 //! vertices past that count keep their bake-time material; regions edited together are
 //! summed as if edited one at a time (their product terms are left out); a lobe-shape edit
 //! (exponent, roughness) changes a tail vertex only by its part's energy.
+//!
+//! The bounce vertex (x″) is keyed already; when it lies on the tail's region its own part
+//! scale multiplies the term, s_b·(s_d^i s_g^j − 1), and keeping its part apart would store
+//! three layers per pair. [`fold_bounce`] writes the same term in the monomials
+//! s_d^a s_g^b − 1 instead, one layer each, so the layers are weighted as before and still
+//! weigh exactly 0 at the bake-time materials.
 
 use crate::options::MAX_GROUPS;
 use crate::Rgb;
@@ -35,6 +41,41 @@ const M: usize = MAX_TAIL_COUNT;
 const PAIRS: usize = (M + 1) * (M + 2) / 2;
 /// Number of tail-edit bins: the pairs but (0, 0).
 pub const TAIL_BINS: usize = PAIRS - 1;
+
+/// Number of tail-edit bins of degree at most `degree`: the monomials s_d^i s_g^j with
+/// 1 ≤ i + j ≤ `degree`, bin `k` being [`pair_of`]`(k + 1)`.
+pub const fn monomial_bins(degree: usize) -> usize {
+    (degree + 1) * (degree + 2) / 2 - 1
+}
+
+/// Stores tail light `light` of record bin `bin` (tail counts (i, j), [`pair_of`]`(bin + 1)`),
+/// already times the eye vertex's BRDF, with the bounce vertex folded in: `emit(bin, value)`
+/// per stored bin, each weighed at relight by s_d^a s_g^b − 1. A bounce vertex elsewhere
+/// (`on` is `None`) multiplies the light by its BRDF `value`. One on the tail's region, whose
+/// BRDF parts are `on` = [f_d, f_g], scales it by s_d or s_g per part:
+/// s_d·(s_d^i s_g^j − 1) = (s_d^(i+1) s_g^j − 1) − (s_d − 1), and likewise for the glossy
+/// part, so each part's light goes to its monomial one degree up and, negated, to the
+/// degree-one monomial of its part.
+#[inline]
+pub fn fold_bounce(
+    bin: usize,
+    light: Rgb,
+    on: Option<[Rgb; 2]>,
+    value: Rgb,
+    mut emit: impl FnMut(usize, Rgb),
+) {
+    match on {
+        None => emit(bin, light * value),
+        Some([d, g]) => {
+            let (i, j) = pair_of(bin + 1);
+            let (vd, vg) = (light * d, light * g);
+            emit(pair_index(i + 1, j) - 1, vd);
+            emit(pair_index(i, j + 1) - 1, vg);
+            emit(pair_index(1, 0) - 1, -vd);
+            emit(pair_index(0, 1) - 1, -vg);
+        }
+    }
+}
 
 /// The index of (diffuse count `i`, glossy count `j`), i + j ≤ M, among all pairs: by total
 /// count, then by glossy count; (0, 0) is 0 and the tail-edit bin of a pair is its index − 1.
@@ -231,6 +272,37 @@ mod tests {
                 (0, 0, (1, 1), 0.25)
             ]
         );
+    }
+
+    /// Folding the bounce vertex keeps the relit term: Σ stored value × (s_d^a s_g^b − 1)
+    /// equals s_b·(s_d^i s_g^j − 1) × light, s_b the bounce vertex's scaled BRDF over its
+    /// bake-time one, for every record bin and scales that are not 1.
+    #[test]
+    fn folded_bounce_weighs_as_its_part() {
+        let (sd, sg) = (1.7f32, 0.45f32);
+        let [d, g] = [Rgb::new(0.3, 0.1, 0.2), Rgb::new(0.05, 0.2, 0.4)];
+        let light = Rgb::new(2.0, 1.0, 0.5);
+        for bin in 0..TAIL_BINS {
+            let (i, j) = pair_of(bin + 1);
+            let tail = sd.powi(i as i32) * sg.powi(j as i32) - 1.0;
+            let want = light * (d * sd + g * sg) * tail;
+            let mut got = Rgb::ZERO;
+            fold_bounce(bin, light, Some([d, g]), d + g, |b, v| {
+                assert!(b < monomial_bins(M + 1));
+                let (a, c) = pair_of(b + 1);
+                got += v * (sd.powi(a as i32) * sg.powi(c as i32) - 1.0);
+            });
+            assert!(
+                (got - want).abs().max_element() < 1e-4,
+                "{bin}: {got} vs {want}"
+            );
+            let mut elsewhere = Rgb::ZERO;
+            fold_bounce(bin, light, None, d + g, |b, v| {
+                assert_eq!(b, bin);
+                elsewhere += v * tail;
+            });
+            assert!((elsewhere - light * (d + g) * tail).abs().max_element() < 1e-4);
+        }
     }
 
     /// A half-diffuse vertex splits the weights; a path past the largest count keeps them.

@@ -41,6 +41,24 @@ impl VertexBrdf for BasisBrdf<'_> {
         crate::bake::path::frozen::frozen_parts(self.ctx, region, uv, n, wi, wo)
     }
 
+    /// One evaluation of the bake-time material for both.
+    #[inline]
+    fn tail_with_parts(
+        &self,
+        region: u32,
+        uv: Vec2,
+        n: Vec3,
+        wi: Vec3,
+        wo: Vec3,
+    ) -> (Rgb, Option<(u16, [Rgb; 2])>) {
+        crate::bake::path::frozen::frozen_value_and_parts(self.ctx, region, uv, n, wi, wo)
+    }
+
+    #[inline]
+    fn tail_is_frozen(&self) -> bool {
+        true
+    }
+
     #[inline]
     fn eval(
         &self,

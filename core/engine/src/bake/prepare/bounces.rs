@@ -156,4 +156,7 @@ impl crate::bake::path::integrator::VertexBrdf for FrozenOnly<'_> {
     ) -> Rgb {
         frozen_value(self.0.ctx, region, uv, n, wi, wo)
     }
+    fn tail_is_frozen(&self) -> bool {
+        true
+    }
 }

@@ -322,9 +322,10 @@ impl BakeContext {
             .count()
     }
 
-    /// Bins of the tail-edit layers: the pairs of diffuse and glossy counts, (0, 0) left
-    /// out, whose total is at most the tail's length (bounces − 1) and
-    /// [`crate::bake::path::tail_edits::MAX_TAIL_COUNT`]; 0 when there is no tail (fewer
+    /// Bins of the tail-edit layers: the monomials s_d^i·s_g^j, i + j ≥ 1, of degree at
+    /// most the tail's counted length (bounces − 1, at most
+    /// [`crate::bake::path::tail_edits::MAX_TAIL_COUNT`]) plus one for the bounce vertex
+    /// ([`crate::bake::path::tail_edits::fold_bounce`]); 0 when there is no tail (fewer
     /// than two bounces) or nothing editable.
     pub fn tail_edit_bins(&self) -> usize {
         if self.settings.bounces < 2 || self.editable_count() == 0 {
@@ -332,19 +333,18 @@ impl BakeContext {
         }
         let t =
             (self.settings.bounces as usize - 1).min(crate::bake::path::tail_edits::MAX_TAIL_COUNT);
-        (t + 1) * (t + 2) / 2 - 1
+        crate::bake::path::tail_edits::monomial_bins(t + 1)
     }
 
     /// Tail-edit layers per light group: per eye part (the fixed region or one part of an
-    /// editable region), tail region, bin and the bounce vertex's part on that region or
-    /// none ([`crate::layer_key::PathVertex::TailEdit`]).
+    /// editable region), tail region and bin ([`crate::layer_key::PathVertex::TailEdit`]).
     pub fn tail_edit_layers_per_group(&self) -> usize {
         let bins = self.tail_edit_bins();
         if bins == 0 {
             return 0;
         }
         let regions = self.editable_count();
-        (2 * regions + 1) * regions * bins * 3
+        (2 * regions + 1) * regions * bins
     }
 
     /// Layers the bake can fill: [`Self::layers_per_group`] per light group.

@@ -178,16 +178,8 @@ impl PathSink for ProbeSink<'_> {
     fn tail_edits(&self) -> bool {
         true
     }
-    fn tail_edit(
-        &mut self,
-        group: usize,
-        eye: usize,
-        region: usize,
-        bin: usize,
-        bounce: u8,
-        v: Rgb,
-    ) {
-        self.add(self.layout.tail_edit(group, eye, region, bin, bounce), v);
+    fn tail_edit(&mut self, group: usize, eye: usize, region: usize, bin: usize, v: Rgb) {
+        self.add(self.layout.tail_edit(group, eye, region, bin), v);
     }
 }
 

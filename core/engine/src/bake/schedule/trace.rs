@@ -56,16 +56,8 @@ impl PathSink for TileSink<'_> {
         true
     }
     #[inline]
-    fn tail_edit(
-        &mut self,
-        group: usize,
-        eye: usize,
-        region: usize,
-        bin: usize,
-        bounce: u8,
-        v: Rgb,
-    ) {
-        self.add(self.layout.tail_edit(group, eye, region, bin, bounce), v);
+    fn tail_edit(&mut self, group: usize, eye: usize, region: usize, bin: usize, v: Rgb) {
+        self.add(self.layout.tail_edit(group, eye, region, bin), v);
     }
 }
 
