@@ -247,7 +247,7 @@ fn with_bounces_past_the_first_the_bake_time_slot_stays_exact_and_the_tail_follo
         };
         let coefs = bases.coefficients(&materials).unwrap();
         let mut relighter = CpuRelighter::new(Arc::new(stack)).unwrap();
-        whole_rgb(&relighter.relight(&coefs).unwrap())
+        whole_rgb(relighter.relight(&coefs).unwrap())
     };
     let sum = |v: &[[f32; 3]]| v.iter().map(|p| (p[0] + p[1] + p[2]) as f64).sum::<f64>();
     let before = principled([0.6, 0.6, 0.6], 0.0, 0.5);
