@@ -175,9 +175,9 @@ fn noisier_tiles_take_more_samples_and_the_mean_stays_within_the_noise() {
     assert!(quiet < 0.75 * noisy, "stopped {quiet} vs full {noisy}");
     // Tiles with no light at all (nothing but the black world, if the frame has any) stop
     // at the first check.
-    for t in 0..tiles() {
+    for (t, n) in spp.iter().enumerate() {
         if tile_pixels(t).all(|p| i1[p] == [0.0; 3] && i2[p] == [0.0; 3]) {
-            assert!(spp[t] < SPP, "dark tile {t} took {}", spp[t]);
+            assert!(*n < SPP, "dark tile {t} took {n}");
         }
     }
 
@@ -189,13 +189,13 @@ fn noisier_tiles_take_more_samples_and_the_mean_stays_within_the_noise() {
     let mut diff = 0.0;
     let mut var = 0.0;
     let mut total = 0.0;
-    for t in 0..tiles() {
+    for (t, n) in spp.iter().enumerate() {
         let sum =
             |img: &[[f64; 3]]| -> f64 { tile_pixels(t).map(|p| img[p].iter().sum::<f64>()).sum() };
         diff += sum(&ia) - sum(&ifull);
         total += sum(&ifull);
         let v = (sum(&i1) - sum(&i2)).powi(2) / 2.0;
-        var += v * (SPP as f64 / spp[t] as f64 - 1.0);
+        var += v * (SPP as f64 / *n as f64 - 1.0);
     }
     let (diff, sigma) = (diff / pixels, var.sqrt() / pixels);
     let mean = total / pixels;
