@@ -26,7 +26,11 @@ Kd := Kd + Ks, the same albedo, and stays editable in Relume, so the bake keeps 
    own OIDN from the bpy wheel), its error against the same reference, its time (bake plus
    features and OIDN), and Cycles' and Cycles + OIDN's times to that error. `--no-shown`
    skips it.
-4. Prints and writes (OUT/cycles_time_to_error.json) Cycles' time to the preview's error,
+4. With `--adaptive-thresholds T1,T2`, bakes the preview again with per-tile adaptive sampling
+   at each threshold (`relume report --adaptive-threshold`) and measures it as in 1 and 3
+   against the same reference and the same Cycles ladders; `--repeats N` bakes each N times
+   (min and median bake time). `--resolution WxH` sets the variant's resolution.
+5. Prints and writes (OUT/cycles_time_to_error.json) Cycles' time to the preview's error,
    interpolated log–log between the two sample counts that bracket it, and Cycles' error at
    its highest sample count (the floor where the two renderers' models differ: smooth normals
    from Blender's own vertex normals, light sampling conventions).
@@ -47,8 +51,12 @@ import time
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 
 
-def diffuse_variant(scene_path: pathlib.Path, out_path: pathlib.Path) -> None:
+def diffuse_variant(scene_path: pathlib.Path, out_path: pathlib.Path,
+                    resolution: str | None = None) -> None:
     data = json.loads(scene_path.read_text())
+    if resolution:
+        w, h = (int(v) for v in resolution.lower().split("x"))
+        data["resolution"] = {"width": w, "height": h}
     for region in data["regions"]:
         m = region["material"]
         if m["model"] != "blinn_phong":
@@ -59,9 +67,12 @@ def diffuse_variant(scene_path: pathlib.Path, out_path: pathlib.Path) -> None:
     out_path.write_text(json.dumps(data))
 
 
-def run_report(relume: str, variant: pathlib.Path, out: pathlib.Path, reference_spp: int) -> dict:
+def run_report(relume: str, variant: pathlib.Path, out: pathlib.Path, reference_spp: int,
+               adaptive_threshold: float = 0.0) -> dict:
     cmd = [relume, "report", str(variant), "--presets", "preview", "--out", str(out / "report"),
            "--reference-spp", str(reference_spp), "--keep-stacks", "--json"]
+    if adaptive_threshold:
+        cmd += ["--adaptive-threshold", str(adaptive_threshold)]
     print("+", " ".join(cmd), file=sys.stderr)
     res = subprocess.run(cmd, check=True, stdout=subprocess.PIPE, cwd=ROOT)
     return json.loads(res.stdout)
@@ -78,9 +89,10 @@ def bpy_lib_dir() -> str | None:
     return str(lib) if lib.is_dir() else None
 
 
-def run_shown(relume: str, stack: pathlib.Path, variant: pathlib.Path, out: pathlib.Path) -> dict:
+def run_shown(relume: str, stack: pathlib.Path, variant: pathlib.Path, out: pathlib.Path,
+              name: str = "relume_preview_oidn.exr") -> dict:
     """The preview stack's shown image: relit through OIDN with the scene's features."""
-    image = out / "relume_preview_oidn.exr"
+    image = out / name
     env = dict(os.environ)
     lib = bpy_lib_dir()
     if lib and not env.get("RELUME_OIDN_LIBRARY"):
@@ -235,18 +247,41 @@ def main() -> None:
     ap.add_argument("--threads", type=int, default=os.cpu_count() or 2)
     ap.add_argument("--no-shown", action="store_true",
                     help="skip the shown image (the preview relit through OpenImageDenoise)")
+    ap.add_argument("--resolution", default=None,
+                    help="WIDTHxHEIGHT for the scene (Relume and Cycles alike); default: the scene's")
+    ap.add_argument("--adaptive-thresholds", default="",
+                    help="comma-separated adaptive sampling thresholds (the bake setting "
+                         "adaptive_threshold) to bake the preview with besides the preset as it "
+                         "is; each is measured like it and compared with the same Cycles ladders")
+    ap.add_argument("--repeats", type=int, default=1,
+                    help="bakes per Relume setting (the bake time is reported as min and median)")
     args = ap.parse_args()
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     variant = out / "cornell_diffuse.scene.json"
-    diffuse_variant(pathlib.Path(args.scene), variant)
+    diffuse_variant(pathlib.Path(args.scene), variant, args.resolution)
 
-    report = run_report(args.relume, variant, out, args.reference_spp)
-    row = report["rows"][0]
-    stack = out / "report" / "stacks" / f"{variant.name.removesuffix('.scene.json')}.preview.relume.exr"
-    if not stack.exists():
-        stack = next((out / "report" / "stacks").glob("*.preview.relume.exr"))
-    shown = None if args.no_shown else run_shown(args.relume, stack, variant, out)
+    def bake_and_show(threshold: float) -> tuple[dict, dict, dict | None]:
+        """The preview baked `repeats` times at this adaptive threshold: the report, its
+        row (bake times of every repeat added) and the shown image of the last."""
+        times = []
+        for _ in range(max(args.repeats, 1)):
+            report = run_report(args.relume, variant, out, args.reference_spp, threshold)
+            times.append(report["rows"][0]["bake_seconds"])
+        row = dict(report["rows"][0])
+        row["adaptive_threshold"] = threshold
+        row["bake_seconds_all"] = times
+        row["bake_seconds_min"] = min(times)
+        row["bake_seconds_median"] = sorted(times)[len(times) // 2]
+        stack = out / "report" / "stacks" / f"{variant.name.removesuffix('.scene.json')}.preview.relume.exr"
+        if not stack.exists():
+            stack = next((out / "report" / "stacks").glob("*.preview.relume.exr"))
+        shown = None if args.no_shown else run_shown(
+            args.relume, stack, variant, out, f"relume_preview_oidn_t{threshold:g}.exr")
+        return report, row, shown
+
+    report, row, shown = bake_and_show(0.0)
+    adaptive_runs = [bake_and_show(float(t)) for t in args.adaptive_thresholds.split(",") if t]
     ref_info = report["references"][0]
     ref_path = pathlib.Path(ref_info["file"])
     if not ref_path.is_absolute():
@@ -269,9 +304,17 @@ def main() -> None:
         raw = rel_l2(img, ref)
         shown_target = math.sqrt(max(raw * raw - ref_noise * ref_noise, 0.0))
         shown.update({"rel_l2": shown_target, "rel_l2_raw": raw,
-                      "seconds_bake_plus_denoise": row["bake_seconds"] + shown["denoise"]["ms"] / 1e3})
+                      "seconds_bake_plus_denoise": row["bake_seconds_min"] + shown["denoise"]["ms"] / 1e3})
         print(f"relume preview, shown ({shown['denoise']['summary']}): "
               f"error {shown_target * 100:.3f} % (raw {raw * 100:.3f} %)", file=sys.stderr)
+    for _, arow, ashown in adaptive_runs:
+        if ashown is not None:
+            _, _, img = load_exr_rgb(pathlib.Path(ashown["image"]))
+            raw = rel_l2(img, ref)
+            ashown.update({"rel_l2": math.sqrt(max(raw * raw - ref_noise * ref_noise, 0.0)),
+                           "rel_l2_raw": raw,
+                           "seconds_bake_plus_denoise": arow["bake_seconds_min"]
+                           + ashown["denoise"]["ms"] / 1e3})
 
     def series(spps: list[int], denoise: bool) -> list[dict]:
         scene.cycles.use_denoising = denoise
@@ -337,6 +380,13 @@ def main() -> None:
         "cycles_time_to_shown_error": time_to(points, shown_target) if shown_target else None,
         "cycles_oidn_time_to_shown_error": (time_to(denoised_points, shown_target)
                                             if shown_target and denoised_points else None),
+        "resolution": args.resolution,
+        "relume_adaptive": [
+            {"row": arow, "shown": ashown,
+             "cycles_oidn_time_to_error": time_to(denoised_points, arow["rel_l2"]) if denoised_points else None,
+             "cycles_oidn_time_to_shown_error": (time_to(denoised_points, ashown["rel_l2"])
+                                                 if ashown and denoised_points else None)}
+            for _, arow, ashown in adaptive_runs],
     }
     (out / "cycles_time_to_error.json").write_text(json.dumps(result, indent=2))
     if cycles_time:
@@ -353,6 +403,17 @@ def main() -> None:
         print(f"Relume preview + OIDN: {shown_target * 100:.2f} % in "
               f"{shown['seconds_bake_plus_denoise']:.2f} s; Cycles + OIDN reaches that in "
               + (f"{t_oidn['seconds']:.2f} s (≈ {t_oidn['spp']:.0f} spp)" if t_oidn else "none of its sample counts"))
+    runs = [(row, shown, result["cycles_oidn_time_to_shown_error"])] + [
+        (a["row"], a["shown"], a["cycles_oidn_time_to_shown_error"]) for a in result["relume_adaptive"]]
+    print("| adaptive threshold | bake min / median s | mean spp | relit % | shown (OIDN) % "
+          "| Cycles + OIDN to the shown error |")
+    for r, sh, t in runs:
+        a = r.get("adaptive") or {}
+        times = r.get("bake_seconds_all", [r["bake_seconds"]])
+        print(f"| {r.get('adaptive_threshold', 0.0):g} | {min(times):.1f} / {sorted(times)[len(times) // 2]:.1f} "
+              f"| {a.get('mean_spp', r['spp']):.1f} | {r['rel_l2'] * 100:.2f} "
+              f"| {sh['rel_l2'] * 100 if sh else float('nan'):.2f} "
+              + (f"| {t['seconds']:.1f} s (≈ {t['spp']:.0f} spp) |" if t else "| — |"))
     print(f"→ {out / 'cycles_time_to_error.json'}")
 
 

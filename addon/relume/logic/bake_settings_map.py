@@ -45,6 +45,8 @@ NOT_A_PREFERENCE = {
     "denoise_bounce": "the preset's",
     "compression_step": "the preset's",
     "compression_tolerance": "the preset's",
+    "adaptive_threshold": "the core's default (off): no preset adopts it yet; scripts set it",
+    "adaptive_min_spp": "the core's default (automatic); scripts set it",
 }
 
 def settings_keywords(prefs, bounces: int) -> tuple[str | None, dict]:

@@ -38,6 +38,8 @@ fn other_value(key: &str) -> Value {
         "memory_budget_mb" => json!(256.0),
         "compression_step" => json!(4),
         "compression_tolerance" => json!(0.01),
+        "adaptive_threshold" => json!(0.02),
+        "adaptive_min_spp" => json!(8),
         other => panic!("no test value for the new field {other}: add one here"),
     }
 }
@@ -86,6 +88,11 @@ fn every_value_of_the_settings_is_set_by_a_field_and_every_field_reaches_the_set
         let mut start = BakeFields::default();
         if field.key == "compression_tolerance" {
             start.apply(&one("compression_step", json!(4))).unwrap();
+        }
+        if field.key == "adaptive_min_spp" {
+            start
+                .apply(&one("adaptive_threshold", json!(0.02)))
+                .unwrap();
         }
         let mut base = Vec::new();
         leaves(

@@ -10,7 +10,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::{Map, Value};
 
 use super::presets::Preset;
-use super::settings::{BakeSettings, BounceCompression, DEFAULT_BOUNCES};
+use super::settings::{AdaptiveSampling, BakeSettings, BounceCompression, DEFAULT_BOUNCES};
 use crate::brdf::principled_basis::PrincipledBasisConfig;
 use crate::brdf::{BasisConfig, BasisCount};
 use crate::options::{Denoise, IndirectSampling, LightGrouping, Precision};
@@ -133,6 +133,15 @@ bake_fields! {
     /// Relative L2 error of each tile's bake-time image the bounce-layer compression may
     /// spend, in [0, 1); needs a compression step.
     compression_tolerance: f32,
+    /// Per-tile adaptive sampling's noise threshold, in [0, 1) (0: off, every pixel takes
+    /// `spp` samples): a 16 × 16 tile stops once its estimated error — Cycles' per-pixel
+    /// error (the noise from the full and a half-sample image of the bake-time materials,
+    /// over the square root of the intensity), its RMS over the tile — is at most this.
+    /// Not with a progressive bake or a farm split.
+    adaptive_threshold: f32,
+    /// Eye samples every tile takes before adaptive sampling first checks it (then after
+    /// every doubling); 0: an eighth of `spp`, at least 4. Needs an adaptive threshold.
+    adaptive_min_spp: u32,
 }
 
 /// The basis editable regions are baked in.
@@ -191,6 +200,8 @@ impl BakeFields {
             memory_budget_mb: s.memory_budget.map(|b| b as f64 / MIB),
             compression_step: s.compression.step,
             compression_tolerance: s.compression.tolerance,
+            adaptive_threshold: s.adaptive.threshold,
+            adaptive_min_spp: s.adaptive.min_spp,
         }
     }
 
@@ -247,6 +258,10 @@ impl BakeFields {
                 tolerance: self.compression_tolerance,
             }
             .with_step(self.compression_step),
+            adaptive: AdaptiveSampling {
+                threshold: self.adaptive_threshold,
+                min_spp: self.adaptive_min_spp,
+            },
         }
     }
 
@@ -288,8 +303,9 @@ impl BakeFields {
     /// Applies `overrides` (key → JSON value) in [`FIELDS`] order, whatever order they come
     /// in, and checks the result; on an error (naming the key) nothing changes. Giving both
     /// keys of a pair that name one value (`bases`, `basis_tolerance`) is refused; giving one
-    /// clears the other. A resolution resets the scale to 1 and a compression step of 0
-    /// clears the tolerance, unless those are given too.
+    /// clears the other. A resolution resets the scale to 1, a compression step of 0
+    /// clears the tolerance and an adaptive threshold of 0 the adaptive minimum, unless
+    /// those are given too.
     pub fn apply(&mut self, overrides: &Map<String, Value>) -> Result<()> {
         if let Some(key) = overrides
             .keys()
@@ -336,6 +352,9 @@ impl BakeFields {
                 }
                 "compression_step" if value.as_u64() == Some(0) => {
                     reset(&mut map, "compression_tolerance", Value::from(0.0))
+                }
+                "adaptive_threshold" if value.as_f64() == Some(0.0) => {
+                    reset(&mut map, "adaptive_min_spp", Value::from(0))
                 }
                 _ => {}
             }

@@ -49,8 +49,8 @@ use crate::stack::TransferStack;
 use crate::Result;
 pub use layout::layer_key;
 pub use non_finite::NonFiniteReport;
-pub use report::{BakeReport, PassReport};
-pub use settings::{BakeSettings, Denoise, IndirectSampling, LightGrouping};
+pub use report::{AdaptiveReport, BakeReport, PassReport};
+pub use settings::{AdaptiveSampling, BakeSettings, Denoise, IndirectSampling, LightGrouping};
 
 /// Bakes `scene` into a dense transfer stack: [`bake_tiled`] expanded with
 /// [`TiledStack::to_dense`] (every layer a full frame: for tests and small bakes).
@@ -151,6 +151,15 @@ fn run_passes(
         return Err(crate::RelumeError::invalid(
             "bake passes",
             format!("{passes:?}: sample counts must increase from ≥ 1"),
+        ));
+    }
+    if passes.len() > 1 && !settings.adaptive.is_off() {
+        return Err(crate::RelumeError::invalid(
+            "adaptive_threshold",
+            format!(
+                "adaptive sampling bakes in one pass; a progressive bake ({} passes) keeps every pixel's samples for its next pass: give one pass or an adaptive threshold of 0",
+                passes.len()
+            ),
         ));
     }
     let start = Instant::now();

@@ -73,6 +73,58 @@ pub struct BakeReport {
     /// Values that were not finite, per stage, and what was done with each (all 0 in a
     /// clean bake; otherwise `warnings` says so too).
     pub non_finite: NonFiniteReport,
+    /// What adaptive sampling did; absent when it was off.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub adaptive: Option<AdaptiveReport>,
+}
+
+/// What per-tile adaptive sampling did ([`super::schedule::adaptive`]).
+#[derive(Clone, Debug, Serialize)]
+pub struct AdaptiveReport {
+    pub threshold: f32,
+    /// Samples of a tile's first check.
+    pub first_check_spp: u32,
+    /// The most samples a tile takes (the bake's `spp`).
+    pub max_spp: u32,
+    pub tiles: usize,
+    /// Tiles that stopped before `max_spp`.
+    pub tiles_stopped: usize,
+    /// Eye samples per pixel over the frame, on average (pixel-weighted).
+    pub mean_spp: f64,
+    /// The eye samples the bake took, as a share of `max_spp` everywhere.
+    pub sample_share: f64,
+    /// Eye samples per pixel of every tile, raster order (16 × 16 tiles).
+    #[serde(skip)]
+    pub tile_spp: Vec<u32>,
+}
+
+impl AdaptiveReport {
+    /// The report of a bake of `resolution` whose tiles took `tile_spp` samples.
+    pub(crate) fn new(
+        settings: &super::BakeSettings,
+        resolution: crate::scene::Resolution,
+        tile_spp: Vec<u32>,
+    ) -> AdaptiveReport {
+        let tiles = super::schedule::tiles::tiles(resolution);
+        let spp = settings.spp;
+        let pixels: usize = tiles.iter().map(|t| t.pixels()).sum();
+        let samples: f64 = tiles
+            .iter()
+            .zip(&tile_spp)
+            .map(|(t, n)| t.pixels() as f64 * *n as f64)
+            .sum();
+        let mean_spp = samples / pixels.max(1) as f64;
+        AdaptiveReport {
+            threshold: settings.adaptive.threshold,
+            first_check_spp: settings.adaptive.first_check(spp),
+            max_spp: spp,
+            tiles: tiles.len(),
+            tiles_stopped: tile_spp.iter().filter(|n| **n < spp).count(),
+            mean_spp,
+            sample_share: mean_spp / spp.max(1) as f64,
+            tile_spp,
+        }
+    }
 }
 
 /// One pass of a progressive bake.

@@ -73,6 +73,46 @@ pub struct BakeSettings {
     /// `compression_error`).
     #[serde(default)]
     pub compression: BounceCompression,
+    /// Per-tile adaptive sampling ([`crate::bake::schedule::adaptive`]): a tile stops
+    /// taking eye samples once its estimated error reaches a threshold. Off by default
+    /// (threshold 0: the bake is bit for bit the one without it), and then not written
+    /// (stacks and farm files keep their bytes).
+    #[serde(default, skip_serializing_if = "AdaptiveSampling::is_off")]
+    pub adaptive: AdaptiveSampling,
+}
+
+/// Per-tile adaptive sampling: after `min_spp` eye samples, and after every doubling of
+/// them, a tile whose estimated error ([`crate::bake::schedule::adaptive::tile_error`])
+/// is at most `threshold` takes no more samples; the others go on up to the bake's `spp`.
+/// Cycles' adaptive sampling is the model (its noise threshold, its minimum samples, its
+/// error from the full and a half-sample image), on 16 × 16 tiles instead of pixels.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct AdaptiveSampling {
+    /// Noise threshold on Cycles' scale (its per-pixel error: the noise estimate over the
+    /// square root of the pixel's intensity), in [0, 1); 0: off.
+    pub threshold: f32,
+    /// Eye samples every tile takes before its first check; 0: automatic
+    /// ([`AdaptiveSampling::first_check`]).
+    pub min_spp: u32,
+}
+
+impl AdaptiveSampling {
+    /// Whether adaptive sampling is off (the bake takes `spp` samples everywhere).
+    pub fn is_off(&self) -> bool {
+        self.threshold == 0.0
+    }
+
+    /// The sample count of a tile's first check in a bake of `spp`: `min_spp`, or when 0
+    /// an eighth of `spp` and at least 4 (fewer samples make the half-image estimate too
+    /// noisy to stop on), at most `spp`.
+    pub fn first_check(&self, spp: u32) -> u32 {
+        let n = if self.min_spp == 0 {
+            (spp / 8).max(4)
+        } else {
+            self.min_spp
+        };
+        n.clamp(1, spp.max(1))
+    }
 }
 
 /// Lattice compression of the bounce layers (paths of two or more vertices, none of them
@@ -174,6 +214,7 @@ impl Default for BakeSettings {
             denoise: Denoise::OFF,
             memory_budget: None,
             compression: BounceCompression::OFF,
+            adaptive: AdaptiveSampling::default(),
         }
     }
 }
@@ -288,6 +329,22 @@ impl BakeSettings {
                 format!(
                     "{} given, but the bounce layers are not compressed: give a compression step (or a preset)",
                     c.tolerance
+                ),
+            );
+        }
+        let a = self.adaptive;
+        if !(a.threshold.is_finite() && (0.0..1.0).contains(&a.threshold)) {
+            return bad(
+                "adaptive_threshold",
+                format!("must be in [0, 1), got {}", a.threshold),
+            );
+        }
+        if a.is_off() && a.min_spp != 0 {
+            return bad(
+                "adaptive_min_spp",
+                format!(
+                    "{} given, but adaptive sampling is off: give an adaptive threshold",
+                    a.min_spp
                 ),
             );
         }

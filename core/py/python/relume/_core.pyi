@@ -97,6 +97,8 @@ class BakeSettings:
     memory_budget_mb: float | None
     compression_step: int
     compression_tolerance: float
+    adaptive_threshold: float  # per-tile adaptive sampling's noise threshold; 0: off
+    adaptive_min_spp: int  # samples before the first check; 0: spp / 8, at least 4
     passes: int
     def __init__(self, **fields: Any) -> None: ...
     @staticmethod

@@ -80,6 +80,10 @@ pub struct Args {
     /// Worker threads (0: all cores).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
+    /// Bakes every preset with per-tile adaptive sampling at this noise threshold (the
+    /// bake setting `adaptive_threshold`; 0: the presets as they are).
+    #[arg(long, default_value_t = 0.0)]
+    pub adaptive_threshold: f32,
     /// Keep the baked stacks in OUT/stacks/ (they are deleted after measuring otherwise).
     #[arg(long)]
     pub keep_stacks: bool,
@@ -474,6 +478,7 @@ fn measure_preset(
         ..BakeSettings::default()
     };
     let scale = preset.apply(&mut settings);
+    settings.adaptive.threshold = args.adaptive_threshold;
     let resolution = scale_resolution(scene.resolution, scale)?;
     settings.resolution = Some(resolution);
     let stack_path = stacks_dir.join(format!("{name}.{}.relume.exr", preset.name()));
@@ -533,6 +538,7 @@ fn measure_preset(
         "bases_per_editable_region": bases,
         "bake_seconds": r.seconds,
         "trace_seconds": r.trace_seconds,
+        "adaptive": r.adaptive,
         "write_seconds": baked.write_seconds,
         "rays": r.rays,
         "layers": stack.layers.len(),

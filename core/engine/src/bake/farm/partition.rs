@@ -92,6 +92,15 @@ pub fn bake_partition(
 ) -> Result<(PartialHeader, Vec<String>, u64)> {
     let start = Instant::now();
     settings.validate()?;
+    if !settings.adaptive.is_off() {
+        return Err(RelumeError::invalid(
+            "adaptive_threshold",
+            format!(
+                "a farm splits the bake by eye-sample ranges, and adaptive sampling decides per tile from all the samples before its range whether to take it, so partition {}/{} cannot know its tiles' samples: bake it with an adaptive threshold of 0, or on one machine",
+                partition.index, partition.count
+            ),
+        ));
+    }
     let samples = partition.samples(settings.spp);
     if samples.is_empty() {
         return Err(RelumeError::invalid(

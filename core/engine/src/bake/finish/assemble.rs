@@ -310,6 +310,7 @@ pub(crate) fn layer_report(
         bounces: ctx.settings.bounces,
         bounce_estimate: ctx.bounce_estimate.clone(),
         non_finite: finished.non_finite,
+        adaptive: None,
     };
     (stack, report)
 }

@@ -11,13 +11,15 @@
 //!   is handed) tile rows in bands
 //!   ([`band`]), keeps each traced tile as its sparse averages (`traced_tile`) and hands a
 //!   tile row to the finishing stage as soon as the rows its denoiser reads are traced, the
-//!   denoiser computing only where a layer can be non-zero ([`denoise_sparse`]).
+//!   denoiser computing only where a layer can be non-zero ([`denoise_sparse`]); with
+//!   adaptive sampling a tile takes samples in rounds and stops early ([`adaptive`]).
 //!
 //! Apart from the other stages because this is where a bake's memory and its bits are
 //! decided: the schedule sets what is held at once, and the one summation order in
 //! [`blocks`] is what makes a progressive bake, a farm's merge and a streaming bake give the
 //! same stack.
 
+pub mod adaptive;
 pub mod band;
 pub mod blocks;
 pub mod denoise_sparse;

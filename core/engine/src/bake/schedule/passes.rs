@@ -49,6 +49,13 @@ pub(crate) fn one_streaming_pass(
         streamed.denoise_seconds,
     );
     report.peak_accounted_bytes = streamed.peak_accounted_bytes;
+    if !settings.adaptive.is_off() {
+        report.adaptive = Some(crate::bake::report::AdaptiveReport::new(
+            settings,
+            res,
+            streamed.tile_samples,
+        ));
+    }
     setup.finish_report(&mut report, rays.load(Ordering::Relaxed));
     let pass_report = PassReport {
         pass: 0,

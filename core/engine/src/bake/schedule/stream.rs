@@ -48,6 +48,9 @@ pub(crate) struct Streamed {
     pub assembly_seconds: f64,
     /// The most bytes held at once in stored tiles, traced rows and denoiser windows.
     pub peak_accounted_bytes: usize,
+    /// Eye samples per pixel of every tile, in raster order (the bake's `spp` everywhere
+    /// unless adaptive sampling stopped tiles early; empty for a farm's merge).
+    pub tile_samples: Vec<u32>,
 }
 
 /// Bakes `settings.spp` samples per pixel in one pass, streaming tile rows into the tiled
@@ -64,7 +67,15 @@ pub(crate) fn bake_streaming(
 ) -> Result<Streamed> {
     let brdf = BasisBrdf { ctx };
     let spp = settings.spp;
-    finish_streaming(
+    // Adaptive sampling's rule reads the bake-time image: the layers' weights at the
+    // scene's materials, the ones the finish computes too.
+    let weights = match settings.adaptive.is_off() {
+        true => None,
+        false => Some(layer_weights(ctx, scene)?),
+    };
+    let adaptive = weights.as_deref().map(|w| (settings.adaptive, w));
+    let mut tile_samples = vec![spp; tiles::tiles(ctx.resolution).len()];
+    let mut streamed = finish_streaming(
         ctx,
         scene,
         settings,
@@ -77,15 +88,21 @@ pub(crate) fn bake_streaming(
                     .par_iter()
                     .map(|tile| {
                         progress.check()?;
-                        let t = trace_sparse(ctx, &brdf, tile, spp, progress, rays)?;
+                        let t = trace_sparse(ctx, &brdf, tile, spp, adaptive, progress, rays)?;
                         progress.advance(spp as u64);
                         Ok(t)
                     })
                     .collect()
             });
-            done.into_iter().collect()
+            let done: Vec<TracedTile> = done.into_iter().collect::<Result<_>>()?;
+            for (tile, t) in band_tiles.iter().zip(&done) {
+                tile_samples[tile.index] = t.samples;
+            }
+            Ok(done)
         },
-    )
+    )?;
+    streamed.tile_samples = tile_samples;
+    Ok(streamed)
 }
 
 /// The streaming bake's walk over the frame with its tiles from `source`: given the next
@@ -222,6 +239,7 @@ pub(crate) fn finish_streaming(
         denoise_seconds,
         assembly_seconds,
         peak_accounted_bytes: peak,
+        tile_samples: Vec::new(),
     })
 }
 

@@ -5,14 +5,16 @@
 //! each pixel, which equals the other two) in a third of the bytes; the tiles in flight
 //! are most of the bake's memory besides the stack.
 
+use super::adaptive::{features_as_of_spp, trace_adaptive};
 use super::tiles::Tile;
 use super::trace::trace_tile_records;
 use crate::bake::finish::denoise::FEATURE_STRIDE;
 use crate::bake::path::vertex_brdf::BasisBrdf;
 use crate::bake::prepare::context::BakeContext;
+use crate::bake::settings::AdaptiveSampling;
 use crate::progress::Progress;
 use crate::stack::tiled::TileRect;
-use crate::{RelumeError, Result};
+use crate::{RelumeError, Result, Rgb};
 
 /// One layer's averages over a traced tile: the tile's pixels row-major, `channels`
 /// (1: grey, 3: RGB) interleaved.
@@ -25,6 +27,9 @@ pub(crate) struct TracedLayer {
 /// One traced tile: its non-zero layers (sorted by id) and its pixels' eye-feature records.
 pub(crate) struct TracedTile {
     pub rect: TileRect,
+    /// Eye samples per pixel it was traced with: the bake's `spp`, or fewer where adaptive
+    /// sampling stopped it ([`super::adaptive`]).
+    pub samples: u32,
     pub features: Vec<f32>,
     pub layers: Vec<TracedLayer>,
 }
@@ -52,18 +57,29 @@ pub(crate) fn rect_of(tile: &Tile) -> TileRect {
     }
 }
 
-/// Traces all `spp` samples of `tile` (the canonical tree's root per pixel) and keeps the
-/// sparse averages.
+/// Traces all `spp` samples of `tile` (the canonical tree's root per pixel), or with
+/// `adaptive` (its settings and the layers' bake-time weights) as many as
+/// [`super::adaptive`] takes, and keeps the sparse averages.
 pub(crate) fn trace_sparse(
     ctx: &BakeContext,
     brdf: &BasisBrdf,
     tile: &Tile,
     spp: u32,
+    adaptive: Option<(AdaptiveSampling, &[Rgb])>,
     progress: &Progress,
     rays: &std::sync::atomic::AtomicU64,
 ) -> Result<TracedTile> {
-    let buf = trace_tile_records(ctx, brdf, 1, true, tile, 0..spp, progress, rays)?
-        .ok_or(RelumeError::Cancelled)?;
+    let (buf, samples) = match adaptive {
+        None => (
+            trace_tile_records(ctx, brdf, 1, true, tile, 0..spp, progress, rays)?
+                .ok_or(RelumeError::Cancelled)?,
+            spp,
+        ),
+        Some((settings, weights)) => {
+            let t = trace_adaptive(ctx, brdf, tile, spp, settings, weights, progress, rays)?;
+            (t.records, t.samples)
+        }
+    };
     let layer_count = ctx.layer_count();
     let record = layer_count * 3 + FEATURE_STRIDE;
     let tp = tile.pixels();
@@ -73,6 +89,7 @@ pub(crate) fn trace_sparse(
         let at = p * record + layer_count * 3;
         features.extend_from_slice(&buf[at..at + FEATURE_STRIDE]);
     }
+    features_as_of_spp(&mut features, samples, spp);
     // Which layers are non-zero somewhere in the tile, in one pass over the records in
     // memory order (a layer's texels lie a whole record apart).
     let mut non_zero = vec![false; layer_count];
@@ -84,13 +101,14 @@ pub(crate) fn trace_sparse(
     }
     let mut layers = Vec::new();
     for layer in (0..layer_count).filter(|l| non_zero[*l]) {
-        layers.push(traced_layer(layer as u32, tp, spp, |p| {
+        layers.push(traced_layer(layer as u32, tp, samples, |p| {
             let at = p * record + layer * 3;
             [buf[at], buf[at + 1], buf[at + 2]]
         })?);
     }
     Ok(TracedTile {
         rect: rect_of(tile),
+        samples,
         features,
         layers,
     })
@@ -147,6 +165,7 @@ pub(crate) fn traced_from_sums(
     }
     Ok(TracedTile {
         rect,
+        samples: spp,
         features,
         layers: out,
     })
