@@ -10,7 +10,8 @@ use glam::Vec3;
 use super::basis::coefficients::slot_coefficients;
 use super::basis::BrdfBasis;
 use super::material::MaterialSpec;
-use super::principled_basis::{BakeLobe, Cosines, PrincipledBasis, MAX_SLOTS};
+use super::principled_basis::bake_lobe::BakeLobe;
+use super::principled_basis::{Cosines, PrincipledBasis, MAX_SLOTS};
 use crate::{RelumeError, Result, Rgb};
 
 /// An editable region's basis.

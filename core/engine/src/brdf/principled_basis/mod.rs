@@ -35,7 +35,7 @@
 //! projection, milliseconds per IOR and roughness), the diffuse base's `1 − albedo(μo)` weight
 //! under a dielectric, f16 tables, and the bake's sampling of these lobes.
 
-mod bake_lobe;
+pub mod bake_lobe;
 mod cache;
 mod curves;
 mod lobes;
@@ -49,7 +49,6 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-pub use bake_lobe::{AnchoredCoefficients, BakeLobe};
 pub use lobes::{default_families, Cosines, Family, DIFFUSE};
 pub use lune::TableSize;
 pub use quadrature::QuadratureSize;
