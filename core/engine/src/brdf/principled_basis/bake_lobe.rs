@@ -130,6 +130,35 @@ impl PrincipledBasis {
         AnchoredCoefficients { slots, below_range }
     }
 
+    /// The relative L2 error (per channel, under the basis' measure) of material `p` rebuilt
+    /// from the basis alone (its projection) and from the basis with `lobe`'s bake-time slot:
+    /// `‖Qf‖² = ‖f‖² − ‖Pf‖²` and, with the slot, `‖Qf‖² − α²‖q‖²`.
+    pub fn rebuild_error_with_bake_lobe(
+        &self,
+        lobe: &BakeLobe,
+        p: &Principled,
+    ) -> ([f64; 3], [f64; 3]) {
+        let f = CyclesPrincipled::new(p);
+        let sums = self.sums(&f, Some(&lobe.at_nodes));
+        let held = self.held(&sums.coefficients, &sums.coefficients);
+        let onto_pg = self.held(&sums.coefficients, &lobe.projection);
+        let mut plain = [0.0; 3];
+        let mut with = [0.0; 3];
+        for c in 0..3 {
+            let qf = (sums.norm2[c] - held[c]).max(0.0);
+            let alpha = if lobe.missed[c] > 0.0 {
+                (sums.dot_g[c] - onto_pg[c]) / lobe.missed[c]
+            } else {
+                0.0
+            };
+            let rest = (qf - alpha * alpha * lobe.missed[c]).max(0.0);
+            let n = sums.norm2[c].max(1e-300);
+            plain[c] = (qf / n).sqrt();
+            with[c] = (rest / n).sqrt();
+        }
+        (plain, with)
+    }
+
     /// `⟨Pa, Pb⟩` per channel from two coefficient vectors (the bases are orthonormal; slot
     /// 0's function is the constant 1 under the measure, its coefficient multiplies `1/π`).
     fn held(&self, a: &[[f64; 3]], b: &[[f64; 3]]) -> [f64; 3] {
