@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Fuzzes Relume's three parsers with cargo fuzz (libFuzzer): the stack reader, the scene
 # file and the materials file. Usage: bash scripts/fuzz.sh [SECONDS_PER_TARGET] (default 60;
-# scripts/test.sh runs 30 s each; docs/reliability.md records the long runs).
+# scripts/test.sh runs 20 s each; docs/reliability.md records the long runs).
 # libFuzzer counts any single allocation over -malloc_limit_mb as a crash, so a reader that
 # preallocates what a hostile header claims fails here. Installs cargo-fuzz when missing; the
 # toolchain is stable, so the sanitizer flags need RUSTC_BOOTSTRAP=1.

@@ -54,8 +54,8 @@ echo "== import graph: no circle in core/engine or addon/relume, nothing below t
 "$PYTHON" scripts/import_graph.py || status=1
 echo "== cargo test (workspace)"
 cargo test --workspace --no-fail-fast 2>&1 || status=1
-echo "== fuzzing: stack reader, scene and materials parsers, 30 s each (scripts/fuzz.sh)"
-bash scripts/fuzz.sh 30 || status=1
+echo "== fuzzing: stack reader, scene and materials parsers, 20 s each (scripts/fuzz.sh)"
+bash scripts/fuzz.sh 20 || status=1
 echo "== the relume wheel and the Blender extension zip"
 bash scripts/build_addon.sh
 echo "== the wheel's platform tag and the release workflow (scripts/check_release.py)"

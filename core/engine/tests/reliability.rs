@@ -132,12 +132,16 @@ fn the_estimate_counts_the_layers_the_bake_reaches() {
 }
 
 #[test]
-fn the_translucent_header_round_trips_for_every_sample_count() {
+fn the_translucent_header_round_trips_across_sample_counts() {
     let mut scene = cornell(8);
     make_object_translucent(&mut scene);
     let mut settings = BakeSettings::default();
     let mut failures = Vec::new();
-    for samples in 1_000..=4_194_304u32 {
+    // Every count up to 2^16, then a prime stride (so every residue of small moduli and
+    // every binade of ρ is visited) up to 2^22: the exhaustive walk over all four million
+    // counts took over a minute of the test run for no added reach.
+    let counts = (1_000..=65_536u32).chain((65_537..=4_194_304u32).step_by(97));
+    for samples in counts {
         settings.subsurface_samples = samples;
         let (cfg, _) = relume_engine::bake::prepare::subsurface::basis_config(
             &scene,

@@ -8,6 +8,8 @@ mod common;
 
 use std::sync::Arc;
 
+use rayon::prelude::*;
+
 use common::*;
 use relume_engine::bake::prepare::context::BakeContext;
 use relume_engine::bake::{bake, BakeSettings};
@@ -166,28 +168,46 @@ fn relit_subsurface_matches_brute_force_dipole_sum() {
     let area = t.points.area_each;
     println!("| radius × scale (m, R G B) | base | IOR | rel. L2 relit vs brute force | max pixel rel. |");
     println!("|---|---|---|---|---|");
-    let mut worst: f64 = 0.0;
-    for (radius, scale, base, ior) in [
+    let materials: Vec<MaterialSpec> = [
         ([1.0, 0.5, 0.25], 0.1, 0.8, 1.4),
         ([1.0, 1.0, 1.0], 0.02, 0.5, 1.4),
         ([1.0, 0.3, 0.1], 0.2, 0.9, 1.4),
         ([1.0, 0.2, 0.1], 0.15, 0.95, 1.4),
         ([1.0, 1.0, 1.0], 0.2, 0.3, 1.4),
-    ] {
-        let m = wax(radius, scale, base, ior);
-        let img = sss_image(&stack, &m);
-        let params = m.dipole_params().unwrap();
-        let (mut num, mut den, mut maxrel) = (0.0f64, 0.0f64, 0.0f64);
-        for (p, x, cos_o) in &hits {
+    ]
+    .into_iter()
+    .map(|(radius, scale, base, ior)| wax(radius, scale, base, ior))
+    .collect();
+    let images: Vec<Vec<f32>> = materials.iter().map(|m| sss_image(&stack, m)).collect();
+    // Every material's three channels in one brute-force pass: the blur weights at each
+    // (hit, sample) distance are shared by all of them, and the hits spread over threads.
+    let params: Vec<_> = materials
+        .iter()
+        .flat_map(|m| m.dipole_params().unwrap())
+        .collect();
+    let profiles = t.basis.blurred_profiles_fn(&params);
+    // Per hit: per (material, channel) the brute-force value.
+    let brute: Vec<Vec<f64>> = hits
+        .par_iter()
+        .map(|(_, x, cos_o)| {
             let ft = fresnel_transmittance(t.eta, *cos_o as f64) / std::f64::consts::PI;
-            for c in 0..3 {
-                let prof = t.basis.blurred_profile_fn(&params[c]);
-                let mut sum = 0.0f64;
-                for (xi, e) in t.points.positions.iter().zip(&t.irradiance) {
-                    let r = xi.distance(*x) as f64;
-                    sum += e[c] as f64 * area * prof(r);
+            let mut sums = vec![0.0f64; params.len()];
+            let mut prof = vec![0.0f64; params.len()];
+            for (xi, e) in t.points.positions.iter().zip(&t.irradiance) {
+                profiles(xi.distance(*x) as f64, &mut prof);
+                for (j, (s, p)) in sums.iter_mut().zip(&prof).enumerate() {
+                    *s += e[j % 3] as f64 * area * p;
                 }
-                let brute = sum * ft;
+            }
+            sums.iter().map(|s| s * ft).collect()
+        })
+        .collect();
+    let mut worst: f64 = 0.0;
+    for (k, (m, img)) in materials.iter().zip(&images).enumerate() {
+        let (mut num, mut den, mut maxrel) = (0.0f64, 0.0f64, 0.0f64);
+        for ((p, _, _), b) in hits.iter().zip(&brute) {
+            for c in 0..3 {
+                let brute = b[3 * k + c];
                 let relit = img[p * 4 + c] as f64;
                 num += (relit - brute).powi(2);
                 den += brute * brute;
@@ -196,11 +216,17 @@ fn relit_subsurface_matches_brute_force_dipole_sum() {
         }
         let rel = (num / den).sqrt();
         worst = worst.max(rel);
+        let MaterialSpec::Principled(p) = m else {
+            unreachable!("wax is Principled")
+        };
+        let (radius, scale) = (p.subsurface.radius, p.subsurface.scale);
         println!(
-            "| {:.3} {:.3} {:.3} | {base} | {ior} | {:.3} % | {:.2} % |",
+            "| {:.3} {:.3} {:.3} | {} | {} | {:.3} % | {:.2} % |",
             radius[0] * scale,
             radius[1] * scale,
             radius[2] * scale,
+            p.bsdf.base_color[0],
+            p.bsdf.ior,
             rel * 100.0,
             maxrel * 100.0
         );

@@ -405,9 +405,23 @@ impl SssBasis {
     /// The blurred profile of σ as a function of r, with the annulus masses computed once
     /// (for brute-force sums over many radii).
     pub fn blurred_profile_fn(&self, p: &DipoleParams) -> impl Fn(f64) -> f64 + '_ {
-        let p = self.clamp(p);
-        let masses = annulus_masses(&p, &self.edges);
+        let profiles = self.blurred_profiles_fn(std::slice::from_ref(p));
         move |r: f64| {
+            let mut value = [0.0];
+            profiles(r, &mut value);
+            value[0]
+        }
+    }
+
+    /// The blurred profiles of several σ at once: `f(r, out)` writes one value per σ. The
+    /// blur's weights depend on r alone, so a brute-force sum over many σ (channels,
+    /// materials) computes them once per radius instead of once per σ.
+    pub fn blurred_profiles_fn(&self, ps: &[DipoleParams]) -> impl Fn(f64, &mut [f64]) + '_ {
+        let masses: Vec<Vec<f64>> = ps
+            .iter()
+            .map(|p| annulus_masses(&self.clamp(p), &self.edges))
+            .collect();
+        move |r: f64, out: &mut [f64]| {
             let (first, w) = blur_row(
                 r,
                 &self.radii,
@@ -416,7 +430,9 @@ impl SssBasis {
                 BLUR_PER_RHO * self.cfg.rho,
                 Some(&self.blur_norm),
             );
-            w.iter().zip(&masses[first..]).map(|(w, m)| w * m).sum()
+            for (o, m) in out.iter_mut().zip(&masses) {
+                *o = w.iter().zip(&m[first..]).map(|(w, m)| w * m).sum();
+            }
         }
     }
 
