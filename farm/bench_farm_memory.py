@@ -4,7 +4,9 @@ The eight-material Cornell scene (scripts/make_cornell8.py), all eight editable,
 a named preset (draft by default): the one-machine bake, then for each N the guide task,
 every `--partition i/N` task and the merge, each run under `/usr/bin/time -v` for its peak
 resident memory (max RSS) and wall time, with the bytes each writes. The merged file is
-compared with the one-machine bake's byte for byte.
+compared with the one-machine bake's byte for byte, and each task's peak is held to the
+farm's bounds (printed, not asserted): a partition within 1.2 × the one-machine bake's peak
++ 0.3 GB, the merge within 2 × the stack's stored bytes + 0.5 GB.
 
     python3 farm/bench_farm_memory.py --resolution 512x512 --splits 2,4 \
         --relume target/release/relume
@@ -33,7 +35,8 @@ def run(cmd: list[str]) -> dict:
     if out.returncode != 0:
         raise SystemExit(f"{' '.join(cmd)} failed:\n{out.stderr[-2000:]}")
     rss = re.search(r"Maximum resident set size \(kbytes\): (\d+)", out.stderr)
-    return {"peak_rss_bytes": int(rss.group(1)) * 1024 if rss else None, "wall_s": round(wall, 2)}
+    return {"peak_rss_bytes": int(rss.group(1)) * 1024 if rss else None, "wall_s": round(wall, 2),
+            "stdout": out.stdout}
 
 
 def gb(n: int | None) -> float | None:
@@ -48,6 +51,7 @@ def main() -> None:
     ap.add_argument("--preset", default="draft", choices=["draft", "preview", "final"])
     ap.add_argument("--splits", default="2", help="comma-separated partition counts")
     ap.add_argument("--threads", default="0")
+    ap.add_argument("--out", help="also append the JSON row to this file (one line)")
     args = ap.parse_args()
     flags = ["--preset", args.preset, "--bounces", "1", "--threads", args.threads]
     with tempfile.TemporaryDirectory() as tmp_dir:
@@ -59,9 +63,13 @@ def main() -> None:
         single = tmp / "single.exr"
         row: dict = {"resolution": args.resolution, "editable": args.editable, "preset": args.preset,
                      "bounces": 1}
-        s = run([args.relume, "bake", str(scene), "-o", str(single), *flags])
+        s = run([args.relume, "bake", str(scene), "-o", str(single), "--json", *flags])
+        stored = json.loads(s["stdout"])["report"]["stored_bytes"]
         row["single"] = {"peak_rss_gb": gb(s["peak_rss_bytes"]), "wall_s": s["wall_s"],
-                         "file_mb": round(single.stat().st_size / 1e6, 1)}
+                         "file_mb": round(single.stat().st_size / 1e6, 1),
+                         "stack_stored_mb": round(stored / 1e6, 1)}
+        part_bound = 1.2 * s["peak_rss_bytes"] + 0.3e9
+        merge_bound = 2.0 * stored + 0.5e9
         guide = tmp / "guide.rguide"
         g = run([args.relume, "bake", str(scene), "--guide-only", "-o", str(guide), *flags])
         row["guide"] = {"peak_rss_gb": gb(g["peak_rss_bytes"]), "wall_s": g["wall_s"],
@@ -86,11 +94,18 @@ def main() -> None:
                 "merge": {"peak_rss_gb": gb(m["peak_rss_bytes"]), "wall_s": m["wall_s"],
                           "file_mb": round(merged.stat().st_size / 1e6, 1)},
                 "merged_identical_to_single": filecmp.cmp(single, merged, shallow=False),
+                "partition_bound_gb": gb(int(part_bound)),
+                "partitions_within_bound": all(c["peak_rss_gb"] * 1e9 <= part_bound for c in cells),
+                "merge_bound_gb": gb(int(merge_bound)),
+                "merge_within_bound": m["peak_rss_bytes"] <= merge_bound,
             })
             for part in parts:
                 part.unlink()
         row["splits"] = splits
         print(json.dumps(row, indent=1))
+        if args.out:
+            with open(args.out, "a") as f:
+                f.write(json.dumps(row) + "\n")
 
 
 if __name__ == "__main__":
