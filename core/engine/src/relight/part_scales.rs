@@ -76,15 +76,15 @@ pub fn basis_albedos(basis: &RegionBasis, textured: bool) -> Vec<f32> {
 }
 
 /// The current scale of each editable region's parts against the bake.
-#[derive(Clone, Debug)]
+#[derive(Clone)]
 pub struct PartScales {
     /// Per editable region, its BRDF slots' albedos ([`basis_albedos`]).
     albedos: Vec<Vec<f32>>,
     /// Per editable region, its part energies at bake time.
     bake: Vec<[Rgb; 2]>,
-    /// Per editable region with a bake-time slot ([`RegionBasis::fold_bake_lobe`]): that
-    /// slot's index and the basis' projection of the bake-time lobe, slot by slot.
-    bake_lobes: Vec<Option<(usize, Vec<Rgb>)>>,
+    /// Per editable region, its basis: a bake-time slot's weight is folded onto the basis
+    /// slots ([`RegionBasis::fold_bake_lobe`]) before the energies are read off them.
+    bases: Vec<RegionBasis>,
     /// Per editable region, the current scale of its diffuse and its glossy part.
     scales: Vec<[Rgb; 2]>,
 }
@@ -111,25 +111,18 @@ impl PartScales {
             .collect();
         let mut albedos = Vec::new();
         let mut bake = Vec::new();
-        let mut bake_lobes = Vec::new();
         for (r, m) in materials.iter().enumerate() {
             let basis = &bases.bases[r];
             let a = basis_albedos(basis, bases.textured[r]);
-            let lobe = basis.bake_lobe_slot().map(|k| {
-                let mut unit = vec![Rgb::ZERO; k + 1];
-                unit[k] = Rgb::ONE;
-                (k, basis.fold_bake_lobe(&unit))
-            });
-            let coefs = fold(&bases.region_coefficients(r, m)?, lobe.as_ref());
+            let coefs = basis.fold_bake_lobe(&bases.region_coefficients(r, m)?);
             bake.push(part_energies(&coefs, &a));
             albedos.push(a);
-            bake_lobes.push(lobe);
         }
         let scales = vec![[Rgb::ONE; 2]; bake.len()];
         Ok(PartScales {
             albedos,
             bake,
-            bake_lobes,
+            bases: bases.bases,
             scales,
         })
     }
@@ -146,7 +139,7 @@ impl PartScales {
         let Some(bake) = self.bake.get(region) else {
             return;
         };
-        let coefs = fold(coefs, self.bake_lobes[region].as_ref());
+        let coefs = self.bases[region].fold_bake_lobe(coefs);
         let now = part_energies(&coefs, &self.albedos[region]);
         let ratio = |n: Rgb, b: Rgb| {
             let r = |n: f32, b: f32| if b.abs() > ABSENT { n / b } else { 1.0 };
@@ -159,22 +152,6 @@ impl PartScales {
     pub fn scales(&self) -> &[[Rgb; 2]] {
         &self.scales
     }
-}
-
-/// `coefs` with a bake-time slot's weight `α` moved onto the basis slots as `α` times the
-/// basis' projection of the bake-time lobe (`lobe`: the slot and that projection), so that
-/// the energies read off the basis slots count it; without a bake-time slot, `coefs`.
-fn fold(coefs: &[Rgb], lobe: Option<&(usize, Vec<Rgb>)>) -> Vec<Rgb> {
-    let Some((k, projection)) = lobe else {
-        return coefs.to_vec();
-    };
-    let alpha = coefs.get(*k).copied().unwrap_or(Rgb::ZERO);
-    let mut out: Vec<Rgb> = coefs.iter().take(*k).copied().collect();
-    for (o, p) in out.iter_mut().zip(projection) {
-        *o += alpha * *p;
-    }
-    out.extend(coefs.iter().skip(k + 1).copied());
-    out
 }
 
 /// The weight factor of a tail-edit term: s_b·(s_d^`diffuse`·s_g^`glossy` − 1) per

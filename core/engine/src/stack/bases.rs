@@ -41,7 +41,7 @@ impl StackBases {
                         region.name
                     )));
                 };
-                let lobe = Arc::new(b.bake_lobe(&p.bsdf));
+                let lobe = b.shared_bake_lobe(&p.bsdf);
                 bases.push(RegionBasis::PrincipledWithBakeLobe(b, lobe));
             } else if let Some(cfg) = &region.principled_basis {
                 bases.push(RegionBasis::Principled(PrincipledBasis::shared(cfg)?));

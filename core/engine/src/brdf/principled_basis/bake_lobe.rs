@@ -26,11 +26,13 @@
 //! is `‖g‖² − ‖Pg‖²`, a small difference of large numbers that the curves' interpolation
 //! error (a few 10⁻³ of the coefficients) would swamp.
 
+use std::sync::{Arc, Mutex, Weak};
+
 use rayon::prelude::*;
 
 use super::lobes::DIFFUSE;
 use super::quadrature::Node;
-use super::{PrincipledBasis, MAX_SLOTS, NODES_PER_CHUNK};
+use super::{PrincipledBasis, PrincipledBasisConfig, MAX_SLOTS, NODES_PER_CHUNK};
 use crate::brdf::cycles_principled::CyclesPrincipled;
 use crate::brdf::Principled;
 
@@ -101,6 +103,36 @@ impl PrincipledBasis {
             projection: sums.coefficients,
             missed,
         }
+    }
+
+    /// [`Self::bake_lobe`], shared within the process while anyone holds it: a stack's
+    /// bases are rebuilt from its header by more than one reader at load (the front end's
+    /// coefficients and the relighter's tail-edit scales), and each lobe is a sum over every
+    /// quadrature node. Keyed by the basis' configuration (one basis per configuration,
+    /// [`Self::shared`]) and the material; entries nobody holds any more are dropped.
+    pub fn shared_bake_lobe(&self, material: &Principled) -> Arc<BakeLobe> {
+        type Entry = (PrincipledBasisConfig, Principled, Weak<BakeLobe>);
+        static LOBES: Mutex<Vec<Entry>> = Mutex::new(Vec::new());
+        let held = {
+            let mut lobes = LOBES.lock().unwrap_or_else(|e| e.into_inner());
+            lobes.retain(|(_, _, lobe)| lobe.strong_count() > 0);
+            lobes
+                .iter()
+                .find(|(c, m, _)| c == self.config() && m == material)
+                .and_then(|(_, _, lobe)| lobe.upgrade())
+        };
+        if let Some(lobe) = held {
+            return lobe;
+        }
+        // Computed outside the lock: two readers racing on one lobe compute it twice, which
+        // is correct, rather than one holding every other lobe's readers up.
+        let lobe = Arc::new(self.bake_lobe(material));
+        LOBES.lock().unwrap_or_else(|e| e.into_inner()).push((
+            self.config().clone(),
+            *material,
+            Arc::downgrade(&lobe),
+        ));
+        lobe
     }
 
     /// The coefficients of material `p` on this basis and the bake-time slot of `lobe`
