@@ -159,6 +159,46 @@ fn a_progressive_bake_ends_on_the_bits_of_a_one_shot_bake() {
 }
 
 #[test]
+fn a_denoised_compressed_progressive_bake_ends_on_the_bits_of_a_one_shot_bake() {
+    // Guided sampling, the denoiser on both layer kinds, lattice-compressed bounce layers
+    // and layer dropping: every step of the finish a pass runs from its kept tile sums.
+    let scene = two_lights(37);
+    let mut settings = preview_per_light();
+    settings.spp = 6;
+    settings.compression = settings.compression.with_step(4);
+    settings.drop_budget = 0.01;
+    settings.denoise.direct_iterations = settings.denoise.direct_iterations.max(1);
+    settings.denoise.bounce_iterations = settings.denoise.bounce_iterations.max(2);
+    let (one, one_report) = bake(&scene, &settings, &Progress::new()).unwrap();
+    let mut spp_seen = Vec::new();
+    let (last, last_report, reports) = bake_progressive(
+        &scene,
+        &settings,
+        &[2, 5, 6],
+        &Progress::new(),
+        |stack, _, pass| {
+            assert_eq!(stack.header.spp, pass.spp);
+            spp_seen.push(pass.spp);
+            Ok(())
+        },
+    )
+    .unwrap();
+    assert_eq!(spp_seen, vec![2, 5, 6]);
+    assert!(reports[0].estimated_rel_error.is_none());
+    assert!(reports[1..].iter().all(|r| r
+        .estimated_rel_error
+        .is_some_and(|e| e.is_finite() && e > 0.0)));
+    assert_identical(&one, &last, "denoised, compressed, passes 2, 5, 6");
+    assert_eq!(one_report.layers_grey, last_report.layers_grey);
+    assert_eq!(one_report.layers_rgb, last_report.layers_rgb);
+    assert_eq!(one_report.tile_entries, last_report.tile_entries);
+    assert_eq!(
+        one_report.compression_error.to_bits(),
+        last_report.compression_error.to_bits()
+    );
+}
+
+#[test]
 fn missing_duplicated_and_foreign_parts_are_refused_by_name() {
     let dir = tempfile::tempdir().unwrap();
     let scene = common::cornell(16);

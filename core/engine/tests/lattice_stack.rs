@@ -740,7 +740,7 @@ fn a_compressed_bake_relights_below_zero_nowhere_the_uncompressed_one_does_not()
 }
 
 #[test]
-fn the_streaming_and_dense_paths_compress_alike() {
+fn a_one_pass_and_a_progressive_bake_compress_alike() {
     let scene = cornell(40);
     let mut s = preview(40, Preset::Preview.values().compression);
     s.precision = Precision::F32;

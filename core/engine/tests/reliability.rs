@@ -11,8 +11,9 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use common::*;
+use relume_engine::bake::prepare::estimate::estimate_bake;
 use relume_engine::bake::to_file::bake_to_file;
-use relume_engine::bake::{bake, BakeSettings, Denoise};
+use relume_engine::bake::{bake, bake_progressive_tiled, doubling_passes, BakeSettings, Denoise};
 use relume_engine::brdf::{BasisConfig, BasisCount};
 use relume_engine::progress::{Progress, Stage};
 use relume_engine::stack::exr_file::{read_stack, write_stack};
@@ -129,6 +130,37 @@ fn the_estimate_counts_the_layers_the_bake_reaches() {
     // that over-counts (loosest on small frames, where every tile neighbours every region).
     let ratio = est.stack_bytes as f64 / report.stored_bytes as f64;
     assert!(ratio >= 1.0, "tiled stack estimate / actual = {ratio}");
+}
+
+/// A progressive bake keeps each tile's sample sums between its passes, and its forecast
+/// models them: what the bake accounted at its peak (the stack, the rows in flight and the
+/// kept sums) stays within the forecast peak, and a one-pass forecast keeps nothing.
+#[test]
+fn a_progressive_bake_s_forecast_covers_the_tile_sums_it_keeps() {
+    let scene = cornell(48);
+    let settings = BakeSettings {
+        spp: 4,
+        light_samples: 2,
+        ..BakeSettings::default()
+    };
+    let passes = doubling_passes(settings.spp, 3);
+    let (_, report, reports) =
+        bake_progressive_tiled(&scene, &settings, &passes, &Progress::new(), |_, _, _| {
+            Ok(())
+        })
+        .unwrap();
+    assert_eq!(reports.len(), passes.len());
+    let est = report.estimate.expect("the bake reports its estimate");
+    assert!(est.kept_sums_bytes > 0);
+    assert!(report.peak_accounted_bytes > 0);
+    assert!(
+        report.peak_accounted_bytes as u64 <= est.peak_bytes,
+        "accounted {} over the forecast peak {}",
+        report.peak_accounted_bytes,
+        est.peak_bytes
+    );
+    let one_pass = estimate_bake(&scene, &settings, 1, &Progress::new()).unwrap();
+    assert_eq!(one_pass.kept_sums_bytes, 0);
 }
 
 #[test]

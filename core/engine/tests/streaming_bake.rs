@@ -1,7 +1,9 @@
-//! The streaming one-pass bake (issue 14): its tiled stack is the dense path's, bit for bit
-//! (f32), whatever the band of tile rows traced at once and the thread count; within f16
-//! quantisation at f16; the same as a farm's merged partitions; cancellable without touching
-//! the previous file; and it holds less memory than the dense path, as forecast.
+//! The streaming one-pass bake (issue 14): its tiled stack is the whole-frame filter's, bit
+//! for bit (f32), whatever the band of tile rows traced at once and the thread count, and a
+//! progressive bake's last pass (its tiles' kept sums finished the same way) gives it too;
+//! within f16 quantisation at f16; the same as a farm's merged partitions; cancellable
+//! without touching the previous file; and it holds less memory than a progressive bake,
+//! as forecast.
 mod common;
 
 use std::path::PathBuf;
@@ -70,9 +72,9 @@ fn assert_same_bits(a: &TiledStack, b: &TiledStack, what: &str) {
     }
 }
 
-/// The dense path: a progressive bake's last pass (full-frame sums, whole-frame denoise,
-/// then cut into tiles).
-fn dense(scene: &Scene, settings: &BakeSettings) -> TiledStack {
+/// A progressive bake's last pass: each tile's kept block sums, folded and finished through
+/// the same streaming finish.
+fn progressive_last_pass(scene: &Scene, settings: &BakeSettings) -> TiledStack {
     let (stack, _, _) = bake_progressive_tiled(
         scene,
         settings,
@@ -84,18 +86,32 @@ fn dense(scene: &Scene, settings: &BakeSettings) -> TiledStack {
     stack
 }
 
+/// The reference stack: the frame traced in one band, so the denoiser's one window is the
+/// whole frame, its edges the image's — what filtering full frames gives (the sparse
+/// filter equals the whole one: `denoise_sparse`'s unit test). A progressive bake's last
+/// pass must give it too.
+fn whole_frame_window(scene: &Scene, settings: &BakeSettings) -> TiledStack {
+    let (stack, _) = bake_tiled_banded(scene, settings, Some(1 << 20), &Progress::new()).unwrap();
+    assert_same_bits(
+        &progressive_last_pass(scene, settings),
+        &stack,
+        "a progressive bake's last pass",
+    );
+    stack
+}
+
 #[test]
-fn f32_streaming_is_bit_identical_to_the_dense_path_for_any_band_and_threads() {
+fn f32_streaming_is_bit_identical_to_the_whole_frame_filter_for_any_band_and_threads() {
     let scene = scene();
     for bounce in [2, 3] {
         let s = settings(Precision::F32, bounce);
-        let reference = dense(&scene, &s);
+        let reference = whole_frame_window(&scene, &s);
         assert!(reference.entry_count() > 0);
         // The stack is what the dense layout's tiling gives, too.
         assert_same_bits(
             &TiledStack::from_dense(&reference.to_dense().unwrap()).unwrap(),
             &reference,
-            "from_dense of the dense path",
+            "from_dense of the reference",
         );
         for (band, threads) in [(1, 1), (2, 3), (5, 2)] {
             let s = BakeSettings {
@@ -119,9 +135,9 @@ fn f32_streaming_is_bit_identical_to_the_dense_path_for_any_band_and_threads() {
 
 /// On a frame several tiles wide a layer covers only some tiles of a window (the sphere's
 /// and the walls' pair layers): the denoiser filters only those tiles and the rows the
-/// finalised ones need, and must still give the dense path's stack bit for bit.
+/// finalised ones need, and must still give the whole-frame filter's stack bit for bit.
 #[test]
-fn f32_streaming_filters_only_what_the_layers_cover_and_still_matches_the_dense_path() {
+fn f32_streaming_filters_only_what_the_layers_cover_and_still_matches_the_whole_frame_filter() {
     let scene = common::cornell(112);
     for bounce in [2, 3] {
         let s = BakeSettings {
@@ -132,7 +148,7 @@ fn f32_streaming_filters_only_what_the_layers_cover_and_still_matches_the_dense_
             spp: 2,
             ..settings(Precision::F32, bounce)
         };
-        let reference = dense(&scene, &s);
+        let reference = whole_frame_window(&scene, &s);
         // Grey layers (held and filtered on one channel by the streaming bake) and coloured
         // ones are both compared.
         assert!(reference.layers.iter().any(|l| l.channels == 1));
@@ -320,7 +336,7 @@ fn peak_growth<T>(f: impl FnOnce() -> T) -> (T, u64) {
 /// figures docs/measurements.md quotes.
 #[test]
 #[ignore = "a memory measurement: minutes in a debug build and meaningless beside other load; run with --release -- --ignored on a quiet machine"]
-fn streaming_holds_less_than_the_dense_path_and_as_forecast() {
+fn streaming_holds_less_than_a_progressive_bake_and_as_forecast() {
     let Some(scene) = cornell8(256) else {
         eprintln!("python3 could not write the cornell8 scene: skipped");
         return;
@@ -331,13 +347,13 @@ fn streaming_holds_less_than_the_dense_path_and_as_forecast() {
         peak_growth(|| bake_tiled(&scene, &s, &Progress::new()).unwrap());
     let streaming_seconds = t.elapsed().as_secs_f64();
     let t = std::time::Instant::now();
-    let (dense_stack, dense_peak) = peak_growth(|| dense(&scene, &s));
-    let dense_seconds = t.elapsed().as_secs_f64();
+    let (progressive_stack, progressive_peak) = peak_growth(|| progressive_last_pass(&scene, &s));
+    let progressive_seconds = t.elapsed().as_secs_f64();
     let forecast = report.estimate.clone().unwrap();
     eprintln!(
         "cornell8 k=8 {}×{}: layers {} possible, {} stored; entries {}; stored {} B, dense {} B; \
-         streaming peak {streaming_peak} B (accounted {} B) in {streaming_seconds:.1} s; dense \
-         path peak {dense_peak} B in {dense_seconds:.1} s; forecast peak {} B, stack {} B, \
+         streaming peak {streaming_peak} B (accounted {} B) in {streaming_seconds:.1} s; \
+         progressive peak {progressive_peak} B in {progressive_seconds:.1} s; forecast peak {} B, stack {} B, \
          entries {}",
         report.width,
         report.height,
@@ -351,10 +367,10 @@ fn streaming_holds_less_than_the_dense_path_and_as_forecast() {
         forecast.stack_bytes,
         forecast.tile_entries,
     );
-    assert_eq!(streamed.layers.len(), dense_stack.layers.len());
+    assert_eq!(streamed.layers.len(), progressive_stack.layers.len());
     assert!(
-        streaming_peak < dense_peak,
-        "streaming {streaming_peak} B, dense {dense_peak} B"
+        streaming_peak < progressive_peak,
+        "streaming {streaming_peak} B, progressive {progressive_peak} B"
     );
     // The forecast is the budget check's upper bound, not a prediction: it must not be
     // below what the bake holds (a small margin for allocator slack in the measurement),

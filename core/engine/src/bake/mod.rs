@@ -2,16 +2,17 @@
 //!
 //! For each pixel and eye sample, the integrator ([`path::integrator`]) gives radiance per
 //! slot (direct) and per slot pair (one bounce). Every bake ends in a [`TiledStack`]: per
-//! 16×16 tile only the layers non-zero there ([`finish::finalise`]). A one-pass bake streams
-//! ([`schedule::stream`]): tile rows are traced in bands and finalised as soon as their
-//! denoiser window is traced, so its memory follows the data. A farm's partitions stream
-//! too (their tiles' sums go to a file as they are traced) and its merge feeds the parts'
-//! summed tiles to the same streaming finish ([`farm`]). A progressive bake (several passes)
-//! keeps full-frame accumulators per reached layer ([`schedule::blocks`]) — its memory stays
-//! dense, ≈ 12 bytes × reached layers × pixels — and cuts the assembled layers into the same
-//! tiles with the same code, so it gives the same stack. A layer whose three channels are bit-identical everywhere (its paths met no
-//! colour: Table 1's grey layers) is stored with one channel, an all-zero layer is dropped,
-//! and the rest are RGB.
+//! 16×16 tile only the layers non-zero there ([`finish::finalise`]), finished tile row by tile
+//! row by one streaming finish ([`schedule::stream`]), so no bake holds any layer as a full
+//! frame. A one-pass bake traces tile rows in bands and finalises them as soon as their
+//! denoiser window is traced, so its memory follows the data. A farm's partitions write
+//! their tiles' sample sums to files as they are traced and its merge feeds the parts'
+//! summed tiles to the same finish ([`farm`]). A progressive bake (several passes) keeps the
+//! same per-tile sums in memory between its passes ([`schedule::tile_sums`]) and feeds them
+//! to the same finish after each pass, so it gives the same stack. A layer whose three
+//! channels are bit-identical everywhere on a tile (its paths met no colour: Table 1's grey
+//! layers) is stored there with one channel, an all-zero layer is dropped, and the rest are
+//! RGB.
 //!
 //! The folders are the stages, in the order a bake runs them (`run_passes`, below, is the
 //! outline every entry point runs):
@@ -53,7 +54,8 @@ pub use report::{AdaptiveReport, BakeReport, PassReport};
 pub use settings::{AdaptiveSampling, BakeSettings, Denoise, IndirectSampling, LightGrouping};
 
 /// Bakes `scene` into a dense transfer stack: [`bake_tiled`] expanded with
-/// [`TiledStack::to_dense`] (every layer a full frame: for tests and small bakes).
+/// [`TiledStack::to_dense`], which builds every layer as a full frame — a helper for tests
+/// and reports on small frames, never the bake's own path (use [`bake_tiled`]).
 pub fn bake(
     scene: &Scene,
     settings: &BakeSettings,
@@ -107,7 +109,9 @@ pub fn doubling_passes(spp: u32, passes: u32) -> Vec<u32> {
 /// (cumulative, increasing, the last one is the bake) and `on_pass` gets it — complete and
 /// usable, e.g. to write it (atomically) and relight a first noisy image within seconds.
 /// The paths are the same as one bake of `passes.last()` samples. Dense stacks:
-/// [`bake_progressive_tiled`] expanded per pass with [`TiledStack::to_dense`].
+/// [`bake_progressive_tiled`] expanded per pass with [`TiledStack::to_dense`], which builds
+/// every layer as a full frame — a helper for tests and reports on small frames, never the
+/// bake's own path (use [`bake_progressive_tiled`]).
 pub fn bake_progressive(
     scene: &Scene,
     settings: &BakeSettings,
@@ -123,8 +127,8 @@ pub fn bake_progressive(
 }
 
 /// [`bake_progressive`] in tiled stacks. One pass streams ([`bake_tiled`]); several keep
-/// full-frame accumulators between the passes (their memory stays dense) and cut each
-/// pass's layers into tiles.
+/// each tile's sparse sample sums between the passes ([`schedule::tile_sums`]) and finish
+/// each pass from them through the same streaming finish.
 pub fn bake_progressive_tiled(
     scene: &Scene,
     settings: &BakeSettings,
@@ -194,7 +198,8 @@ fn run_passes(
         forecast,
     };
     // 2. Trace and 3. finish: one pass streams, tile rows finished as soon as their
-    // denoiser window is traced; several passes keep dense blocks and finish after each.
+    // denoiser window is traced; several passes keep per-tile sparse sums and finish from
+    // them after each.
     let tile_count = schedule::tiles::tiles(ctx.resolution).len() as u64;
     progress.set_stage(Stage::Tracing);
     progress.start(tile_count * settings.spp as u64);

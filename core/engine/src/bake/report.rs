@@ -21,10 +21,9 @@ pub struct BakeReport {
     pub setup_seconds: f64,
     /// Path tracing and layer assembly.
     pub trace_seconds: f64,
-    /// Part of `trace_seconds` spent on per-layer work: turning the accumulated images into
-    /// layers (the dense path), or filtering, finalising tiles into the stack and finishing
-    /// it (the streaming bake, interleaved with its tracing: the rest of `trace_seconds` is
-    /// tracing).
+    /// Part of `trace_seconds` spent on per-layer work: filtering, finalising tiles into the
+    /// stack and finishing it (interleaved with a one-pass bake's tracing: the rest of
+    /// `trace_seconds` is tracing).
     pub assembly_seconds: f64,
     /// Part of `assembly_seconds` spent denoising ([`denoise`]; 0 when the settings ask for none).
     pub denoise_seconds: f64,
@@ -59,8 +58,8 @@ pub struct BakeReport {
     /// dropping).
     pub compression_saved_bytes: usize,
     /// The largest number of bytes the bake's own accounting held at once in its layer
-    /// buffers: the streaming bake's stack so far plus its band in flight; 0 for the dense
-    /// path (progressive passes, a merge), whose layers are full frames.
+    /// buffers: the stack so far plus the band in flight, and for a progressive bake's pass
+    /// the per-tile sums it keeps for the next passes.
     pub peak_accounted_bytes: usize,
     /// Layers kept and left out, per region, and what leaving them out costs.
     pub layers: drop::DropReport,

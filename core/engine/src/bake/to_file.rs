@@ -1,7 +1,6 @@
 //! A bake written to a stack file: the one place that turns [`bake_progressive_tiled`]
 //! into files on disk, shared by `relume bake` and the Python bindings' `BakeJob`. The
-//! file is the tiled stack (format v2): one pass streams and never holds the layers as
-//! full frames.
+//! file is the tiled stack (format v2): no pass holds the layers as full frames.
 //!
 //! With `passes > 1` the sample counts double up to `settings.spp` ([`doubling_passes`]) and
 //! a complete stack replaces the file after every pass; each write is atomic (temp file,

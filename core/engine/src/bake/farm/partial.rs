@@ -77,13 +77,7 @@ pub struct PartialHeader {
     pub seconds: f64,
 }
 
-/// One block of one tile: the pixels' feature sums and, per layer non-zero on the tile,
-/// its per-pixel RGB sums (sorted by layer id).
-#[derive(Clone, Debug, Default)]
-pub struct TileSums {
-    pub features: Vec<f32>,
-    pub layers: Vec<(u32, Vec<f32>)>,
-}
+pub use crate::bake::schedule::tile_sums::TileSums;
 
 /// Writes a partial stack as its tiles are traced. The tiles go to a scratch file beside
 /// the output (`.payload.tmp`); [`PartialWriter::finish`] writes the file atomically, its

@@ -23,14 +23,13 @@ use super::guide_file::GuideFile;
 use crate::bake::farm::partial::{
     PartialHeader, PartialReader, PartialWriter, TileSums, PARTIAL_FORMAT_VERSION,
 };
-use crate::bake::finish::assemble::layer_report;
-use crate::bake::finish::denoise::{EyeFeatures, FEATURE_STRIDE};
 use crate::bake::path::vertex_brdf::BasisBrdf;
 use crate::bake::prepare::context::BakeContext;
-use crate::bake::schedule::blocks::{dyadic_blocks, siblings};
+use crate::bake::schedule::blocks::dyadic_blocks;
+use crate::bake::schedule::summed_finish::finish_summed_tiles;
+use crate::bake::schedule::tile_sums::TileBlocks;
 use crate::bake::schedule::trace::trace_tile_records;
-use crate::bake::schedule::traced_tile::{rect_of, traced_from_sums, TracedTile};
-use crate::bake::schedule::{band, stream, tiles};
+use crate::bake::schedule::{band, tiles};
 use crate::bake::settings::{BakeSettings, IndirectSampling};
 use crate::bake::{prepare::estimate, BakeReport};
 use crate::progress::{Progress, Stage};
@@ -195,7 +194,12 @@ pub fn bake_partition(
                     )?
                     .ok_or(RelumeError::Cancelled)?;
                     progress.advance(samples.len() as u64);
-                    Ok(tile_sums(&buf, tile.pixels(), layer_count, blocks.len()))
+                    Ok(TileSums::from_records(
+                        &buf,
+                        tile.pixels(),
+                        layer_count,
+                        blocks.len(),
+                    ))
                 })
                 .collect()
         });
@@ -231,38 +235,6 @@ pub fn bake_partition(
     header.seconds = start.elapsed().as_secs_f64();
     progress.set_stage(Stage::Done);
     Ok((header, warnings, bytes))
-}
-
-/// A traced tile's records ([`trace_tile_records`]: `blocks` × `tp` pixels, block-major) as
-/// sparse sums: per block the features and the layers non-zero somewhere on the tile.
-fn tile_sums(buf: &[f32], tp: usize, layer_count: usize, blocks: usize) -> Vec<TileSums> {
-    let record = layer_count * 3 + FEATURE_STRIDE;
-    (0..blocks)
-        .map(|b| {
-            let rec = &buf[b * tp * record..(b + 1) * tp * record];
-            let mut features = Vec::with_capacity(tp * FEATURE_STRIDE);
-            let mut non_zero = vec![false; layer_count];
-            for p in 0..tp {
-                let r = &rec[p * record..(p + 1) * record];
-                features.extend_from_slice(&r[layer_count * 3..]);
-                for (seen, texel) in non_zero.iter_mut().zip(r.chunks_exact(3)) {
-                    *seen |= texel.iter().any(|v| *v != 0.0);
-                }
-            }
-            let layers = (0..layer_count)
-                .filter(|l| non_zero[*l])
-                .map(|l| {
-                    let mut sums = Vec::with_capacity(tp * 3);
-                    for p in 0..tp {
-                        let at = p * record + l * 3;
-                        sums.extend_from_slice(&rec[at..at + 3]);
-                    }
-                    (l as u32, sums)
-                })
-                .collect();
-            TileSums { features, layers }
-        })
-        .collect()
 }
 
 fn name(part: &(PathBuf, PartialHeader)) -> String {
@@ -488,56 +460,24 @@ pub fn merge_files(
         .build()
         .map_err(|e| RelumeError::invalid("threads", e.to_string()))?;
     let spp = settings.spp;
-    let rows = pool.install(|| {
-        band::default_band_rows(
-            ctx.resolution.width,
-            threads,
-            band::apron_rows(&settings.denoise),
-        )
-    });
     progress.set_stage(Stage::Tracing);
     progress.start(tiles::tiles(ctx.resolution).len() as u64 * spp as u64);
-    let streamed = stream::finish_streaming(
-        &ctx,
-        scene,
-        &settings,
-        rows,
-        &pool,
-        progress,
-        |band_tiles| {
-            let mut out = Vec::with_capacity(band_tiles.len());
-            for tile in band_tiles {
-                progress.check()?;
-                let mut store: Vec<(Range<u32>, TileSums)> = Vec::new();
-                for r in readers.iter_mut() {
-                    let ranges: Vec<[u32; 2]> = r.header.blocks.clone();
-                    for (range, sums) in ranges.into_iter().zip(r.tile(tile.pixels())?) {
-                        push_block(&mut store, range[0]..range[1], sums);
-                    }
-                }
-                let sums = fold_blocks(store);
-                out.push(traced_from_sums(
-                    rect_of(tile),
-                    sums.features,
-                    &sums.layers,
-                    spp,
-                )?);
-                progress.advance(spp as u64);
+    let summed = finish_summed_tiles(&ctx, scene, &settings, &pool, progress, false, |tile| {
+        let mut blocks = TileBlocks::default();
+        for r in readers.iter_mut() {
+            let ranges: Vec<[u32; 2]> = r.header.blocks.clone();
+            for (range, sums) in ranges.into_iter().zip(r.tile(tile.pixels())?) {
+                blocks.push(range[0]..range[1], sums);
             }
-            Ok::<Vec<TracedTile>, RelumeError>(out)
-        },
-    )?;
+        }
+        progress.advance(spp as u64);
+        Ok(blocks.fold())
+    })?;
     for r in readers {
         r.finish()?;
     }
-    progress.set_stage(Stage::Finishing);
-    let (stack, mut report) = layer_report(
-        &ctx,
-        streamed.finished,
-        streamed.assembly_seconds,
-        streamed.denoise_seconds,
-    );
-    report.peak_accounted_bytes = streamed.peak_accounted_bytes;
+    let mut report = summed.report;
+    let stack = summed.stack;
     report.seconds = start.elapsed().as_secs_f64();
     report.setup_seconds = report.seconds - report.assembly_seconds;
     report.trace_seconds = trace_seconds;
@@ -549,66 +489,6 @@ pub fn merge_files(
     report.warnings = validation.warnings.into_iter().chain(own).collect();
     progress.set_stage(Stage::Done);
     Ok((stack, report))
-}
-
-/// Appends one tile's block (the next samples in order) and sums siblings as they meet —
-/// [`crate::bake::schedule::blocks::BlockStore::push`] on one tile's sparse sums.
-fn push_block(store: &mut Vec<(Range<u32>, TileSums)>, range: Range<u32>, sums: TileSums) {
-    store.push((range, sums));
-    while store.len() >= 2 {
-        let k = store.len() - 1;
-        if !siblings(&store[k - 1].0, &store[k].0) {
-            break;
-        }
-        let (right_range, right) = store.pop().expect("two blocks");
-        let left = store.last_mut().expect("two blocks");
-        absorb(&mut left.1, right);
-        left.0.end = right_range.end;
-    }
-}
-
-/// The right fold `b₀ + (b₁ + (…))` of a tile's blocks: its canonical sums.
-fn fold_blocks(mut store: Vec<(Range<u32>, TileSums)>) -> TileSums {
-    while store.len() >= 2 {
-        let (_, right) = store.pop().expect("two blocks");
-        absorb(&mut store.last_mut().expect("one block").1, right);
-    }
-    store.pop().map(|(_, s)| s).unwrap_or_default()
-}
-
-/// Adds `right` into `left`: per pixel left + right for a layer both hold, the one held
-/// otherwise (an absent layer is zeros, which are never added: exact, see `blocks`), and
-/// the features merged as the bake merges them.
-fn absorb(left: &mut TileSums, right: TileSums) {
-    for (a, b) in left
-        .features
-        .chunks_exact_mut(FEATURE_STRIDE)
-        .zip(right.features.chunks_exact(FEATURE_STRIDE))
-    {
-        EyeFeatures::merge(a, b);
-    }
-    let mut out = Vec::with_capacity(left.layers.len().max(right.layers.len()));
-    let mut mine = std::mem::take(&mut left.layers).into_iter().peekable();
-    let mut theirs = right.layers.into_iter().peekable();
-    loop {
-        let next = match (mine.peek(), theirs.peek()) {
-            (None, None) => break,
-            (Some(_), None) => mine.next(),
-            (None, Some(_)) => theirs.next(),
-            (Some((a, _)), Some((b, _))) if a < b => mine.next(),
-            (Some((a, _)), Some((b, _))) if b < a => theirs.next(),
-            _ => {
-                let (id, mut x) = mine.next().expect("peeked");
-                let (_, y) = theirs.next().expect("peeked");
-                for (p, q) in x.iter_mut().zip(&y) {
-                    *p += *q;
-                }
-                Some((id, x))
-            }
-        };
-        out.extend(next);
-    }
-    left.layers = out;
 }
 
 #[cfg(test)]

@@ -83,15 +83,6 @@ impl EyeFeatures {
         }
     }
 
-    /// Turns the per-pixel records of `spp` eye samples of the whole frame into features.
-    pub fn from_sums(ctx: &BakeContext, sums: &[f32], spp: u32) -> EyeFeatures {
-        let (width, height) = (
-            ctx.resolution.width as usize,
-            ctx.resolution.height as usize,
-        );
-        Self::from_window_sums(ctx, sums, spp, (0, 0), (width, height))
-    }
-
     /// Features of a window of the frame: `sums` holds the records of the `size.0 × size.1`
     /// pixels whose top-left pixel is `origin` (global coordinates: camera rays and
     /// footprints are the frame's). The filter treats the window's edges like the image's,
@@ -217,27 +208,13 @@ impl EyeFeatures {
 
     /// Filters `layers` in place with `iterations` À-trous steps (steps 1, 2, 4, …: a
     /// footprint of 2·(2^iterations − 1) + 1 pixels). Pixels with no weights keep their value.
+    /// Bakes filter sparsely ([`Self::filter_sparse`]); this whole-window form is the
+    /// reference the sparse filter is tested against.
     pub fn filter(&self, layers: &mut [&mut RawLayer], iterations: u32) {
-        let never = crate::progress::Progress::new();
-        let _ = self.filter_cancellable(layers, iterations, &never);
-    }
-
-    /// [`Self::filter`], stopping between layers with [`crate::RelumeError::Cancelled`] when
-    /// `progress` is cancelled (the layers are then partly filtered: the caller drops them).
-    pub fn filter_cancellable(
-        &self,
-        layers: &mut [&mut RawLayer],
-        iterations: u32,
-        progress: &crate::progress::Progress,
-    ) -> crate::Result<()> {
-        progress.check()?;
         let weights = self.weights_for(iterations);
-        layers.par_iter_mut().for_each(|layer| {
-            if !progress.is_cancelled() {
-                self.filter_one(&weights, layer);
-            }
-        });
-        progress.check()
+        layers
+            .par_iter_mut()
+            .for_each(|layer| self.filter_one(&weights, layer));
     }
 
     /// The weights of every step of an `iterations`-step filter, computed once and shared

@@ -3,12 +3,11 @@
 //! dropping needs (per-layer norms, the image at the bake-time materials) are gathered on
 //! the way, so no step after it needs the layers as full frames.
 //!
-//! Both bakes end here: the streaming one-pass bake ([`crate::bake::schedule::stream`]) hands over
-//! each tile row as soon as its denoiser window is traced, the dense path (progressive passes,
-//! a farm's merge) cuts its full-frame layers into tiles. Given the same f32 values they
-//! make the same stack, bit for bit: a tile's entries, the order its statistics are added
-//! in (layer id within a tile, raster order across tiles) and the dropping do not depend
-//! on the path.
+//! Every bake ends here through the streaming finish ([`crate::bake::schedule::stream`]), which
+//! hands over each tile row as soon as its denoiser window is ready — traced on the way (a
+//! one-pass bake) or summed from kept sample sums (a progressive bake's passes, a farm's
+//! merge). A tile's entries, the order its statistics are added in (layer id within a
+//! tile, raster order across tiles) and the dropping depend only on the tiles' values.
 //!
 //! Where the settings ask for it ([`BounceCompression`]), a tile's bounce layers become
 //! lattice entries ([`crate::stack::tiled::lattice`]) here, segmented by the tile's eye
@@ -696,72 +695,7 @@ fn keep_layers(stack: TiledStack, keep: &[bool], coloured: &[bool]) -> TiledStac
     }
 }
 
-/// Bakes' dense path: the full-frame f32 `layers` (id, channels, data) cut into tiles
-/// and finalised in raster order ([`finalise_tile`]).
-/// With a `lattice` plan, `features` (the whole frame's) segment each tile.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn finalise_dense(
-    builder: &TiledStackBuilder,
-    layers: &[(u32, u8, &[f32])],
-    width: u32,
-    height: u32,
-    weights: &[Rgb],
-    tally: &mut StackTally,
-    lattice: Option<(&LatticePlan, &EyeFeatures)>,
-    pool: &rayon::ThreadPool,
-    progress: &crate::progress::Progress,
-) -> Result<()> {
-    use rayon::prelude::*;
-    let count = crate::stack::tiled::tiles_along(width) as usize
-        * crate::stack::tiled::tiles_along(height) as usize;
-    let keep_image = tally.image.is_some();
-    let tallies: Vec<Result<TileTally>> = pool.install(|| {
-        (0..count)
-            .into_par_iter()
-            .map(|t| {
-                progress.check()?;
-                let rect = crate::stack::tiled::tile_rect(width, height, t);
-                let inputs = layers
-                    .iter()
-                    .map(|&(layer, channels, data)| TileInput {
-                        layer,
-                        channels,
-                        data: tile_values(data, channels as usize, rect, width as usize),
-                    })
-                    .collect();
-                let surfaces = lattice
-                    .map(|(_, f)| tile_surfaces(f, (0, 0), rect))
-                    .unwrap_or_default();
-                finalise_tile(
-                    builder,
-                    t,
-                    rect,
-                    inputs,
-                    weights,
-                    keep_image,
-                    lattice.map(|(p, _)| p),
-                    &surfaces,
-                )
-            })
-            .collect()
-    });
-    for (t, r) in tallies.into_iter().enumerate() {
-        tally.add(crate::stack::tiled::tile_rect(width, height, t), r?);
-    }
-    Ok(())
-}
-
-/// The values of `rect` from a full-frame layer of `channels` interleaved channels.
-fn tile_values(data: &[f32], channels: usize, rect: TileRect, width: usize) -> Vec<f32> {
-    let mut out = Vec::with_capacity(rect.pixels() * channels);
-    for ty in 0..rect.height as usize {
-        let row = (rect.y0 as usize + ty) * width + rect.x0 as usize;
-        out.extend_from_slice(&data[row * channels..(row + rect.width as usize) * channels]);
-    }
-    out
-}
-
-/// The header's scene-dependent parts live in the assembly; a builder takes every possible
+/// The header's scene-dependent parts come from [`super::describe::stack_header`]; a builder takes every possible
 /// layer id (key and 3 channels: a tile's grey entries are found per tile).
 pub(crate) fn builder_for(
     ctx: &BakeContext,

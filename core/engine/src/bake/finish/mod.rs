@@ -7,15 +7,13 @@
 //!   dropping needs are gathered on the way.
 //! - [`drop`](mod@drop): which layers the stack keeps (none that no path reached, and within the
 //!   drop budget none whose worst-case contribution is negligible).
-//! - [`assemble`]: the dense schedule's sums turned into a stack in named steps (average,
-//!   grey detection, denoise, finalise), and the stack's header and the report of its
-//!   layers, which the streaming schedule uses too.
+//! - [`describe`]: the stack's header and the report of its layers.
 //!
-//! Apart from the schedules because both end here with the same code: given the same f32
-//! values, a streaming bake, a progressive one and a farm's merge make the same stack, bit
-//! for bit.
+//! Apart from the schedules because all of them end here with the same code (driven tile row
+//! by tile row by [`crate::bake::schedule::stream`]): given the same f32 sums, a one-pass
+//! bake, a progressive one and a farm's merge make the same stack, bit for bit.
 
-pub mod assemble;
 pub mod denoise;
+pub mod describe;
 pub mod drop;
 pub mod finalise;

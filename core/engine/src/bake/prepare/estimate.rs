@@ -1,16 +1,16 @@
 //! What a bake will cost in memory, known before it traces: the number of layers its paths
-//! will reach (found by a small probe trace), the bytes of its accumulators at their peak,
-//! and the size of the stack it will write.
+//! will reach (found by a small probe trace), the bytes it holds at its peak, and the size
+//! of the stack it will write.
 //!
-//! A one-pass bake streams ([`crate::bake::schedule::stream`]): its memory is the tiled stack it
-//! builds (per 16×16 tile only the layers non-zero there) plus the tile rows in flight, so the
-//! forecast needs how many (tile, layer) pairs are non-zero: the probe counts them in the
-//! tiles it visits, and since a few probe pixels per tile miss layers there, it also
-//! counts per tile the layers its eye regions (and its neighbours') reached anywhere
-//! ([`region_model_pairs`]) and keeps the larger count. Writing holds the stack, the entry
-//! tables and the chunks in flight (the writer makes each chunk from the stack). A progressive bake (several passes) and a farm partition keep one
-//! full-frame f32 RGB accumulator per layer any path reaches (see [`crate::bake`]), so
-//! their memory is ≈ 12 bytes × reached layers × pixels. Which layers are reached depends
+//! Every bake finishes by streaming ([`crate::bake::schedule::stream`]): its memory is the
+//! tiled stack it builds (per 16×16 tile only the layers non-zero there) plus the tile rows
+//! in flight, so the forecast needs how many (tile, layer) pairs are non-zero: the probe
+//! counts them in the tiles it visits, and since a few probe pixels per tile miss layers
+//! there, it also counts per tile the layers its eye regions (and its neighbours') reached
+//! anywhere ([`region_model_pairs`]) and keeps the larger count. Writing holds the stack,
+//! the entry tables and the chunks in flight (the writer makes each chunk from the stack).
+//! A progressive bake (several passes) also keeps, between its passes, each tile's sample
+//! sums for the same (tile, layer) pairs ([`kept_sums`]). Which layers are reached depends
 //! on what the camera sees: the layers *possible* (world + slots + slot
 //! pairs per light group) can overstate it several times. The probe traces one eye sample
 //! at a sparse grid of pixels with the bake's own integrator and counts the layers it
@@ -91,26 +91,27 @@ pub struct BakeEstimate {
     pub layers_rgb: usize,
     /// Pixels the probe traced.
     pub probe_pixels: u64,
-    /// Bytes of the per-layer f32 RGB accumulators (the bake's largest allocation).
-    pub accumulator_bytes: u64,
+    /// Bytes a progressive bake keeps between its passes: per tile, per block of the
+    /// canonical summation tree, the f32 RGB sums of the layers reached there and the
+    /// pixels' features, plus the bake-time images its error estimate compares (0 for a
+    /// one-pass bake).
+    pub kept_sums_bytes: u64,
     /// Bytes the prepared scene holds (geometry, BVH, textures, environment, subsurface).
     pub prepared_bytes: u64,
-    /// Forecast peak of the bake's own allocations (accumulators, per-pixel features, tile
-    /// buffers, geometry and its BVH build, assembly and write copies) plus the scene it
-    /// reads ([`scene_bytes`]), in bytes.
+    /// Forecast peak of the bake's own allocations (the stack, the tile rows in flight and
+    /// the denoiser's windows, tile buffers, a progressive bake's kept sums, geometry and
+    /// its BVH build, the write's copies) plus the scene it reads ([`scene_bytes`]), in
+    /// bytes.
     pub peak_bytes: u64,
-    /// Forecast size of the stack in memory (layer samples at the stored precision: the
-    /// tiled stack's entries for a streaming bake, full frames for the dense path); the
-    /// file is smaller by its compression.
+    /// Forecast size of the stack in memory (the tiled stack's entries at the stored
+    /// precision); the file is smaller by its compression.
     pub stack_bytes: u64,
-    /// Whether the forecast is of the streaming one-pass bake (else the dense path).
-    pub streaming: bool,
     /// Forecast (tile, layer) entries of the tiled stack: the non-zero pairs the probe
     /// found per tile it visited, times the tiles.
     pub tile_entries: u64,
     /// Of those, forecast entries stored with three channels.
     pub tile_entries_rgb: u64,
-    /// Bytes the same layers would take as full frames (what the dense path stores).
+    /// Bytes the same layers would take as full frames (for comparison: no bake holds them).
     pub dense_stack_bytes: u64,
     /// Each editable region's basis: its ns (and Principled roughness) range and the basis
     /// count the tolerance picked for it — the cost of a wide roughness range, shown before
@@ -269,6 +270,47 @@ fn streaming_peak(ctx: &BakeContext, c: &StreamingCosts) -> (u64, u64) {
     (stack, c.geometry + thread_overhead + tracing.max(write))
 }
 
+/// What a progressive bake keeps between its passes ([`kept_sums`]).
+struct KeptSums {
+    bytes: u64,
+    /// The most blocks of the summation tree one pass traces per pixel (at least 1).
+    blocks_traced: u64,
+}
+
+/// A progressive bake of `passes` doubling passes ([`crate::bake::doubling_passes`]) keeps,
+/// after each pass, popcount(samples so far) blocks per tile, each holding the f32 RGB sums
+/// of the layers reached on the tile (forecast as the stack's `entries`, all three
+/// channels: the sums are not split into grey and coloured) and the pixels' features; its
+/// error estimate holds two bake-time images (f64 RGB). A one-pass bake keeps none.
+fn kept_sums(ctx: &BakeContext, passes: usize, entries: u64, tiles: u64, pixels: u64) -> KeptSums {
+    if passes <= 1 {
+        return KeptSums {
+            bytes: 0,
+            blocks_traced: 1,
+        };
+    }
+    let counts = crate::bake::doubling_passes(ctx.settings.spp, passes as u32);
+    let kept_blocks = counts.iter().map(|c| c.count_ones()).max().unwrap_or(1) as u64;
+    let blocks_traced = std::iter::once(0)
+        .chain(counts.iter().copied())
+        .zip(counts.iter().copied())
+        .map(|(from, to)| crate::bake::schedule::blocks::dyadic_blocks(from, to).len())
+        .max()
+        .unwrap_or(1)
+        .max(1) as u64;
+    let tile_px = (crate::bake::schedule::tiles::TILE * crate::bake::schedule::tiles::TILE) as u64;
+    let features = crate::bake::finish::denoise::FEATURE_STRIDE as u64 * 4;
+    let per_block = entries
+        .saturating_mul(tile_px * 12)
+        .saturating_add(tiles.saturating_mul(tile_px * features));
+    KeptSums {
+        bytes: per_block
+            .saturating_mul(kept_blocks)
+            .saturating_add(pixels * 3 * 8 * 2),
+        blocks_traced,
+    }
+}
+
 /// The (tile, layer) pairs of the visited tiles by the region model, and how many of them
 /// carry colour: a tile holds every layer reached from each eye region seen in it or in
 /// the tiles around it. At a few probe pixels per tile (1920×1080: about two) the probe's
@@ -372,8 +414,8 @@ pub fn scene_bytes(scene: &Scene) -> u64 {
 }
 
 /// Traces the probe over `ctx` and forecasts the bake's memory for `passes` progressive
-/// passes: one pass streams, several keep dense sums while they hand each pass's stack
-/// out. `prepared_bytes`: what preparing `ctx` took (geometry, BVH, textures,
+/// passes: every pass finishes by streaming, and several keep per-tile sparse sums between
+/// them ([`kept_sums`]). `prepared_bytes`: what preparing `ctx` took (geometry, BVH, textures,
 /// environment, subsurface samples), measured by the caller where the OS tells
 /// ([`prepare_measured`]); `None` falls back to a per-triangle allowance. `ctx` is borrowed
 /// mutably only while the probe traces with its capped sample counts, and is left as it
@@ -385,17 +427,6 @@ pub fn estimate(
     prepared_bytes: Option<u64>,
     progress: &Progress,
 ) -> crate::Result<BakeEstimate> {
-    estimate_path(ctx, scene, passes, passes <= 1, prepared_bytes, progress)
-}
-
-fn estimate_path(
-    ctx: &mut BakeContext,
-    scene: &Scene,
-    passes: usize,
-    streaming: bool,
-    prepared_bytes: Option<u64>,
-    progress: &Progress,
-) -> crate::Result<BakeEstimate> {
     // The probe traces with its per-vertex sample counts capped (the layers a path reaches
     // do not depend on how many samples share a vertex), then the settings are restored.
     let settings = ctx.settings.clone();
@@ -403,7 +434,7 @@ fn estimate_path(
     ctx.settings.indirect_samples = settings.indirect_samples.min(PROBE_MAX_INDIRECT_SAMPLES);
     let probe = probe(ctx, progress);
     ctx.settings = settings;
-    forecast(ctx, scene, passes, streaming, prepared_bytes, probe?)
+    forecast(ctx, scene, passes, prepared_bytes, probe?)
 }
 
 /// What the probe found, merged over its rows.
@@ -570,7 +601,6 @@ fn forecast(
     ctx: &BakeContext,
     scene: &Scene,
     passes: usize,
-    streaming: bool,
     prepared_bytes: Option<u64>,
     found: ProbeFindings,
 ) -> crate::Result<BakeEstimate> {
@@ -611,63 +641,30 @@ fn forecast(
         ctx.settings.threads
     } as u64;
 
-    let px = pixels;
-    let reached_u = layers_reached as u64;
-    let accumulator_bytes = px.saturating_mul(reached_u).saturating_mul(12);
-    let features = px * crate::bake::finish::denoise::FEATURE_STRIDE as u64 * 4;
     let tile_px = (crate::bake::schedule::tiles::TILE * crate::bake::schedule::tiles::TILE) as u64;
     let tile_buffers = threads * layers as u64 * tile_px * 12;
     let geometry =
         (scene.triangle_count() as u64 * BYTES_PER_TRIANGLE).max(prepared_bytes.unwrap_or(0));
-    // Averaged layers: grey ones one channel, the rest three, f32.
-    let raw = px * (layers_grey as u64 * 4 + layers_rgb as u64 * 12);
     let sample = match ctx.settings.precision {
         Precision::F16 => 2,
         Precision::F32 => 4,
     };
-    let dense_stack_bytes = px * (layers_grey as u64 + 3 * layers_rgb as u64) * sample;
-    let stack_bytes = dense_stack_bytes;
-    let denoising =
-        ctx.settings.denoise.direct_iterations + ctx.settings.denoise.bounce_iterations > 0;
-    // The denoiser's 25 weights per pixel and one output copy per worker.
-    let denoise = if denoising {
-        px * 25 * 4 + threads * px * 12
-    } else {
-        0
-    };
-    // Tracing: accumulators, features, tile buffers.
-    let tracing = accumulator_bytes + features + tile_buffers;
-    // Assembly and finishing: the last pass averages each accumulator in place (a
-    // progressive bake's earlier passes copy them), then the stored-precision layers are made
-    // while the averaged ones still hold their memory: the allocator keeps layer-sized blocks
-    // it has freed for reuse rather than giving them back, so the resident peak is close to
-    // their sum.
-    let averaged = if passes > 1 {
-        accumulator_bytes + raw
-    } else {
-        accumulator_bytes.max(raw + stack_bytes)
-    };
-    let assembly = averaged + features + denoise;
-    // Writing: the stack and the file's de-interleaved channels (reusing freed blocks when
-    // the averaged layers were larger).
-    let write = stack_bytes * 2 + if passes > 1 { accumulator_bytes } else { 0 };
-    let peak_bytes = geometry + tracing.max(assembly).max(write);
-    let (stack_bytes, peak_bytes) = if streaming {
-        streaming_peak(
-            ctx,
-            &StreamingCosts {
-                entries: tile_entries,
-                entries_rgb: tile_entries_rgb,
-                tiles: all_tiles,
-                threads,
-                geometry,
-                sample,
-                tile_buffers,
-            },
-        )
-    } else {
-        (stack_bytes, peak_bytes)
-    };
+    let dense_stack_bytes = pixels * (layers_grey as u64 + 3 * layers_rgb as u64) * sample;
+    let kept = kept_sums(ctx, passes, tile_entries, all_tiles, pixels);
+    let (stack_bytes, streaming_peak_bytes) = streaming_peak(
+        ctx,
+        &StreamingCosts {
+            entries: tile_entries,
+            entries_rgb: tile_entries_rgb,
+            tiles: all_tiles,
+            threads,
+            geometry,
+            sample,
+            // A pass traces every block of its sample range at once.
+            tile_buffers: tile_buffers * kept.blocks_traced,
+        },
+    );
+    let peak_bytes = streaming_peak_bytes + kept.bytes;
     // Building the BVH holds the unordered triangles and the builder's own arrays beside
     // the prepared geometry; the scene itself stays resident throughout.
     let build = scene.triangle_count() as u64 * BVH_BUILD_BYTES_PER_TRIANGLE;
@@ -680,11 +677,10 @@ fn forecast(
         layers_reached,
         layers_rgb,
         probe_pixels,
-        accumulator_bytes,
+        kept_sums_bytes: kept.bytes,
         prepared_bytes: geometry,
         peak_bytes,
         stack_bytes,
-        streaming,
         tile_entries,
         tile_entries_rgb,
         dense_stack_bytes,

@@ -168,7 +168,7 @@ pub(crate) fn trace_adaptive(
 }
 
 /// Appends a tile's block (the next samples in order) and sums siblings as they meet, per
-/// pixel — [`super::blocks::BlockStore::push`] on one tile's records.
+/// pixel — [`super::tile_sums::TileBlocks::push`] on one tile's records.
 fn push_block(
     store: &mut Vec<(Range<u32>, Vec<f32>)>,
     range: Range<u32>,

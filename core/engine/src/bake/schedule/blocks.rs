@@ -23,7 +23,7 @@
 //!
 //! A sample range `[a, b)` holds every complete node inside it; it delivers the maximal ones
 //! — at most 2·log2(b − a) + 2 blocks ([`dyadic_blocks`]) — and the combination of the
-//! ranges' blocks, merging siblings as they meet ([`BlockStore::push`]), computes the
+//! ranges' blocks, merging siblings as they meet ([`super::tile_sums::TileBlocks::push`]), computes the
 //! same nodes from the same children, hence the same bits, whatever the split. (Pushing an
 //! aligned block is the same as pushing its samples one by one: none of its inner nodes has
 //! a sibling outside it.) The combination is pure pairwise addition, which is commutative
@@ -37,13 +37,13 @@
 //! are traced (one record per level, [`PixelTree`]), and each sample adds one record's worth
 //! of additions (amortised: the tree has one inner node per sample). A one-pass bake folds
 //! each pixel's tree in the tile and keeps no store ([`super::stream`]: the tree's root is
-//! all it needs), and neither does a farm's partition (it writes each tile's blocks as they
-//! are traced) or its merge (it sums one tile's blocks at a time). The store of the dense path
-//! keeps one full-frame image per block: popcount(samples so far) blocks between the passes
-//! of a progressive bake ([`crate::bake::doubling_passes`] of a power-of-two `spp` keeps one).
+//! all it needs), a farm's partition writes each tile's blocks as they are traced and its
+//! merge sums one tile's blocks at a time. A progressive bake keeps each tile's blocks
+//! between its passes, sparse ([`super::tile_sums`]): popcount(samples so far) blocks per
+//! tile, of the layers reached on it ([`crate::bake::doubling_passes`] of a power-of-two
+//! `spp` keeps one).
 
 use std::ops::Range;
-use std::sync::Mutex;
 
 use crate::bake::finish::denoise::{EyeFeatures, FEATURE_STRIDE};
 use crate::Result;
@@ -172,161 +172,10 @@ impl PixelTree {
     }
 }
 
-/// Full-frame images of one block of samples: per layer its RGB sums (`None`: no sample of
-/// the block reached the layer anywhere, i.e. zeros) and the denoiser's per-pixel features.
-pub struct Block {
-    pub range: Range<u32>,
-    pub layers: Vec<Mutex<Option<Vec<f32>>>>,
-    pub features: Mutex<Vec<f32>>,
-}
-
-impl Block {
-    /// An empty block (no layer reached, empty features) of `pixels` pixels.
-    pub fn new(range: Range<u32>, layers: usize, pixels: usize) -> Result<Block> {
-        let len = crate::memory::checked_product(
-            "the denoiser's per-pixel features",
-            &[pixels as u64, FEATURE_STRIDE as u64],
-        )? as usize;
-        let mut features =
-            crate::memory::try_with_capacity(len, "the denoiser's per-pixel features")?;
-        for _ in 0..pixels {
-            features.extend_from_slice(&EyeFeatures::EMPTY);
-        }
-        Ok(Block {
-            range,
-            layers: (0..layers).map(|_| Mutex::new(None)).collect(),
-            features: Mutex::new(features),
-        })
-    }
-
-    /// Adds `other` (the next block, its sibling or the rest of a fold) into this one.
-    fn absorb(&mut self, other: Block) {
-        use rayon::prelude::*;
-        self.layers
-            .par_iter_mut()
-            .zip(other.layers.into_par_iter())
-            .for_each(|(mine, theirs)| {
-                let mine = mine.get_mut().unwrap_or_else(|e| e.into_inner());
-                if let Some(theirs) = theirs.into_inner().unwrap_or_else(|e| e.into_inner()) {
-                    match mine {
-                        None => *mine = Some(theirs),
-                        Some(m) => {
-                            for (x, y) in m.iter_mut().zip(&theirs) {
-                                *x += *y;
-                            }
-                        }
-                    }
-                }
-            });
-        let mine = self.features.get_mut().unwrap_or_else(|e| e.into_inner());
-        let theirs = other
-            .features
-            .into_inner()
-            .unwrap_or_else(|e| e.into_inner());
-        for (a, b) in mine
-            .chunks_exact_mut(FEATURE_STRIDE)
-            .zip(theirs.chunks_exact(FEATURE_STRIDE))
-        {
-            EyeFeatures::merge(a, b);
-        }
-        self.range.end = other.range.end;
-    }
-}
-
-/// Per layer its RGB sums (empty: not reached), and the per-pixel features.
-pub type Sums = (Vec<Mutex<Vec<f32>>>, Vec<f32>);
-
-/// The blocks of the samples traced so far, siblings merged as they meet.
-#[derive(Default)]
-pub struct BlockStore {
-    pub blocks: Vec<Block>,
-}
-
-impl BlockStore {
-    /// Appends `block` (the next samples in order, an aligned dyadic range or a folded
-    /// `[0, spp)`) and merges siblings.
-    pub fn push(&mut self, block: Block) {
-        self.blocks.push(block);
-        while self.blocks.len() >= 2 {
-            let k = self.blocks.len() - 1;
-            if !siblings(&self.blocks[k - 1].range, &self.blocks[k].range) {
-                break;
-            }
-            let right = self.blocks.pop().expect("two blocks");
-            self.blocks[k - 1].absorb(right);
-        }
-    }
-
-    /// The samples covered: `[first start, last end)` (empty when there is no block).
-    pub fn range(&self) -> Range<u32> {
-        match (self.blocks.first(), self.blocks.last()) {
-            (Some(a), Some(b)) => a.range.start..b.range.end,
-            _ => 0..0,
-        }
-    }
-
-    /// The canonical sums of everything stored (the right fold `b₀ + (b₁ + (…))`): per
-    /// layer its RGB sums (empty: not reached) and the per-pixel features. Consumes the
-    /// store (the last pass of a bake, or a merge).
-    pub fn fold(mut self) -> Sums {
-        while self.blocks.len() >= 2 {
-            let right = self.blocks.pop().expect("two blocks");
-            self.blocks.last_mut().expect("one block").absorb(right);
-        }
-        match self.blocks.pop() {
-            None => (Vec::new(), Vec::new()),
-            Some(b) => (
-                b.layers
-                    .into_iter()
-                    .map(|l| {
-                        Mutex::new(
-                            l.into_inner()
-                                .unwrap_or_else(|e| e.into_inner())
-                                .unwrap_or_default(),
-                        )
-                    })
-                    .collect(),
-                b.features.into_inner().unwrap_or_else(|e| e.into_inner()),
-            ),
-        }
-    }
-
-    /// [`Self::fold`] of a copy, keeping the store for more samples (between the passes of a
-    /// progressive bake).
-    pub fn fold_copy(&self) -> Result<Sums> {
-        let mut copy = BlockStore::default();
-        for b in &self.blocks {
-            let layers = b
-                .layers
-                .iter()
-                .map(|l| -> Result<Mutex<Option<Vec<f32>>>> {
-                    let l = l.lock().unwrap_or_else(|e| e.into_inner());
-                    Ok(Mutex::new(match &*l {
-                        None => None,
-                        Some(v) => {
-                            let mut c =
-                                crate::memory::try_with_capacity(v.len(), "a layer's sums")?;
-                            c.extend_from_slice(v);
-                            Some(c)
-                        }
-                    }))
-                })
-                .collect::<Result<Vec<_>>>()?;
-            let features = b.features.lock().unwrap_or_else(|e| e.into_inner()).clone();
-            copy.blocks.push(Block {
-                range: b.range.clone(),
-                layers,
-                features: Mutex::new(features),
-            });
-        }
-        // Copies are pushed as they stand: they are already merged.
-        Ok(copy.fold())
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bake::schedule::tile_sums::{TileBlocks, TileSums};
 
     #[test]
     fn blocks_are_the_maximal_aligned_ranges() {
@@ -374,21 +223,24 @@ mod tests {
         let (_, whole) = tree_sum(0, spp, true);
         let sequential: f32 = (0..spp).map(value).sum();
         for parts in [1u32, 2, 3, 5, 7, 37] {
-            let mut store = BlockStore::default();
+            let mut store = TileBlocks::default();
             for i in 0..parts {
                 let (a, b) = (i * spp / parts, (i + 1) * spp / parts);
                 let (ranges, values) = tree_sum(a, b, false);
                 assert_eq!(ranges, dyadic_blocks(a, b));
                 for (r, v) in ranges.into_iter().zip(values) {
-                    let block = Block::new(r, 1, 1).unwrap();
-                    *block.layers[0].lock().unwrap() = Some(vec![v, 0.0, 0.0]);
-                    store.push(block);
+                    let sums = TileSums {
+                        features: EyeFeatures::EMPTY.to_vec(),
+                        layers: vec![(0, vec![v, 0.0, 0.0])],
+                    };
+                    store.push(r, sums);
                 }
             }
             assert_eq!(store.range(), 0..spp);
-            let (layers, _) = store.fold();
-            let merged = layers[0].lock().unwrap()[0];
+            let copy = store.folded_copy();
+            let merged = store.fold().layers[0].1[0];
             assert_eq!(merged.to_bits(), whole[0].to_bits(), "{parts} parts");
+            assert_eq!(copy.layers[0].1[0].to_bits(), merged.to_bits());
         }
         // The point of it all: another grouping gives other bits for these values.
         assert_ne!(sequential.to_bits(), whole[0].to_bits());

@@ -3,16 +3,17 @@
 //!
 //! - [`tiles`]: tiled, parallel, cancellable per-pixel work whose result does not depend on
 //!   the thread count.
-//! - The dense schedule, for a progressive bake's passes: [`trace`] traces a range of eye
-//!   samples of every pixel, summed in the canonical order of [`blocks`] and kept as
-//!   full-frame layers (a farm's partition traces its tiles with the same
-//!   `trace_tile_records` and keeps them sparse).
-//! - The streaming schedule, for a one-pass bake and a farm's merge: [`stream`] traces (or
-//!   is handed) tile rows in bands
-//!   ([`band`]), keeps each traced tile as its sparse averages (`traced_tile`) and hands a
+//! - [`trace`]: a range of eye samples of one tile, each pixel's samples summed in the
+//!   canonical order of [`blocks`].
+//! - The streaming schedule, for every bake: [`stream`] traces (or is handed) tile rows in
+//!   bands ([`band`]), keeps each tile as its sparse averages (`traced_tile`) and hands a
 //!   tile row to the finishing stage as soon as the rows its denoiser reads are traced, the
 //!   denoiser computing only where a layer can be non-zero ([`denoise_sparse`]); with
 //!   adaptive sampling a tile takes samples in rounds and stops early ([`adaptive`]).
+//! - Sample ranges: a progressive bake's passes and a farm's partitions keep each tile's
+//!   blocks of the canonical tree sparse ([`tile_sums`]: per tile the layers reached there),
+//!   and a pass or a merge finishes them through the same streaming walk
+//!   (`summed_finish`); `passes` drives a bake's passes on either.
 //!
 //! Apart from the other stages because this is where a bake's memory and its bits are
 //! decided: the schedule sets what is held at once, and the one summation order in
@@ -25,6 +26,8 @@ pub mod blocks;
 pub mod denoise_sparse;
 pub(crate) mod passes;
 pub mod stream;
+pub(crate) mod summed_finish;
+pub mod tile_sums;
 pub mod tiles;
 pub mod trace;
 pub(crate) mod traced_tile;

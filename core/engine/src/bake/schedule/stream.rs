@@ -11,9 +11,11 @@
 //! pixels. A tile row is filtered on a window of `apron` tile rows above and below it
 //! ([`super::band`]; `apron · 16` ≥ that radius), whose cut edges are treated like the image's: the row's output is then exactly what the
 //! whole-frame filter gives (errors from a cut edge travel at most the radius inwards), so
-//! this bake makes the same stack, bit for bit, as the dense path that filters full frames
-//! (a progressive bake's). A farm's merge runs this same walk on tiles summed from its parts
-//! ([`finish_streaming`]). Each layer is filtered only on the tiles it is
+//! the stack is, bit for bit, what filtering full frames would give (the unit tests of
+//! [`crate::bake::finish::denoise`] and [`super::denoise_sparse`] hold the two side by side).
+//! A farm's merge and each pass of a progressive bake run this same walk on tiles summed
+//! from kept sample sums ([`finish_streaming`], `super::summed_finish`). Each layer is
+//! filtered only on the tiles it is
 //! present on plus the footprint, and only on the rows the finalised tiles need, so the
 //! filter's work follows the tile entries rather than layers × window.
 
@@ -24,8 +26,8 @@ use super::band::apron_rows;
 use super::denoise_sparse::{SparseScratch, SparseTiles};
 use super::tiles::{self, TILE};
 use super::traced_tile::{trace_sparse, TracedLayer, TracedTile};
-use crate::bake::finish::assemble::stack_header;
 use crate::bake::finish::denoise::{footprint_radius, EyeFeatures, FEATURE_STRIDE};
+use crate::bake::finish::describe::stack_header;
 use crate::bake::finish::finalise::{
     builder_for, finalise_tile, finish_stack, layer_weights, tile_surfaces, Finished, LatticePlan,
     LayerFacts, StackTally, TileInput, TileTally,
@@ -82,6 +84,7 @@ pub(crate) fn bake_streaming(
         band_rows,
         pool,
         progress,
+        false,
         |band_tiles| {
             let done: Vec<Result<TracedTile>> = pool.install(|| {
                 band_tiles
@@ -107,8 +110,10 @@ pub(crate) fn bake_streaming(
 
 /// The streaming bake's walk over the frame with its tiles from `source`: given the next
 /// band's tiles (raster order), it returns them as [`TracedTile`]s in the same order — traced
-/// here ([`bake_streaming`]), or a farm merge's tiles summed from its parts. Everything
-/// after (the windows, the denoiser, finalising, the stack's finish) is the one code path.
+/// here ([`bake_streaming`]), or summed samples (`super::summed_finish`: a farm merge's
+/// parts, a progressive bake's kept tiles). Everything after (the windows, the denoiser,
+/// finalising, the stack's finish) is the one code path. `keep_image`: the finished stack
+/// carries its image at the bake-time materials ([`Finished::image`]).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn finish_streaming(
     ctx: &BakeContext,
@@ -117,6 +122,7 @@ pub(crate) fn finish_streaming(
     band_rows: usize,
     pool: &rayon::ThreadPool,
     progress: &Progress,
+    keep_image: bool,
     mut source: impl FnMut(&[tiles::Tile]) -> Result<Vec<TracedTile>>,
 ) -> Result<Streamed> {
     let res = ctx.resolution;
@@ -135,7 +141,7 @@ pub(crate) fn finish_streaming(
         width,
         width * height,
         settings.precision,
-        false,
+        keep_image,
     );
     let mut facts = LayerFacts {
         reached: vec![false; layer_count],
@@ -193,6 +199,7 @@ pub(crate) fn finish_streaming(
             path_len: &path_len,
             finishing: traced == ty,
             lattice: plan.as_ref(),
+            keep_image,
         };
         let WindowDone {
             tallies,
@@ -259,6 +266,9 @@ struct Window<'a> {
     finishing: bool,
     /// The bounce layers' lattice compression, when the settings ask for it.
     lattice: Option<&'a LatticePlan>,
+    /// Whether the tiles' bake-time images are kept (the stack's whole image at the
+    /// bake-time materials: one image, not one per layer).
+    keep_image: bool,
 }
 
 impl Window<'_> {
@@ -526,7 +536,7 @@ impl Window<'_> {
                         t.rect,
                         inputs,
                         weights,
-                        false,
+                        self.keep_image,
                         self.lattice,
                         &surfaces,
                     )?;

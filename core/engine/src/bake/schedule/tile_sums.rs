@@ -1,0 +1,154 @@
+//! One tile's eye-sample sums, kept sparse: per aligned block of the canonical summation
+//! tree ([`super::blocks`]) the pixels' feature sums and the layers some sample of the block
+//! reached on the tile. A farm partition writes these per tile ([`crate::bake::farm::partial`]),
+//! its merge reads and sums them, and a progressive bake keeps them in memory between its
+//! passes; all three combine blocks here, in the tree's grouping, so they reach the same
+//! bits as a one-pass bake without ever holding a full frame of any layer.
+
+use std::ops::Range;
+
+use super::blocks::siblings;
+use crate::bake::finish::denoise::{EyeFeatures, FEATURE_STRIDE};
+
+/// One block of one tile: the pixels' feature sums and, per layer non-zero on the tile,
+/// its per-pixel RGB sums (sorted by layer id).
+#[derive(Clone, Debug, Default)]
+pub struct TileSums {
+    pub features: Vec<f32>,
+    pub layers: Vec<(u32, Vec<f32>)>,
+}
+
+impl TileSums {
+    /// A traced tile's records ([`super::trace::trace_tile_records`]: `blocks` × `tp`
+    /// pixels, block-major, each record the layers' sums then the features) as sparse sums:
+    /// per block the features and the layers non-zero somewhere on the tile.
+    pub(crate) fn from_records(
+        buf: &[f32],
+        tp: usize,
+        layer_count: usize,
+        blocks: usize,
+    ) -> Vec<TileSums> {
+        let record = layer_count * 3 + FEATURE_STRIDE;
+        (0..blocks)
+            .map(|b| {
+                let rec = &buf[b * tp * record..(b + 1) * tp * record];
+                let mut features = Vec::with_capacity(tp * FEATURE_STRIDE);
+                let mut non_zero = vec![false; layer_count];
+                for p in 0..tp {
+                    let r = &rec[p * record..(p + 1) * record];
+                    features.extend_from_slice(&r[layer_count * 3..]);
+                    for (seen, texel) in non_zero.iter_mut().zip(r.chunks_exact(3)) {
+                        *seen |= texel.iter().any(|v| *v != 0.0);
+                    }
+                }
+                let layers = (0..layer_count)
+                    .filter(|l| non_zero[*l])
+                    .map(|l| {
+                        let mut sums = Vec::with_capacity(tp * 3);
+                        for p in 0..tp {
+                            let at = p * record + l * 3;
+                            sums.extend_from_slice(&rec[at..at + 3]);
+                        }
+                        (l as u32, sums)
+                    })
+                    .collect();
+                TileSums { features, layers }
+            })
+            .collect()
+    }
+
+    /// Bytes its features and sums hold.
+    pub fn bytes(&self) -> usize {
+        4 * (self.features.len() + self.layers.iter().map(|(_, s)| s.len()).sum::<usize>())
+    }
+
+    /// Adds `right` into `self`: per pixel left + right for a layer both hold, the one held
+    /// otherwise (an absent layer is zeros, which are never added: exact, see
+    /// [`super::blocks`]), and the features merged as the bake merges them.
+    pub fn absorb(&mut self, right: TileSums) {
+        for (a, b) in self
+            .features
+            .chunks_exact_mut(FEATURE_STRIDE)
+            .zip(right.features.chunks_exact(FEATURE_STRIDE))
+        {
+            EyeFeatures::merge(a, b);
+        }
+        let mut out = Vec::with_capacity(self.layers.len().max(right.layers.len()));
+        let mut mine = std::mem::take(&mut self.layers).into_iter().peekable();
+        let mut theirs = right.layers.into_iter().peekable();
+        loop {
+            let next = match (mine.peek(), theirs.peek()) {
+                (None, None) => break,
+                (Some(_), None) => mine.next(),
+                (None, Some(_)) => theirs.next(),
+                (Some((a, _)), Some((b, _))) if a < b => mine.next(),
+                (Some((a, _)), Some((b, _))) if b < a => theirs.next(),
+                _ => {
+                    let (id, mut x) = mine.next().expect("peeked");
+                    let (_, y) = theirs.next().expect("peeked");
+                    for (p, q) in x.iter_mut().zip(&y) {
+                        *p += *q;
+                    }
+                    Some((id, x))
+                }
+            };
+            out.extend(next);
+        }
+        self.layers = out;
+    }
+}
+
+/// One tile's blocks of the samples given so far, in sample order, siblings summed as they
+/// meet: what the tile holds between a progressive bake's passes, or while a merge reads
+/// its parts.
+#[derive(Clone, Debug, Default)]
+pub struct TileBlocks {
+    blocks: Vec<(Range<u32>, TileSums)>,
+}
+
+impl TileBlocks {
+    /// Appends `sums` of the samples `range` (the next ones in order: an aligned dyadic
+    /// range, or a folded `[0, spp)`) and sums siblings as they meet.
+    pub fn push(&mut self, range: Range<u32>, sums: TileSums) {
+        self.blocks.push((range, sums));
+        while self.blocks.len() >= 2 {
+            let k = self.blocks.len() - 1;
+            if !siblings(&self.blocks[k - 1].0, &self.blocks[k].0) {
+                break;
+            }
+            let (right_range, right) = self.blocks.pop().expect("two blocks");
+            let left = self.blocks.last_mut().expect("two blocks");
+            left.1.absorb(right);
+            left.0.end = right_range.end;
+        }
+    }
+
+    /// The samples covered: `[first start, last end)` (empty when there is no block).
+    pub fn range(&self) -> Range<u32> {
+        match (self.blocks.first(), self.blocks.last()) {
+            (Some(a), Some(b)) => a.0.start..b.0.end,
+            _ => 0..0,
+        }
+    }
+
+    /// Bytes the blocks hold.
+    pub fn bytes(&self) -> usize {
+        self.blocks.iter().map(|(_, s)| s.bytes()).sum()
+    }
+
+    /// The right fold `b₀ + (b₁ + (…))` of the blocks: the tile's canonical sums of every
+    /// sample given. Consumes the blocks (the last pass of a bake, or a merge).
+    pub fn fold(mut self) -> TileSums {
+        while self.blocks.len() >= 2 {
+            let (_, right) = self.blocks.pop().expect("two blocks");
+            self.blocks.last_mut().expect("one block").1.absorb(right);
+        }
+        self.blocks.pop().map(|(_, s)| s).unwrap_or_default()
+    }
+
+    /// [`Self::fold`] of a copy, keeping the blocks for more samples (between the passes of
+    /// a progressive bake): only this tile's sums are copied at a time.
+    pub fn folded_copy(&self) -> TileSums {
+        self.clone().fold()
+    }
+}
