@@ -1,4 +1,9 @@
-//! The stack as one OpenEXR file.
+//! The stack as one OpenEXR file, in the dense layout (format 1: every layer a full frame).
+//!
+//! Bakes write the tiled layout ([`crate::stack::tiled::file`]); this layout is what older
+//! builds wrote. The reader is the format-1 converter's first step (the tiled reader turns
+//! what it reads into a tiled stack); the writer is kept for tests, which make format-1
+//! files and dense references with it.
 //!
 //! Layout (docs/design.md §3 "Stack file"):
 //! - one part, scanlines, ZIP (16 lines per block). ZIP is lossless; the lossy codecs
