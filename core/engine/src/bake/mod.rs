@@ -51,6 +51,7 @@ use crate::Result;
 pub use layout::layer_key;
 pub use non_finite::NonFiniteReport;
 pub use report::{AdaptiveReport, BakeReport, PassReport};
+pub use schedule::doubling::doubling_passes;
 pub use settings::{AdaptiveSampling, BakeSettings, Denoise, IndirectSampling, LightGrouping};
 
 /// Bakes `scene` into a dense transfer stack: [`bake_tiled`] expanded with
@@ -92,17 +93,6 @@ pub fn bake_tiled_banded(
         |_, _, _| Ok(()),
     )?;
     Ok((stack, report))
-}
-
-/// Sample counts of a progressive bake of `passes` passes ending at `spp`: doubling, so
-/// each pass's estimate of the remaining noise is plain (see [`PassReport`]).
-pub fn doubling_passes(spp: u32, passes: u32) -> Vec<u32> {
-    let mut out: Vec<u32> = (0..passes.max(1))
-        .rev()
-        .map(|k| (spp >> k).max(1))
-        .collect();
-    out.dedup();
-    out
 }
 
 /// A bake in passes: after pass k the stack holds `passes[k]` eye samples per pixel

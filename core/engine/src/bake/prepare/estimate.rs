@@ -277,7 +277,7 @@ struct KeptSums {
     blocks_traced: u64,
 }
 
-/// A progressive bake of `passes` doubling passes ([`crate::bake::doubling_passes`]) keeps,
+/// A progressive bake of `passes` doubling passes ([`crate::bake::schedule::doubling`]) keeps,
 /// after each pass, popcount(samples so far) blocks per tile, each holding the f32 RGB sums
 /// of the layers reached on the tile (forecast as the stack's `entries`, all three
 /// channels: the sums are not split into grey and coloured) and the pixels' features; its
@@ -289,7 +289,7 @@ fn kept_sums(ctx: &BakeContext, passes: usize, entries: u64, tiles: u64, pixels:
             blocks_traced: 1,
         };
     }
-    let counts = crate::bake::doubling_passes(ctx.settings.spp, passes as u32);
+    let counts = crate::bake::schedule::doubling::doubling_passes(ctx.settings.spp, passes as u32);
     let kept_blocks = counts.iter().map(|c| c.count_ones()).max().unwrap_or(1) as u64;
     let blocks_traced = std::iter::once(0)
         .chain(counts.iter().copied())

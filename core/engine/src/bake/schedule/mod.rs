@@ -24,6 +24,7 @@ pub mod adaptive;
 pub mod band;
 pub mod blocks;
 pub mod denoise_sparse;
+pub mod doubling;
 pub(crate) mod passes;
 pub mod stream;
 pub(crate) mod summed_finish;

@@ -152,3 +152,60 @@ impl TileBlocks {
         self.clone().fold()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bake::schedule::blocks::{dyadic_blocks, PixelTree};
+
+    /// Per-sample values whose sums round differently in every grouping.
+    fn value(s: u32) -> f32 {
+        let h = s.wrapping_mul(2_654_435_761) >> 8;
+        (h % 9973) as f32 * 1.0e-3 * 10f32.powi((h % 7) as i32 - 3)
+    }
+
+    fn tree_sum(from: u32, to: u32, fold: bool) -> (Vec<Range<u32>>, Vec<f32>) {
+        let mut t = PixelTree::new(1).unwrap();
+        for s in from..to {
+            let (layers, _) = t.push_leaf(s);
+            layers[0] = value(s);
+            t.close_leaf();
+        }
+        if fold {
+            t.fold();
+        }
+        (
+            t.blocks().to_vec(),
+            (0..t.blocks().len()).map(|k| t.record(k)[0]).collect(),
+        )
+    }
+
+    #[test]
+    fn any_split_folds_to_the_same_bits() {
+        let spp = 37;
+        let (_, whole) = tree_sum(0, spp, true);
+        let sequential: f32 = (0..spp).map(value).sum();
+        for parts in [1u32, 2, 3, 5, 7, 37] {
+            let mut store = TileBlocks::default();
+            for i in 0..parts {
+                let (a, b) = (i * spp / parts, (i + 1) * spp / parts);
+                let (ranges, values) = tree_sum(a, b, false);
+                assert_eq!(ranges, dyadic_blocks(a, b));
+                for (r, v) in ranges.into_iter().zip(values) {
+                    let sums = TileSums {
+                        features: EyeFeatures::EMPTY.to_vec(),
+                        layers: vec![(0, vec![v, 0.0, 0.0])],
+                    };
+                    store.push(r, sums);
+                }
+            }
+            assert_eq!(store.range(), 0..spp);
+            let copy = store.folded_copy();
+            let merged = store.fold().layers[0].1[0];
+            assert_eq!(merged.to_bits(), whole[0].to_bits(), "{parts} parts");
+            assert_eq!(copy.layers[0].1[0].to_bits(), merged.to_bits());
+        }
+        // The point of it all: another grouping gives other bits for these values.
+        assert_ne!(sequential.to_bits(), whole[0].to_bits());
+    }
+}
