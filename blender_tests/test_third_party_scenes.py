@@ -159,14 +159,15 @@ BUNNY_EDITS = {
 
 def test_bunny_with_editable_materials_against_cycles(addon, prefs, tmp_path, results_file):
     """The bunny's ground (Principled, roughness 0.15, reflecting the sky and the bunny) and
-    the bunny ticked Editable, baked once (final preset, one bounce as the file's light
-    paths) in the basis of Principled lobes with each region's bake-time lobe as a slot of
-    its own (`lobe="principled"`): the unedited image is the bake-time materials evaluated as
-    Cycles does. (The default Blinn–Phong basis loses the ground's reflections there: 11.9 %
-    on tiles, the ground 0.943 of Cycles, measured 2026-11-28; not re-run here to keep the
-    suite's time.) Then edits of the ground and the bunny, relit from that one bake, each against
-    Cycles rendered with the same values: the relit image over the whole frame and the
-    ground's pixels (the reflection region) alone."""
+    the bunny ticked Editable, baked once as a user bakes first: the default (preview)
+    preset, whose editable Principled materials go into the basis of Principled lobes with
+    each region's bake-time lobe as a slot of its own, one bounce as the file's light paths.
+    The unedited image is the bake-time materials evaluated as Cycles does. (The Blinn–Phong
+    basis, `lobe="blinn-phong"`, loses the ground's reflections there: 11.9 % on tiles, the
+    ground 0.943 of Cycles, measured 2026-11-28; not re-run here to keep the suite's time.)
+    Then edits of the ground and the bunny, relit from that one bake, each against Cycles
+    rendered with the same values: the relit image over the whole frame and the ground's
+    pixels (the reflection region) alone."""
     import relume
 
     _open("bunny.blend")
@@ -194,7 +195,9 @@ def test_bunny_with_editable_materials_against_cycles(addon, prefs, tmp_path, re
     c2, _ = cy.render_cycles(scene, tmp_path / "c2.exr", CYCLES_SPP // 2, seed=2, bounces=1)
     addon.api.export()
     figures = {"ground_pixels": int(ground.sum())}
-    report = addon.api.bake(settings=relume.BakeSettings.preset("final", seed=0, bounces=1, lobe="principled"))
+    settings = relume.BakeSettings.preset("preview", seed=0, bounces=1)
+    assert settings.lobe == "principled", "the default preset bakes editable Principled materials in their lobes"
+    report = addon.api.bake(settings=settings)
     figures["principled"] = {"layers": report.get("layers"), **compare(relit("principled"), c1, c2)}
     edits = {}
     for edit, (material, name, value) in BUNNY_EDITS.items():

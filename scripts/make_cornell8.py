@@ -4,7 +4,9 @@ scale benchmarks (the issue's resolution × editable-materials grid).
 It is the assets' Cornell box (assets/cornell.scene.json) with every surface its own
 material: floor, ceiling and back wall apart, the red and green walls, the tall box, and the
 sphere split into an upper and a lower half (per-triangle regions). The first `k` are
-editable, each a different Blinn–Phong material; the resolution is set by `--resolution`.
+editable, each a different Blinn–Phong material (`--principled`: a different Principled BSDF,
+dielectrics and metals from roughness 0.15 to 1, as a scene exported from Blender has); the
+resolution is set by `--resolution`.
 
     python3 scripts/make_cornell8.py --editable 8 --resolution 1024x1024 --out out/cornell8.scene.json
 """
@@ -28,8 +30,19 @@ MATERIALS = [  # name, kd, ks, ns
     ("Sphere bottom", [0.5, 0.3, 0.1], [0.3, 0.3, 0.3], 20),
 ]
 
+PRINCIPLED = [  # base colour, metallic, roughness: the same surfaces as Principled BSDFs
+    ([0.45, 0.42, 0.38], 0.0, 0.4),
+    ([0.7, 0.7, 0.7], 0.0, 1.0),
+    ([0.5, 0.5, 0.55], 0.0, 0.6),
+    ([0.6, 0.05, 0.05], 0.0, 0.8),
+    ([0.05, 0.5, 0.05], 0.0, 0.8),
+    ([0.9, 0.75, 0.5], 1.0, 0.3),
+    ([0.1, 0.2, 0.5], 0.0, 0.15),
+    ([0.95, 0.6, 0.3], 1.0, 0.2),
+]
 
-def build(editable: int, width: int, height: int) -> dict:
+
+def build(editable: int, width: int, height: int, principled: bool = False) -> dict:
     src = json.loads((ROOT / "assets" / "cornell.scene.json").read_text())
     by_name = {m["name"]: m for m in src["meshes"]}
     walls = by_name["White walls"]
@@ -54,6 +67,10 @@ def build(editable: int, width: int, height: int) -> dict:
     regions = [{"name": n, "editable": i < editable,
                 "material": {"model": "blinn_phong", "kd": kd, "ks": ks, "ns": ns}}
                for i, (n, kd, ks, ns) in enumerate(MATERIALS)]
+    if principled:
+        for region, (base, metallic, roughness) in zip(regions, PRINCIPLED, strict=True):
+            region["material"] = {"model": "principled", "base_color": base, "metallic": metallic,
+                                  "roughness": roughness}
     return {**src, "meshes": meshes, "regions": regions, "resolution": {"width": width, "height": height}}
 
 
@@ -61,6 +78,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--editable", type=int, default=8, help="how many of the 8 materials are editable")
     ap.add_argument("--resolution", default="512x512", help="WIDTHxHEIGHT")
+    ap.add_argument("--principled", action="store_true", help="Principled BSDFs instead of Blinn–Phong values")
     ap.add_argument("--out", required=True)
     args = ap.parse_args()
     if not 0 <= args.editable <= 8:
@@ -68,7 +86,7 @@ def main() -> None:
     w, h = (int(v) for v in args.resolution.lower().split("x"))
     out = pathlib.Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(build(args.editable, w, h)))
+    out.write_text(json.dumps(build(args.editable, w, h, args.principled)))
     print(out)
 
 

@@ -35,6 +35,7 @@ NOT_A_PREFERENCE = {
     "resolution_scale": "applied to the render resolution when the scene is exported",
     "precision": "the core's default (f16)",
     "bases": "the basis tolerance picks the count",
+    "principled_bases": "the preset's",
     "ns_min": "each editable material's roughness range (Material Properties → Relume)",
     "ns_max": "each editable material's roughness range (Material Properties → Relume)",
     "threads": "every core",

@@ -67,14 +67,16 @@ class RelumePreferences(bpy.types.AddonPreferences):
         ("gpu", "GPU", "The GPU (an error if none is usable)"),
         ("cpu", "CPU", "The CPU (multi-threaded)"),
     ])
-    material_lobes: EnumProperty(name="Editable Materials", default="blinn-phong", items=[
+    material_lobes: EnumProperty(name="Editable Materials", default="principled", items=[
+        ("principled", "Principled Basis",
+         "Cycles' Principled lobes for opaque, untextured Principled materials, with each "
+         "material's bake-time lobe as a slot of its own: the unedited image and colour edits "
+         "as Cycles renders them, roughness and metallic edits within the preset's basis; as "
+         "many layers as the Blinn–Phong basis, and a basis build of seconds the first time on "
+         "a machine (textured and translucent materials keep Blinn–Phong)"),
         ("blinn-phong", "Blinn–Phong Basis",
-         "The paper's basis: a Principled material is relit as the Blinn–Phong fitted to Cycles' "
-         "Principled BSDF (fewer layers, a shorter bake)"),
-        ("principled", "Principled Basis (Experimental)",
-         "A basis of Cycles' Principled lobes for opaque, untextured Principled materials: relit "
-         "metals and dielectrics within a few percent of Cycles, but 21 slots per material (more "
-         "layers, a longer bake) and a basis build of about 20 s once per Blender session"),
+         "The paper's basis: a Principled material is relit as the Blinn–Phong fitted to "
+         "Cycles' Principled BSDF (glossy reflections of smooth materials are lost)"),
     ])
     light_groups: EnumProperty(name="Light Groups", items=LIGHT_GROUP_ITEMS, default="none",
                                description="Keep lights apart so their strength and colour can "

@@ -31,6 +31,7 @@ fn other_value(key: &str) -> Value {
         "ns_min" => json!(2.0),
         "ns_max" => json!(500.0),
         "lobe" => json!("principled"),
+        "principled_bases" => json!(5),
         "light_grouping" => json!("per-light"),
         "subsurface_samples" => json!(1000),
         "subsurface_theta" => json!(0.3),
@@ -88,6 +89,9 @@ fn every_value_of_the_settings_is_set_by_a_field_and_every_field_reaches_the_set
         let mut start = BakeFields::default();
         if field.key == "compression_tolerance" {
             start.apply(&one("compression_step", json!(4))).unwrap();
+        }
+        if field.key == "principled_bases" {
+            start.apply(&one("lobe", json!("principled"))).unwrap();
         }
         if field.key == "adaptive_min_spp" {
             start
@@ -181,6 +185,8 @@ fn a_bad_value_is_refused_naming_its_key_and_changes_nothing() {
         ("memory_budget_mb", json!(0.0), "> 0"),
         ("compression_step", json!(17), "at most"),
         ("ns_min", json!(-1.0), "ns_min"),
+        ("principled_bases", json!(1), "to 31"),
+        ("principled_bases", json!(40), "to 31"),
         ("no_such_thing", json!(1), "no such bake setting"),
     ] {
         let mut fields = start.clone();

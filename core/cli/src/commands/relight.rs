@@ -115,9 +115,9 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
         outputs.push((p, "the PNG"));
     }
     relume_engine::output_path::check_outputs(&outputs, &inputs)?;
-    let t = Instant::now();
+    let start = Instant::now();
     let stack = read_tiled(&args.stack)?;
-    let load_seconds = t.elapsed().as_secs_f64();
+    let load_seconds = start.elapsed().as_secs_f64();
     let scene = match &args.scene {
         Some(scene_path) => {
             let scene = load_scene(scene_path)?;
@@ -132,8 +132,10 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
     };
     let materials = resolve_materials(&stack.header.regions, &edits)?;
     let gains = resolve_light_gains(&stack.header, &edits)?;
+    let t = Instant::now();
     let bases = StackBases::from_header(&stack.header)?;
     let coefs = bases.coefficients(&materials)?;
+    let bases_seconds = t.elapsed().as_secs_f64();
     // Exponents outside a region's baked ns range: relit with the nearest one, and said so.
     let editable_names: Vec<&str> = stack
         .header
@@ -168,6 +170,8 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
     let device = relighter.device();
     let device_reason = relighter.device_reason().to_string();
     let relight_ms = t.elapsed().as_secs_f64() * 1e3;
+    // From opening the stack to the first relit image: what a user waits for after a load.
+    let first_image_seconds = start.elapsed().as_secs_f64();
     // An image with inf or NaN pixels is refused, not written as if it were right.
     relume_engine::relight::check_finite_image(&image, width)?;
     let (shown, denoise) = shown_image(
@@ -193,7 +197,9 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
             "width": width,
             "height": height,
             "load_seconds": load_seconds,
+            "bases_seconds": bases_seconds,
             "relight_ms": relight_ms,
+            "first_image_seconds": first_image_seconds,
             "denoise": denoise_json(&denoise),
             "warnings": warnings,
         }));

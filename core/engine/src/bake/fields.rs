@@ -99,10 +99,17 @@ bake_fields! {
     ns_min: f32,
     /// Largest exponent of that range (the default is the fitted exponent at roughness 0.1).
     ns_max: f32,
-    /// The lobes editable regions are baked in: the paper's `blinn-phong` basis, or
-    /// (experimental) `principled`, Cycles' Principled lobes for opaque, untextured
-    /// Principled materials (21 slots; other regions keep Blinn–Phong, with a warning).
+    /// The lobes editable regions are baked in: `principled`, Cycles' Principled lobes plus
+    /// each region's bake-time lobe as a slot of its own, for opaque, untextured Principled
+    /// materials (the presets' choice; textured and translucent ones keep Blinn–Phong, with
+    /// a warning), or the paper's `blinn-phong` basis with the fitted mapping (the default
+    /// without a preset).
     lobe: Lobe,
+    /// Slots of the Principled basis, its constant included (each region's bake-time lobe
+    /// adds one), 2 to 31; null: 21, the basis of the study. A preset sets its own so that a
+    /// region takes the slots its Blinn–Phong basis would (draft 8, preview 9, final 12);
+    /// more slots carry roughness and metallic edits further.
+    principled_bases: Option<u32>,
     /// Worker threads (0: every core); the result does not depend on it.
     threads: usize,
     /// Leaves out layers whose worst-case contribution to any relit image stays within this
@@ -190,6 +197,7 @@ impl BakeFields {
                 None => Lobe::BlinnPhong,
                 Some(_) => Lobe::Principled,
             },
+            principled_bases: s.principled_basis.as_ref().map(|c| c.bases as u32),
             threads: s.threads,
             drop_budget: s.drop_budget,
             light_grouping: s.light_grouping,
@@ -239,7 +247,13 @@ impl BakeFields {
             },
             principled_basis: match self.lobe {
                 Lobe::BlinnPhong => None,
-                Lobe::Principled => Some(PrincipledBasisConfig::default()),
+                Lobe::Principled => {
+                    let study = PrincipledBasisConfig::default();
+                    Some(PrincipledBasisConfig {
+                        bases: self.principled_bases.map_or(study.bases, |n| n as usize),
+                        ..study
+                    })
+                }
             },
             threads: self.threads,
             drop_budget: self.drop_budget,

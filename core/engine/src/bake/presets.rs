@@ -1,8 +1,9 @@
 //! Named quality presets: draft, preview, final.
 //!
 //! A preset fixes the settings that trade bake time against accuracy — eye samples, light
-//! samples, indirect samples, indirect sampling, basis tolerance and a resolution scale — and
-//! leaves the rest (seed, precision, ns range, light grouping, threads) as the caller set them.
+//! samples, indirect samples, indirect sampling, the editable materials' bases (Cycles'
+//! Principled lobes for Principled materials, and both bases' sizes) and a resolution scale —
+//! and leaves the rest (seed, precision, ns range, light grouping, threads) as the caller set them.
 //! It also sets the error budget of bounces ("what the scene needs", measured before the
 //! bake); the bounce count itself stays the caller's, as the cap (the command line and the
 //! Python bindings give a preset Blender's default, 12, when the caller says nothing).
@@ -14,6 +15,7 @@
 use serde::Serialize;
 
 use super::settings::{BakeSettings, BounceCompression, Denoise, IndirectSampling};
+use crate::brdf::principled_basis::PrincipledBasisConfig;
 use crate::brdf::BasisCount;
 
 /// Per-entry tolerance of the draft and preview presets' bounce-layer compression
@@ -60,6 +62,13 @@ pub struct PresetValues {
     /// Lattice compression of the bounce layers: an approximation whose error the bake
     /// measures and reports.
     pub compression: BounceCompression,
+    /// Slots of the Principled basis editable Principled materials are baked in (the
+    /// constant included; the region's bake-time lobe adds one). The bake-time slot makes
+    /// the unedited image and colour edits exact at any size, so the size only decides how
+    /// far a roughness or metallic edit stays close (docs/fidelity.md, "What an edit keeps");
+    /// each preset takes one less than its Blinn–Phong count, so that a region costs the
+    /// same slots in either basis.
+    pub principled_bases: usize,
 }
 
 impl Preset {
@@ -110,6 +119,7 @@ impl Preset {
                     step: 8,
                     tolerance: COMPRESSION_TOLERANCE,
                 },
+                principled_bases: 8,
             },
             Preset::Preview => PresetValues {
                 spp: 16,
@@ -127,6 +137,7 @@ impl Preset {
                     step: 4,
                     tolerance: COMPRESSION_TOLERANCE,
                 },
+                principled_bases: 9,
             },
             Preset::Final => PresetValues {
                 spp: 128,
@@ -147,6 +158,7 @@ impl Preset {
                     step: 4,
                     tolerance: FINAL_COMPRESSION_TOLERANCE,
                 },
+                principled_bases: 12,
             },
         }
     }
@@ -163,6 +175,10 @@ impl Preset {
         settings.denoise = v.denoise;
         settings.bounce_budget = v.bounce_budget;
         settings.compression = v.compression;
+        settings.principled_basis = Some(PrincipledBasisConfig {
+            bases: v.principled_bases,
+            ..PrincipledBasisConfig::default()
+        });
         v.resolution_scale
     }
 }

@@ -35,8 +35,9 @@ pub struct BakeSettings {
     /// Basis of editable regions that declare no ns range of their own.
     pub basis: BasisConfig,
     /// When set, editable regions with an opaque, untextured Principled material are baked
-    /// in a basis of Cycles' Principled lobes instead ([`crate::brdf::principled_basis`];
-    /// experimental, off by default).
+    /// in a basis of Cycles' Principled lobes with their bake-time lobe as one more slot
+    /// ([`crate::brdf::principled_basis`]). The presets set it; the engine's default (the
+    /// paper's) leaves it unset.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub principled_basis: Option<crate::brdf::principled_basis::PrincipledBasisConfig>,
     /// Worker threads (0: all cores). The result does not depend on it.
@@ -279,6 +280,19 @@ impl BakeSettings {
         }
         if let Some(r) = self.resolution {
             r.validate("resolution")?;
+        }
+        if let Some(cfg) = &self.principled_basis {
+            // A region's slots are the basis' and its bake-time lobe's.
+            let most = crate::options::MAX_BASES - 1;
+            if !(2..=most).contains(&cfg.bases) {
+                return bad(
+                    "principled_bases",
+                    format!(
+                        "{} asked; 2 (the constant and one lobe) to {most}, the bake-time lobe's slot coming on top",
+                        cfg.bases
+                    ),
+                );
+            }
         }
         if !(self.drop_budget.is_finite() && (0.0..1.0).contains(&self.drop_budget)) {
             return bad(

@@ -9,6 +9,7 @@ use glam::Vec3;
 
 use super::basis::coefficients::slot_coefficients;
 use super::basis::BrdfBasis;
+use super::blinn_phong::{self, BlinnPhong};
 use super::material::MaterialSpec;
 use super::principled_basis::bake_lobe::BakeLobe;
 use super::principled_basis::{Cosines, PrincipledBasis, MAX_SLOTS};
@@ -122,28 +123,32 @@ impl RegionBasis {
                 below_range: false,
             }),
             RegionBasis::Principled(_) | RegionBasis::PrincipledWithBakeLobe(..) => {
-                let MaterialSpec::Principled(p) = m else {
-                    return Err(RelumeError::Materials(
-                        "this region was baked with the Principled basis (lobe \"principled\"): \
-                         give it a Principled material, not Blinn–Phong values"
-                            .into(),
-                    ));
-                };
                 if textured {
                     return Err(RelumeError::Materials(
                         "a textured region cannot use the Principled basis".into(),
                     ));
                 }
-                let (slots, below_range) = match self {
-                    RegionBasis::PrincipledWithBakeLobe(b, lobe) => {
+                let (slots, below_range) = match (self, m) {
+                    (RegionBasis::PrincipledWithBakeLobe(b, lobe), MaterialSpec::Principled(p)) => {
                         let c = b.anchored_coefficients(lobe, &p.bsdf);
                         (c.slots, c.below_range)
                     }
-                    RegionBasis::Principled(b) => {
+                    (RegionBasis::Principled(b), MaterialSpec::Principled(p)) => {
                         let c = b.material_coefficients(&p.bsdf);
                         (c.slots, c.below_range)
                     }
-                    RegionBasis::BlinnPhong(_) => unreachable!("matched above"),
+                    (
+                        RegionBasis::PrincipledWithBakeLobe(b, lobe),
+                        MaterialSpec::BlinnPhong(bp),
+                    ) => (
+                        b.anchored_coefficients_of(lobe, blinn_phong_brdf(bp)),
+                        blinn_phong_below_range(b, bp),
+                    ),
+                    (RegionBasis::Principled(b), MaterialSpec::BlinnPhong(bp)) => (
+                        blinn_phong_coefficients(b, bp),
+                        blinn_phong_below_range(b, bp),
+                    ),
+                    (RegionBasis::BlinnPhong(_), _) => unreachable!("matched above"),
                 };
                 Ok(RegionCoefficients {
                     slots: slots
@@ -174,4 +179,43 @@ impl RegionBasis {
         out.extend(coefs.iter().skip(n + 1).copied());
         out
     }
+}
+
+/// A material given as Blinn–Phong values (`Kd/π + Ks·f_s(δ)`, Relume's normalisation) as a
+/// function of the four cosines: a region baked in the Principled basis projects it like
+/// any other lobe (the add-on's per-material Kd / Ks / ns override, a materials file's
+/// Blinn–Phong entry).
+fn blinn_phong_brdf(m: &BlinnPhong) -> impl Fn(Cosines) -> [f64; 3] + Sync {
+    let (kd, ks, ns) = (m.kd, m.ks, m.ns as f64);
+    move |c: Cosines| {
+        if !(c.cos_i > 0.0 && c.cos_o > 0.0) {
+            return [0.0; 3];
+        }
+        let s = blinn_phong::lobe(ns, c.cos_h);
+        std::array::from_fn(|ch| kd[ch] as f64 * std::f64::consts::FRAC_1_PI + ks[ch] as f64 * s)
+    }
+}
+
+/// The plain projection of Blinn–Phong values on a Principled basis: the specular lobe once
+/// (its shape is the same in every channel), scaled by `Ks`; `Kd` on the constant slot.
+fn blinn_phong_coefficients(b: &PrincipledBasis, m: &BlinnPhong) -> Vec<[f64; 3]> {
+    let ns = m.ns as f64;
+    let lobe = b.project_many(1, |c, out: &mut [f64]| {
+        out[0] = blinn_phong::lobe(ns, c.cos_h);
+    });
+    lobe.iter()
+        .enumerate()
+        .map(|(k, s)| {
+            std::array::from_fn(|ch| {
+                let diffuse = if k == 0 { m.kd[ch] as f64 } else { 0.0 };
+                diffuse + m.ks[ch] as f64 * s
+            })
+        })
+        .collect()
+}
+
+/// Whether a Blinn–Phong lobe is narrower than the basis' smoothest roughness (by the
+/// fitted mapping's exponent there): relit, and warned of, as the range allows.
+fn blinn_phong_below_range(b: &PrincipledBasis, m: &BlinnPhong) -> bool {
+    m.ns > b.config().fitted_ns_range().1
 }

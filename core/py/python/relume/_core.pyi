@@ -86,7 +86,8 @@ class BakeSettings:
     basis_tolerance: float | None
     ns_min: float
     ns_max: float
-    lobe: Literal["blinn-phong", "principled"]  # "principled": experimental Principled-lobe basis
+    lobe: Literal["blinn-phong", "principled"]  # "principled" (the presets'): Principled lobes + bake-time lobe
+    principled_bases: int | None  # Principled basis slots (constant included); None: 21
     threads: int
     drop_budget: float
     light_grouping: Literal["all", "per-light", "scene"]

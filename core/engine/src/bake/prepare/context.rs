@@ -376,8 +376,9 @@ impl BakeContext {
 
 /// The Principled basis configuration an editable region is baked with: the settings' when
 /// they ask for one and the region is an opaque, untextured Principled material (`Ok(None)`
-/// when they do not ask); `Err` says why a region the settings would give it keeps the
-/// Blinn–Phong basis (a warning for the bake's report).
+/// when they do not ask, or when the material is given as Blinn–Phong values, which the
+/// Blinn–Phong basis carries as they are); `Err` says why a Principled material keeps the
+/// Blinn–Phong basis and its fitted mapping (a warning for the bake's report).
 fn principled_basis_for<'a>(
     settings: &'a BakeSettings,
     region: &crate::scene::Region,
@@ -386,9 +387,11 @@ fn principled_basis_for<'a>(
     let Some(cfg) = settings.principled_basis.as_ref() else {
         return Ok(None);
     };
-    let why = if !matches!(region.material, MaterialSpec::Principled(_)) {
-        "its material is Blinn–Phong values, not a Principled BSDF"
-    } else if textured {
+    if !matches!(region.material, MaterialSpec::Principled(_)) {
+        // A material given as Blinn–Phong values is that basis' own model: nothing is lost.
+        return Ok(None);
+    }
+    let why = if textured {
         "it is textured (not supported by the Principled basis yet)"
     } else if region.is_translucent() {
         "it is translucent (not supported by the Principled basis yet)"

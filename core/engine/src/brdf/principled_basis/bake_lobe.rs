@@ -32,7 +32,7 @@ use rayon::prelude::*;
 
 use super::lobes::DIFFUSE;
 use super::quadrature::Node;
-use super::{PrincipledBasis, PrincipledBasisConfig, MAX_SLOTS, NODES_PER_CHUNK};
+use super::{Cosines, PrincipledBasis, PrincipledBasisConfig, MAX_SLOTS, NODES_PER_CHUNK};
 use crate::brdf::cycles_principled::CyclesPrincipled;
 use crate::brdf::Principled;
 
@@ -87,7 +87,7 @@ impl PrincipledBasis {
             .par_iter()
             .map(|n| g.eval_cosines(n.c.cos_i, n.c.cos_o, n.c.cos_h, n.c.cos_d))
             .collect();
-        let sums = self.sums(&g, None);
+        let sums = self.sums(&principled_brdf(&g), None);
         let held = self.held(&sums.coefficients, &sums.coefficients);
         let missed = std::array::from_fn(|c| {
             let m = sums.norm2[c] - held[c];
@@ -139,27 +139,48 @@ impl PrincipledBasis {
     /// (module docs): `count() + 1` slots.
     pub fn anchored_coefficients(&self, lobe: &BakeLobe, p: &Principled) -> AnchoredCoefficients {
         let below_range = (p.roughness as f64) < self.config().roughness_min - 1e-9;
-        let n = self.count();
-        let mut slots = vec![[0.0f64; 3]; n + 1];
         if *p == lobe.material {
-            slots[n] = [1.0; 3];
+            let mut slots = vec![[0.0f64; 3]; self.count() + 1];
+            slots[self.count()] = [1.0; 3];
             return AnchoredCoefficients { slots, below_range };
         }
-        let f = CyclesPrincipled::new(p);
+        let g = CyclesPrincipled::new(p);
+        let slots = self.anchored_coefficients_of(lobe, principled_brdf(&g));
+        AnchoredCoefficients { slots, below_range }
+    }
+
+    /// The coefficients of any BRDF `f` (per channel, a function of the four cosines) on
+    /// this basis and the bake-time slot of `lobe`: how a region baked in this basis takes
+    /// a material given as Blinn–Phong values, whose lobe is projected like any other.
+    pub fn anchored_coefficients_of(
+        &self,
+        lobe: &BakeLobe,
+        f: impl Fn(Cosines) -> [f64; 3] + Sync,
+    ) -> Vec<[f64; 3]> {
+        let n = self.count();
         let sums = self.sums(&f, Some(&lobe.at_nodes));
-        let onto_pg = self.held(&sums.coefficients, &lobe.projection);
+        let alpha = self.bake_slot_weight(lobe, &sums);
+        let mut slots = vec![[0.0f64; 3]; n + 1];
         for c in 0..3 {
-            let alpha = if lobe.missed[c] > 0.0 {
+            for (k, s) in slots[..n].iter_mut().enumerate() {
+                s[c] = sums.coefficients[k][c] - alpha[c] * lobe.projection[k][c];
+            }
+            slots[n][c] = alpha[c];
+        }
+        slots
+    }
+
+    /// `α = ⟨f, q⟩ / ‖q‖²` per channel (0 where the basis holds the bake-time lobe), from
+    /// `f`'s sums with the lobe's values.
+    fn bake_slot_weight(&self, lobe: &BakeLobe, sums: &Sums) -> [f64; 3] {
+        let onto_pg = self.held(&sums.coefficients, &lobe.projection);
+        std::array::from_fn(|c| {
+            if lobe.missed[c] > 0.0 {
                 (sums.dot_g[c] - onto_pg[c]) / lobe.missed[c]
             } else {
                 0.0
-            };
-            for (k, s) in slots[..n].iter_mut().enumerate() {
-                s[c] = sums.coefficients[k][c] - alpha * lobe.projection[k][c];
             }
-            slots[n][c] = alpha;
-        }
-        AnchoredCoefficients { slots, below_range }
+        })
     }
 
     /// The relative L2 error (per channel, under the basis' measure) of material `p` rebuilt
@@ -171,19 +192,14 @@ impl PrincipledBasis {
         p: &Principled,
     ) -> ([f64; 3], [f64; 3]) {
         let f = CyclesPrincipled::new(p);
-        let sums = self.sums(&f, Some(&lobe.at_nodes));
+        let sums = self.sums(&principled_brdf(&f), Some(&lobe.at_nodes));
         let held = self.held(&sums.coefficients, &sums.coefficients);
-        let onto_pg = self.held(&sums.coefficients, &lobe.projection);
+        let alpha = self.bake_slot_weight(lobe, &sums);
         let mut plain = [0.0; 3];
         let mut with = [0.0; 3];
         for c in 0..3 {
             let qf = (sums.norm2[c] - held[c]).max(0.0);
-            let alpha = if lobe.missed[c] > 0.0 {
-                (sums.dot_g[c] - onto_pg[c]) / lobe.missed[c]
-            } else {
-                0.0
-            };
-            let rest = (qf - alpha * alpha * lobe.missed[c]).max(0.0);
+            let rest = (qf - alpha[c] * alpha[c] * lobe.missed[c]).max(0.0);
             let n = sums.norm2[c].max(1e-300);
             plain[c] = (qf / n).sqrt();
             with[c] = (rest / n).sqrt();
@@ -210,16 +226,15 @@ impl PrincipledBasis {
     }
 
     /// [`Sums`] of `f` over the nodes: in fixed chunks added in order, so the result does not
-    /// depend on the thread count.
-    fn sums(&self, f: &CyclesPrincipled, g: Option<&[[f64; 3]]>) -> Sums {
+    /// depend on the thread count. `g`, when given, holds the bake-time lobe at every node.
+    fn sums(&self, f: &(impl Fn(Cosines) -> [f64; 3] + Sync), g: Option<&[[f64; 3]]>) -> Sums {
         let slots = self.count();
         let ns = self.nspec.max(1);
         let len = 3 * slots + 6;
-        let chunk = |nodes: &[Node], phis: &[f64], gs: Option<&[[f64; 3]]>| {
+        let chunk = |start: usize, nodes: &[Node], phis: &[f64]| {
             let mut acc = vec![0.0f64; len];
             for (i, (node, phi)) in nodes.iter().zip(phis.chunks(ns)).enumerate() {
-                let c = node.c;
-                let v = f.eval_cosines(c.cos_i, c.cos_o, c.cos_h, c.cos_d);
+                let v = f(node.c);
                 for ch in 0..3 {
                     let wf = node.weight * v[ch];
                     if wf == 0.0 {
@@ -231,28 +246,20 @@ impl PrincipledBasis {
                         *r += wf * b;
                     }
                     acc[3 * slots + ch] += wf * v[ch];
-                    if let Some(gs) = gs {
-                        acc[3 * slots + 3 + ch] += wf * gs[i][ch];
+                    if let Some(g) = g {
+                        acc[3 * slots + 3 + ch] += wf * g[start + i][ch];
                     }
                 }
             }
             acc
         };
-        let partial: Vec<Vec<f64>> = match g {
-            Some(g) => self
-                .nodes
-                .par_chunks(NODES_PER_CHUNK)
-                .zip(self.at_nodes.par_chunks(NODES_PER_CHUNK * ns))
-                .zip(g.par_chunks(NODES_PER_CHUNK))
-                .map(|((nodes, phis), gs)| chunk(nodes, phis, Some(gs)))
-                .collect(),
-            None => self
-                .nodes
-                .par_chunks(NODES_PER_CHUNK)
-                .zip(self.at_nodes.par_chunks(NODES_PER_CHUNK * ns))
-                .map(|(nodes, phis)| chunk(nodes, phis, None))
-                .collect(),
-        };
+        let partial: Vec<Vec<f64>> = self
+            .nodes
+            .par_chunks(NODES_PER_CHUNK)
+            .zip(self.at_nodes.par_chunks(NODES_PER_CHUNK * ns))
+            .enumerate()
+            .map(|(k, (nodes, phis))| chunk(k * NODES_PER_CHUNK, nodes, phis))
+            .collect();
         let mut total = vec![0.0; len];
         for p in partial {
             total.iter_mut().zip(&p).for_each(|(t, v)| *t += v);
@@ -276,4 +283,9 @@ impl PrincipledBasis {
             dot_g: std::array::from_fn(|ch| total[3 * slots + 3 + ch]),
         }
     }
+}
+
+/// A Cycles Principled BSDF as a function of the four cosines, for [`PrincipledBasis::sums`].
+fn principled_brdf(f: &CyclesPrincipled) -> impl Fn(Cosines) -> [f64; 3] + Sync + '_ {
+    move |c: Cosines| f.eval_cosines(c.cos_i, c.cos_o, c.cos_h, c.cos_d)
 }
