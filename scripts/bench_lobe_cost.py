@@ -50,6 +50,14 @@ def summary(values: list[float]) -> dict:
     return {"min": round(min(values), 3), "median": round(statistics.median(values), 3)}
 
 
+def ratio(p: dict, b: dict) -> dict:
+    """`p`'s figures over the Blinn–Phong bake's `b`."""
+    return {"bake_wall_median": round(p["wall_s"]["median"] / b["wall_s"]["median"], 3),
+            "file": round(p["file_mb"] / b["file_mb"], 3),
+            "stored": round(p["stored_mb"] / b["stored_mb"], 3),
+            "peak_median": round(p["peak_gb"]["median"] / b["peak_gb"]["median"], 3)}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--relume", default=str(ROOT / "target/release/relume"))
@@ -59,6 +67,8 @@ def main() -> None:
     ap.add_argument("--presets", default="draft,preview,final")
     ap.add_argument("--bounces", type=int, default=1)
     ap.add_argument("--repeats", type=int, default=2)
+    ap.add_argument("--principled-bases", default="",
+                    help="comma-separated Principled basis sizes to bake besides the preset's (e.g. 9,13)")
     ap.add_argument("--out", help="also append the JSON lines to this file")
     a = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp_name:
@@ -77,13 +87,19 @@ def main() -> None:
             empty = {**os.environ, "RELUME_CACHE_DIR": str(tmp / f"cache-{preset}")}
             cold = json.loads(timed([*base, "-o", str(tmp / "cold.exr"), "--lobe", "principled"], empty)[2])
             timed([*base, "-o", str(tmp / "cold.exr"), "--lobe", "principled"])
+            variants = {"principled": ["--lobe", "principled"], "blinn-phong": ["--lobe", "blinn-phong"]}
+            for n in filter(None, a.principled_bases.split(",")):
+                variants[f"principled-{n}"] = ["--lobe", "principled", "--principled-bases", n]
+                empty_n = {**os.environ, "RELUME_CACHE_DIR": str(tmp / f"cache-{preset}-{n}")}
+                timed([*base, "-o", str(tmp / "cold.exr"), *variants[f"principled-{n}"]], empty_n)
+                timed([*base, "-o", str(tmp / "cold.exr"), *variants[f"principled-{n}"]])
             rows: dict[str, dict] = {lobe: {"wall_s": [], "peak_gb": [], "relight_process_s": [],
                                             "first_image_s": [], "bases_s": []}
-                                     for lobe in ("principled", "blinn-phong")}
+                                     for lobe in variants}
             for _ in range(a.repeats):
                 for lobe, row in rows.items():
                     stack = tmp / f"{lobe}.exr"
-                    wall, peak, out = timed([*base, "-o", str(stack), "--lobe", lobe])
+                    wall, peak, out = timed([*base, "-o", str(stack), *variants[lobe]])
                     bake = json.loads(out)
                     row["wall_s"].append(wall)
                     row["peak_gb"].append(peak / 1e9)
@@ -103,16 +119,15 @@ def main() -> None:
             for row in rows.values():
                 for key in ("wall_s", "peak_gb", "relight_process_s", "first_image_s", "bases_s"):
                     row[key] = summary(row[key])
-            p, b = rows["principled"], rows["blinn-phong"]
+            b = rows["blinn-phong"]
             line = {
                 "preset": preset, "resolution": a.resolution, "editable": a.editable,
                 "bounces": a.bounces, "scene": "cornell8 --principled" if a.scene is None else a.scene,
                 "cold_setup_s": round(cold["report"]["setup_seconds"], 3),
-                "principled": p, "blinn_phong": b,
-                "ratio": {"bake_wall_median": round(p["wall_s"]["median"] / b["wall_s"]["median"], 3),
-                          "file": round(p["file_mb"] / b["file_mb"], 3),
-                          "stored": round(p["stored_mb"] / b["stored_mb"], 3),
-                          "peak_median": round(p["peak_gb"]["median"] / b["peak_gb"]["median"], 3)},
+                "principled": rows["principled"], "blinn_phong": b,
+                "ratio": ratio(rows["principled"], b),
+                "other_sizes": {k: {**v, "ratio": ratio(v, b)} for k, v in rows.items()
+                                if k.startswith("principled-")},
                 "machine": {"cores": os.cpu_count(), "platform": platform.platform(),
                             "load_1min": round(os.getloadavg()[0], 2)},
                 "date": time.strftime("%Y-%m-%d"),

@@ -106,9 +106,8 @@ bake_fields! {
     /// without a preset).
     lobe: Lobe,
     /// Slots of the Principled basis, its constant included (each region's bake-time lobe
-    /// adds one), 2 to 31; null: 21, the basis of the study. A preset sets its own so that a
-    /// region takes the slots its Blinn–Phong basis would (draft 8, preview 9, final 12);
-    /// more slots carry roughness and metallic edits further.
+    /// adds one), 2 to 31; null: 21, the basis of the study. A preset sets its own (draft 8,
+    /// preview 13, final 21): more slots carry roughness and metallic edits further.
     principled_bases: Option<u32>,
     /// Worker threads (0: every core); the result does not depend on it.
     threads: usize,

@@ -64,10 +64,12 @@ pub struct PresetValues {
     pub compression: BounceCompression,
     /// Slots of the Principled basis editable Principled materials are baked in (the
     /// constant included; the region's bake-time lobe adds one). The bake-time slot makes
-    /// the unedited image and colour edits exact at any size, so the size only decides how
-    /// far a roughness or metallic edit stays close (docs/fidelity.md, "What an edit keeps");
-    /// each preset takes one less than its Blinn–Phong count, so that a region costs the
-    /// same slots in either basis.
+    /// the unedited image exact at any size, so the size decides how far a roughness or
+    /// metallic edit stays close (docs/fidelity.md, "What an edit keeps") and what the bake
+    /// costs: the layers grow with the square of the slots of all editable regions. Draft,
+    /// not for judging materials, takes the fewest; preview a middle size whose bake costs
+    /// about what the Blinn–Phong basis' does with two editable materials; final the
+    /// study's basis.
     pub principled_bases: usize,
 }
 
@@ -137,7 +139,7 @@ impl Preset {
                     step: 4,
                     tolerance: COMPRESSION_TOLERANCE,
                 },
-                principled_bases: 9,
+                principled_bases: 13,
             },
             Preset::Final => PresetValues {
                 spp: 128,
@@ -158,7 +160,7 @@ impl Preset {
                     step: 4,
                     tolerance: FINAL_COMPRESSION_TOLERANCE,
                 },
-                principled_bases: 12,
+                principled_bases: 21,
             },
         }
     }
