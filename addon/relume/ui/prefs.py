@@ -71,9 +71,10 @@ class RelumePreferences(bpy.types.AddonPreferences):
         ("principled", "Principled Basis",
          "Cycles' Principled lobes for opaque, untextured Principled materials, with each "
          "material's bake-time lobe as a slot of its own: the unedited image and colour edits "
-         "as Cycles renders them, roughness and metallic edits within the preset's basis; as "
-         "many layers as the Blinn–Phong basis, and a basis build of seconds the first time on "
-         "a machine (textured and translucent materials keep Blinn–Phong)"),
+         "as Cycles renders them, roughness and metallic edits as far as the preset's basis "
+         "carries them; more layers than the Blinn–Phong basis at the preview and final presets, "
+         "and a basis build of seconds the first time on a machine (textured and translucent "
+         "materials keep Blinn–Phong)"),
         ("blinn-phong", "Blinn–Phong Basis",
          "The paper's basis: a Principled material is relit as the Blinn–Phong fitted to "
          "Cycles' Principled BSDF (glossy reflections of smooth materials are lost)"),
