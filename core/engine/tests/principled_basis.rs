@@ -154,9 +154,9 @@ fn a_relit_edit_is_the_edited_material_within_the_basis_error() {
 }
 
 #[test]
-fn roughness_below_the_principled_range_is_reported_and_blinn_phong_values_refused() {
+fn roughness_below_the_principled_range_is_reported_and_blinn_phong_values_projected() {
     let material = principled([0.9, 0.65, 0.35], 1.0, 0.3);
-    let (_, bases) = bake_and_relight(&common::furnace(material, true, SIZE), &[]);
+    let (_, bases) = bake_and_relight(&common::furnace(material.clone(), true, SIZE), &[]);
     let smooth = principled([0.9, 0.65, 0.35], 1.0, 0.1);
     let warnings = bases.out_of_range(std::slice::from_ref(&smooth));
     assert_eq!(warnings.len(), 1, "{warnings:?}");
@@ -164,16 +164,49 @@ fn roughness_below_the_principled_range_is_reported_and_blinn_phong_values_refus
     assert!(bases
         .out_of_range(&[principled([0.5; 3], 1.0, 0.25)])
         .is_empty());
-    let e = bases
-        .coefficients(&[common::bp(0.5, 0.2, 50.0)])
-        .expect_err("Blinn–Phong values on a Principled basis are refused")
-        .to_string();
-    assert!(e.contains("Principled basis"), "{e}");
+    // Blinn–Phong values (the add-on's Kd / Ks / ns override) are projected onto the basis
+    // and the bake-time slot. A diffuse one lies in the basis' span (its constant slot), so
+    // its relight is that material baked as a fixed region (the same paths: uniform
+    // sampling does not depend on the material).
+    let glossy = bases.coefficients(&[common::bp(0.5, 0.2, 50.0)]).unwrap();
+    assert!(glossy.iter().flatten().all(|c| c.is_finite()));
+    let diffuse = common::bp(0.6, 0.0, 1.0);
+    let (relit, _) = bake_and_relight(
+        &common::furnace(material, true, SIZE),
+        std::slice::from_ref(&diffuse),
+    );
+    let (exact, _) = bake_and_relight(&common::furnace(diffuse, false, SIZE), &[]);
+    let e = rel_l2(&sphere_rgb(&relit), &sphere_rgb(&exact));
+    assert!(
+        e < 1e-3,
+        "diffuse Blinn–Phong values relit vs baked fixed: {e}"
+    );
 }
 
 #[test]
-fn regions_the_principled_basis_cannot_take_keep_blinn_phong_with_a_warning() {
+fn regions_the_principled_basis_does_not_take_keep_blinn_phong() {
+    // Blinn–Phong values are that basis' own model: no warning. A translucent Principled
+    // material is not supported by the Principled basis yet: a warning says so.
     let scene = common::furnace(common::bp(0.5, 0.3, 40.0), true, SIZE);
+    let (ctx, report) =
+        relume_engine::bake::prepare::context::BakeContext::new(&scene, &settings()).unwrap();
+    assert!(matches!(
+        ctx.editable_bases()[0],
+        relume_engine::brdf::RegionBasis::BlinnPhong(_)
+    ));
+    assert!(
+        !report
+            .warnings
+            .iter()
+            .any(|w| w.contains("Blinn–Phong basis")),
+        "{:?}",
+        report.warnings
+    );
+    let MaterialSpec::Principled(mut translucent) = principled([0.8, 0.5, 0.4], 0.0, 0.5) else {
+        unreachable!()
+    };
+    translucent.subsurface.weight = 0.5;
+    let scene = common::furnace(MaterialSpec::Principled(translucent), true, SIZE);
     let (ctx, report) =
         relume_engine::bake::prepare::context::BakeContext::new(&scene, &settings()).unwrap();
     assert!(matches!(
@@ -184,7 +217,7 @@ fn regions_the_principled_basis_cannot_take_keep_blinn_phong_with_a_warning() {
         report
             .warnings
             .iter()
-            .any(|w| w.contains("Blinn–Phong basis")),
+            .any(|w| w.contains("Blinn–Phong basis") && w.contains("translucent")),
         "{:?}",
         report.warnings
     );
