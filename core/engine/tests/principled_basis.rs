@@ -183,43 +183,38 @@ fn roughness_below_the_principled_range_is_reported_and_blinn_phong_values_proje
     );
 }
 
-#[test]
-fn regions_the_principled_basis_does_not_take_keep_blinn_phong() {
-    // Blinn–Phong values are that basis' own model: no warning. A translucent Principled
-    // material is not supported by the Principled basis yet: a warning says so.
-    let scene = common::furnace(common::bp(0.5, 0.3, 40.0), true, SIZE);
+/// The warnings of laying out a furnace whose sphere is `material`, editable, after checking
+/// that its region took the Blinn–Phong basis.
+fn blinn_phong_layout_warnings(material: MaterialSpec) -> Vec<String> {
+    let scene = common::furnace(material, true, SIZE);
     let (ctx, report) =
         relume_engine::bake::prepare::context::BakeContext::new(&scene, &settings()).unwrap();
     assert!(matches!(
         ctx.editable_bases()[0],
         relume_engine::brdf::RegionBasis::BlinnPhong(_)
     ));
+    report.warnings
+}
+
+#[test]
+fn regions_the_principled_basis_does_not_take_keep_blinn_phong() {
+    // Blinn–Phong values are that basis' own model: no warning. A translucent Principled
+    // material is not supported by the Principled basis yet: a warning says so.
+    let warnings = blinn_phong_layout_warnings(common::bp(0.5, 0.3, 40.0));
     assert!(
-        !report
-            .warnings
-            .iter()
-            .any(|w| w.contains("Blinn–Phong basis")),
-        "{:?}",
-        report.warnings
+        !warnings.iter().any(|w| w.contains("Blinn–Phong basis")),
+        "{warnings:?}"
     );
     let MaterialSpec::Principled(mut translucent) = principled([0.8, 0.5, 0.4], 0.0, 0.5) else {
         unreachable!()
     };
     translucent.subsurface.weight = 0.5;
-    let scene = common::furnace(MaterialSpec::Principled(translucent), true, SIZE);
-    let (ctx, report) =
-        relume_engine::bake::prepare::context::BakeContext::new(&scene, &settings()).unwrap();
-    assert!(matches!(
-        ctx.editable_bases()[0],
-        relume_engine::brdf::RegionBasis::BlinnPhong(_)
-    ));
+    let warnings = blinn_phong_layout_warnings(MaterialSpec::Principled(translucent));
     assert!(
-        report
-            .warnings
+        warnings
             .iter()
             .any(|w| w.contains("Blinn–Phong basis") && w.contains("translucent")),
-        "{:?}",
-        report.warnings
+        "{warnings:?}"
     );
 }
 
