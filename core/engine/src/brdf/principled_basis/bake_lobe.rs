@@ -87,7 +87,8 @@ impl PrincipledBasis {
             .par_iter()
             .map(|n| g.eval_cosines(n.c.cos_i, n.c.cos_o, n.c.cos_h, n.c.cos_d))
             .collect();
-        let sums = self.sums(&principled_brdf(&g), None);
+        // The sums read the values just computed rather than evaluating the BSDF again.
+        let sums = self.sums(&|i, _| at_nodes[i], None);
         let held = self.held(&sums.coefficients, &sums.coefficients);
         let missed = std::array::from_fn(|c| {
             let m = sums.norm2[c] - held[c];
@@ -158,7 +159,7 @@ impl PrincipledBasis {
         f: impl Fn(Cosines) -> [f64; 3] + Sync,
     ) -> Vec<[f64; 3]> {
         let n = self.count();
-        let sums = self.sums(&f, Some(&lobe.at_nodes));
+        let sums = self.sums(&|_, c| f(c), Some(&lobe.at_nodes));
         let alpha = self.bake_slot_weight(lobe, &sums);
         let mut slots = vec![[0.0f64; 3]; n + 1];
         for c in 0..3 {
@@ -192,7 +193,8 @@ impl PrincipledBasis {
         p: &Principled,
     ) -> ([f64; 3], [f64; 3]) {
         let f = CyclesPrincipled::new(p);
-        let sums = self.sums(&principled_brdf(&f), Some(&lobe.at_nodes));
+        let f = principled_brdf(&f);
+        let sums = self.sums(&|_, c| f(c), Some(&lobe.at_nodes));
         let held = self.held(&sums.coefficients, &sums.coefficients);
         let alpha = self.bake_slot_weight(lobe, &sums);
         let mut plain = [0.0; 3];
@@ -226,15 +228,20 @@ impl PrincipledBasis {
     }
 
     /// [`Sums`] of `f` over the nodes: in fixed chunks added in order, so the result does not
-    /// depend on the thread count. `g`, when given, holds the bake-time lobe at every node.
-    fn sums(&self, f: &(impl Fn(Cosines) -> [f64; 3] + Sync), g: Option<&[[f64; 3]]>) -> Sums {
+    /// depend on the thread count. `f` gives the material's value at node `i` (whose cosines
+    /// come with it); `g`, when given, holds the bake-time lobe at every node.
+    fn sums(
+        &self,
+        f: &(impl Fn(usize, Cosines) -> [f64; 3] + Sync),
+        g: Option<&[[f64; 3]]>,
+    ) -> Sums {
         let slots = self.count();
         let ns = self.nspec.max(1);
         let len = 3 * slots + 6;
         let chunk = |start: usize, nodes: &[Node], phis: &[f64]| {
             let mut acc = vec![0.0f64; len];
             for (i, (node, phi)) in nodes.iter().zip(phis.chunks(ns)).enumerate() {
-                let v = f(node.c);
+                let v = f(start + i, node.c);
                 for ch in 0..3 {
                     let wf = node.weight * v[ch];
                     if wf == 0.0 {
