@@ -22,7 +22,6 @@ file at about a minute on 2 cores; the Cycles noise on tiles is printed with the
 from __future__ import annotations
 
 import json
-import math
 import pathlib
 import time
 
@@ -30,8 +29,8 @@ import bpy
 import numpy as np
 import pytest
 from support import cycles as cy
+from support.rooms import window_room
 from support.scene_import import import_scene
-from support.scenes import add_camera_and_black_world
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 RES = 64
@@ -125,39 +124,6 @@ def test_cornell_box_at_default_bounces(addon, prefs, blend_dir, results_file):
     _check(addon, prefs, blend_dir, "cornell_default_bounces")
 
 
-def _room_with_window(resolution: int):
-    """A closed 4 × 4 × 2.5 m room (grey diffuse, albedo 0.7) with a 1.6 × 1.2 m window
-    opening in its +Y wall, a 5 W/m² sun shining in through it at 40° elevation, black world;
-    the camera inside, looking at the sunlit floor patch and the window wall."""
-    scene = bpy.context.scene
-    grey = cy.diffuse_material("Room", (0.7, 0.7, 0.7))
-    floor_mat = cy.diffuse_material("RoomFloor", (0.5, 0.45, 0.4))
-    w, h = 2.0, 2.5
-    quads = {
-        "Floor": ([(-w, -w, 0), (w, -w, 0), (w, w, 0), (-w, w, 0)], floor_mat),
-        "Ceiling": ([(-w, -w, h), (-w, w, h), (w, w, h), (w, -w, h)], grey),
-        "WallS": ([(-w, -w, 0), (-w, -w, h), (w, -w, h), (w, -w, 0)], grey),
-        "WallW": ([(-w, -w, 0), (-w, w, 0), (-w, w, h), (-w, -w, h)], grey),
-        "WallE": ([(w, -w, 0), (w, -w, h), (w, w, h), (w, w, 0)], grey),
-        # The +Y wall around a window: x ∈ [−0.8, 0.8], z ∈ [0.8, 2.0].
-        "WallN_below": ([(-w, w, 0), (w, w, 0), (w, w, 0.8), (-w, w, 0.8)], grey),
-        "WallN_above": ([(-w, w, 2.0), (w, w, 2.0), (w, w, h), (-w, w, h)], grey),
-        "WallN_left": ([(-w, w, 0.8), (-0.8, w, 0.8), (-0.8, w, 2.0), (-w, w, 2.0)], grey),
-        "WallN_right": ([(0.8, w, 0.8), (w, w, 0.8), (w, w, 2.0), (0.8, w, 2.0)], grey),
-    }
-    for name, (verts, mat) in quads.items():
-        cy._mesh_object(name, verts, [(0, 1, 2, 3)], mat)
-    sun = bpy.data.lights.new("Sun", "SUN")
-    sun.energy = 5.0
-    sun.angle = math.radians(1.0)
-    sun_obj = bpy.data.objects.new("Sun", sun)
-    sun_obj.location = (0.0, 4.0, 4.0)
-    # Local −Z → (0, −0.766, −0.643): into the room through the window, down at 40°.
-    sun_obj.rotation_euler = (math.radians(-50.0), 0.0, 0.0)
-    scene.collection.objects.link(sun_obj)
-    add_camera_and_black_world(scene, resolution, 18, (0.3, -1.8, 1.4), (78, 0, 8))
-
-
 def test_room_lit_by_a_sun_through_a_window_at_default_bounces(addon, prefs, blend_dir, results_file):
-    _room_with_window(RES)
+    window_room(RES)
     _check(addon, prefs, blend_dir, "window_room_default_bounces")

@@ -136,6 +136,8 @@ def main() -> None:
                     "merge_reads_mb": round(sum(p.stat().st_size for p in parts) / 1e6, 1),
                     "merged_identical_to_single": filecmp.cmp(single, output, shallow=False),
                 })
+                # A whole run takes hours at 1920×1080: each route's result is on stderr as it ends.
+                print(json.dumps({"single": row["single"], **row["runs"][-1]}), file=sys.stderr, flush=True)
                 for p in work.iterdir():
                     p.unlink()
                 output.unlink()

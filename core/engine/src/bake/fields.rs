@@ -107,7 +107,7 @@ bake_fields! {
     lobe: Lobe,
     /// Slots of the Principled basis, its constant included (each region's bake-time lobe
     /// adds one), 2 to 31; null: 21, the basis of the study. A preset sets its own (draft 8,
-    /// preview 13, final 21): more slots carry roughness and metallic edits further.
+    /// preview 17, final 21): more slots carry roughness and metallic edits further.
     principled_bases: Option<u32>,
     /// Worker threads (0: every core); the result does not depend on it.
     threads: usize,

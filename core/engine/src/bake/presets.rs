@@ -139,7 +139,7 @@ impl Preset {
                     step: 4,
                     tolerance: COMPRESSION_TOLERANCE,
                 },
-                principled_bases: 13,
+                principled_bases: 17,
             },
             Preset::Final => PresetValues {
                 spp: 128,

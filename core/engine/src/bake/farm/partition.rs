@@ -28,7 +28,6 @@ use crate::bake::prepare::context::BakeContext;
 use crate::bake::schedule::blocks::dyadic_blocks;
 use crate::bake::schedule::summed_finish::finish_summed_tiles;
 use crate::bake::schedule::tile_sums::TileBlocks;
-use crate::bake::schedule::trace::trace_tile_records;
 use crate::bake::schedule::{band, tiles};
 use crate::bake::settings::{BakeSettings, IndirectSampling};
 use crate::bake::{prepare::estimate, BakeReport};
@@ -182,24 +181,17 @@ pub fn bake_partition(
             band.par_iter()
                 .map(|tile| {
                     progress.check()?;
-                    let buf = trace_tile_records(
+                    let sums = TileSums::traced(
                         &ctx,
                         &brdf,
                         blocks.len(),
-                        false,
                         tile,
                         samples.clone(),
                         progress,
                         &rays,
-                    )?
-                    .ok_or(RelumeError::Cancelled)?;
+                    )?;
                     progress.advance(samples.len() as u64);
-                    Ok(TileSums::from_records(
-                        &buf,
-                        tile.pixels(),
-                        layer_count,
-                        blocks.len(),
-                    ))
+                    Ok(sums)
                 })
                 .collect()
         });

@@ -13,7 +13,6 @@ use rayon::prelude::*;
 use super::blocks::dyadic_blocks;
 use super::summed_finish::finish_summed_tiles;
 use super::tile_sums::{TileBlocks, TileSums};
-use super::trace::trace_tile_records;
 use crate::bake::finish;
 use crate::bake::path::vertex_brdf::BasisBrdf;
 use crate::bake::prepare::context::BakeContext;
@@ -22,7 +21,7 @@ use crate::bake::{BakeReport, BakeSettings, PassReport};
 use crate::progress::{Progress, Stage};
 use crate::scene::Scene;
 use crate::stack::tiled::TiledStack;
-use crate::{RelumeError, Result};
+use crate::Result;
 
 /// A one-pass bake: tile rows traced in bands of `band_rows` (`None`: enough tiles for the
 /// threads) and finished as soon as their denoiser window is traced.
@@ -160,27 +159,21 @@ fn trace_into(
     rays: &AtomicU64,
 ) -> Result<()> {
     let blocks = dyadic_blocks(samples.start, samples.end);
-    let layer_count = ctx.layer_count();
     let brdf = BasisBrdf { ctx };
     pool.install(|| {
         all.par_iter()
             .zip(kept.par_iter_mut())
             .try_for_each(|(tile, store)| -> Result<()> {
                 progress.check()?;
-                let records = trace_tile_records(
+                let sums = TileSums::traced(
                     ctx,
                     &brdf,
                     blocks.len(),
-                    false,
                     tile,
                     samples.clone(),
                     progress,
                     rays,
-                )?
-                .ok_or(RelumeError::Cancelled)?;
-                let sums =
-                    TileSums::from_records(&records, tile.pixels(), layer_count, blocks.len());
-                drop(records);
+                )?;
                 for (range, block) in blocks.iter().zip(sums) {
                     store.push(range.clone(), block);
                 }

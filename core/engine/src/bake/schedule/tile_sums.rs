@@ -6,9 +6,16 @@
 //! bits as a one-pass bake without ever holding a full frame of any layer.
 
 use std::ops::Range;
+use std::sync::atomic::AtomicU64;
 
 use super::blocks::siblings;
+use super::tiles::Tile;
+use super::trace::trace_tile_records;
 use crate::bake::finish::denoise::{EyeFeatures, FEATURE_STRIDE};
+use crate::bake::path::vertex_brdf::BasisBrdf;
+use crate::bake::prepare::context::BakeContext;
+use crate::progress::Progress;
+use crate::{RelumeError, Result};
 
 /// One block of one tile: the pixels' feature sums and, per layer non-zero on the tile,
 /// its per-pixel RGB sums (sorted by layer id).
@@ -19,6 +26,29 @@ pub struct TileSums {
 }
 
 impl TileSums {
+    /// Traces eye samples `samples` of `tile` and returns them as sparse sums, one per
+    /// block of [`super::blocks::dyadic_blocks`] of `samples`: what a farm partition writes
+    /// and a progressive bake keeps of a tile. Progress is checked, not advanced.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn traced(
+        ctx: &BakeContext,
+        brdf: &BasisBrdf,
+        blocks: usize,
+        tile: &Tile,
+        samples: Range<u32>,
+        progress: &Progress,
+        rays: &AtomicU64,
+    ) -> Result<Vec<TileSums>> {
+        let records = trace_tile_records(ctx, brdf, blocks, false, tile, samples, progress, rays)?
+            .ok_or(RelumeError::Cancelled)?;
+        Ok(TileSums::from_records(
+            &records,
+            tile.pixels(),
+            ctx.layer_count(),
+            blocks,
+        ))
+    }
+
     /// A traced tile's records ([`super::trace::trace_tile_records`]: `blocks` × `tp`
     /// pixels, block-major, each record the layers' sums then the features) as sparse sums:
     /// per block the features and the layers non-zero somewhere on the tile.

@@ -548,3 +548,61 @@ fn blinn_phong_values_on_a_principled_region_are_projected_never_worse_than_the_
         );
     }
 }
+
+#[test]
+fn blinn_phong_values_on_a_plain_principled_region_are_their_projection() {
+    // A region baked in the Principled basis without the bake-time slot (stacks from before
+    // that slot) projects Blinn–Phong values with the specular lobe's shape projected once
+    // and `Kd` put on the constant slot: that shortcut must give the projection of the
+    // whole BRDF, channel by channel, and keep nothing the basis cannot hold.
+    use crate::brdf::region_basis::RegionBasis;
+    use crate::brdf::{BlinnPhong, MaterialSpec};
+    let region = RegionBasis::Principled(std::sync::Arc::new(
+        PrincipledBasis::build(&small_config()).unwrap(),
+    ));
+    let b = small();
+    for bp in [
+        BlinnPhong {
+            kd: [0.6, 0.3, 0.1],
+            ks: [0.0; 3],
+            ns: 1.0,
+        },
+        BlinnPhong {
+            kd: [0.4, 0.4, 0.4],
+            ks: [0.2, 0.1, 0.05],
+            ns: 20.0,
+        },
+        BlinnPhong {
+            kd: [0.1, 0.2, 0.3],
+            ks: [0.5, 0.4, 0.3],
+            ns: 200.0,
+        },
+    ] {
+        let coefs = region
+            .slot_coefficients(false, &MaterialSpec::BlinnPhong(bp))
+            .unwrap();
+        assert_eq!(coefs.slots.len(), b.count());
+        for ch in 0..3 {
+            let (expected, _) = b.project(|c| {
+                let s = crate::brdf::blinn_phong::lobe(bp.ns as f64, c.cos_h);
+                bp.kd[ch] as f64 * std::f64::consts::FRAC_1_PI + bp.ks[ch] as f64 * s
+            });
+            let scale = expected.iter().fold(0.0f64, |m, e| m.max(e.abs()));
+            for (k, (got, want)) in coefs.slots.iter().zip(&expected).enumerate() {
+                let got = [got.x, got.y, got.z][ch] as f64;
+                // f32 coefficients against the f64 projection.
+                assert!(
+                    (got - want).abs() <= 1e-5 * scale + 1e-7,
+                    "{bp:?} channel {ch} slot {k}: {got} against the projection's {want}"
+                );
+            }
+        }
+        // A diffuse material lies on the constant slot alone.
+        if bp.ks == [0.0; 3] {
+            for (k, s) in coefs.slots.iter().enumerate().skip(1) {
+                assert!(s.x.abs() + s.y.abs() + s.z.abs() < 1e-6, "slot {k}: {s:?}");
+            }
+            assert!((coefs.slots[0].x - bp.kd[0]).abs() < 1e-6);
+        }
+    }
+}

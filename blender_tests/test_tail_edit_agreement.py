@@ -1,0 +1,202 @@
+"""Edits after one bake against Cycles at Blender's DEFAULT light paths, where most of the
+light has bounced more than once: does the whole path follow the edit, not just its first
+two vertices?
+
+Two rooms, each baked once through the add-on as a user bakes (the default preset, bounces
+from the scene's Cycles settings, the default editable-material basis), then edited with
+the shader sliders and relit, each edit compared with Cycles rendering the same edited
+scene (12 bounces, 2 × 128 spp; the mean of the two is the reference, their difference its
+noise):
+
+- the assets' Cornell box, its white walls (floor, ceiling, back wall) an editable
+  Principled material (grey 0.6, roughness 0.5);
+- a closed room lit only by a sun through a window (`support.rooms`), its walls and ceiling
+  an editable Diffuse BSDF (grey 0.7) and its floor an editable Principled (roughness 0.5).
+
+Edits, each alone from the baked values: the walls' colour → 0.9, → 0.05, → (0.7, 0.25,
+0.1), and a floor's roughness 0.5 → 0.2 (the Cornell box's floor is part of its white walls).
+
+Measure: relative L2 over 8×8-pixel tile means and the mean ratio Relume / Cycles. The goal
+(an edit is as right as the unedited image): its mean ratio within ±`MEAN_SHIFT` of the
+unedited image's and its tile error within the unedited one's + `TILE_MARGIN`, plus the
+references' noise. Asserted where measured to hold (`GOAL_ASSERTED`); the other edits are
+recorded, with how far they miss, and held to the bound they were measured within
+(`EDIT_BOUNDS`), so a regression fails. Teeth: every relit edit is closer to Cycles' edited
+render than the unedited relight is.
+
+Figures go to stdout (`pytest -s`) and `tail_edit_agreement.json` in pytest's basetemp.
+"""
+
+from __future__ import annotations
+
+import json
+import pathlib
+import time
+
+import bpy
+import numpy as np
+import pytest
+from support import cycles as cy
+from support.rooms import window_room
+from support.scene_import import import_scene
+from support.scenes import principled_material
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+RES = 64
+BLOCK = 8
+CYCLES_SPP = 256
+MEAN_SHIFT = 0.02
+TILE_MARGIN = 0.01
+
+WALL_EDITS = {
+    "walls_to_0.9": (0.9, 0.9, 0.9),
+    "walls_to_0.05": (0.05, 0.05, 0.05),
+    "walls_to_rust": (0.7, 0.25, 0.1),
+}
+#: Edits the goal is asserted for (scene, edit): measured to meet it (bpy 5.0.1, 2026-11-29).
+GOAL_ASSERTED: set[tuple[str, str]] = {
+    ("cornell", "walls_to_0.9"), ("cornell", "walls_to_0.05"), ("cornell", "walls_to_rust"),
+    ("cornell", "floor_roughness_0.5_to_0.2"),
+    ("window_room", "walls_to_0.9"), ("window_room", "walls_to_0.05"),
+    ("window_room", "walls_to_rust"),
+}
+#: The others, held to (tile error, |mean shift|) a little above what they measured, so a
+#: regression fails. The window room's floor roughness 0.5 → 0.2 turns the sunlit patch
+#: into a sharp reflection of a 1° sun (Cycles' image changes by 77 % on tiles): 5.5 % and
+#: a mean 3.2 % high, the same with one bounce, so the preview basis' limit at the first two
+#: vertices, not the tail's.
+EDIT_BOUNDS: dict[tuple[str, str], tuple[float, float]] = {
+    ("window_room", "floor_roughness_0.5_to_0.2"): (0.07, 0.045),
+}
+
+_RESULTS: dict[str, dict] = {}
+
+
+@pytest.fixture(scope="module")
+def results_file(tmp_path_factory):
+    path = tmp_path_factory.getbasetemp() / "tail_edit_agreement.json"
+    yield path
+    path.write_text(json.dumps(_RESULTS, indent=2))
+    print(f"\nTail edit figures: {path}")
+
+
+def _colour_input(mat):
+    nodes = mat.node_tree.nodes
+    node = nodes.get("Principled BSDF") or nodes.get("Diffuse BSDF")
+    return node.inputs["Base Color" if "Base Color" in node.inputs else "Color"]
+
+
+def _set_colour(mat, rgb) -> None:
+    _colour_input(mat).default_value = (*rgb, 1.0)
+
+
+def _set_roughness(mat, value: float) -> None:
+    mat.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value = value
+
+
+def _relit(addon, folder: pathlib.Path, name: str) -> np.ndarray:
+    import relume
+
+    bpy.context.view_layer.update()
+    out = addon.api.render(str(folder / f"{name}_relume.exr"), denoise="none")
+    return np.asarray(relume.read_exr(out), dtype=np.float64)[..., :3]
+
+
+def _compare(image: np.ndarray, c1: np.ndarray, c2: np.ndarray) -> dict:
+    ref = 0.5 * (c1 + c2)
+    return {
+        "tiles": cy.rel_l2(cy.block_mean(image, BLOCK), cy.block_mean(ref, BLOCK)),
+        "mean_ratio": float(image.sum() / ref.sum()),
+        "cycles_tile_noise": cy.noise_of_mean(cy.block_mean(c1, BLOCK), cy.block_mean(c2, BLOCK)),
+    }
+
+
+def _sweep(addon, prefs, folder: pathlib.Path, scene_name: str, edits: dict) -> dict:
+    """Bake once as a user does, then relight each edit (a function that applies it, and
+    one that undoes it) and render it with Cycles."""
+    prefs.preset = "preview"
+    prefs.bounces_from_scene = True
+    prefs.material_lobes = "principled"
+    t0 = time.perf_counter()
+    report = addon.api.bake(settings=addon.api.bake_settings(bpy.context))
+    bake_s = time.perf_counter() - t0
+    scene = bpy.context.scene
+    figures: dict = {"bake_s": bake_s, "bounces_baked": report.get("bounces"), "edits": {}}
+    states = {"unedited": (lambda: None, lambda: None), **edits}
+    images = {}
+    for name, (apply, undo) in states.items():
+        apply()
+        image = _relit(addon, folder, f"{scene_name}_{name}")
+        c1, c2, cycles_s = cy.render_cycles_pair(scene, folder, f"{scene_name}_{name}", CYCLES_SPP,
+                                                 bounces=None)
+        undo()
+        images[name] = (image, 0.5 * (c1 + c2))
+        figures["edits"][name] = {**_compare(image, c1, c2), "cycles_s": cycles_s}
+    base = figures["edits"]["unedited"]
+    for name, f in figures["edits"].items():
+        if name == "unedited":
+            continue
+        image, ref = images[name]
+        f["mean_shift"] = f["mean_ratio"] - base["mean_ratio"]
+        f["tiles_over_unedited"] = f["tiles"] - base["tiles"]
+        f["unedited_relight_vs_edited_cycles"] = cy.rel_l2(cy.block_mean(images["unedited"][0], BLOCK),
+                                                          cy.block_mean(ref, BLOCK))
+        noise = float(np.hypot(f["cycles_tile_noise"], base["cycles_tile_noise"]))
+        f["goal_met"] = bool(abs(f["mean_shift"]) <= MEAN_SHIFT
+                             and f["tiles"] <= base["tiles"] + TILE_MARGIN + noise)
+    _RESULTS[scene_name] = figures
+    for name, f in figures["edits"].items():
+        print(f"[tail edits] {scene_name} {name}: " + ", ".join(
+            f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in f.items()))
+    return figures
+
+
+def _check(scene_name: str, figures: dict) -> None:
+    for name, f in figures["edits"].items():
+        if name == "unedited":
+            continue
+        key = (scene_name, name)
+        # Teeth: the relit edit moved towards Cycles' edited render.
+        assert f["tiles"] < f["unedited_relight_vs_edited_cycles"], (key, f)
+        if key in GOAL_ASSERTED:
+            assert f["goal_met"], (key, f)
+        elif key in EDIT_BOUNDS:
+            tiles, shift = EDIT_BOUNDS[key]
+            assert f["tiles"] <= tiles and abs(f["mean_shift"]) <= shift, (key, f)
+
+
+def _cornell_edits(walls) -> dict:
+    edits = {name: (lambda rgb=rgb: _set_colour(walls, rgb), lambda: _set_colour(walls, (0.6, 0.6, 0.6)))
+             for name, rgb in WALL_EDITS.items()}
+    edits["floor_roughness_0.5_to_0.2"] = (lambda: _set_roughness(walls, 0.2),
+                                            lambda: _set_roughness(walls, 0.5))
+    return edits
+
+
+def test_cornell_box_walls_edited_after_one_bake(addon, prefs, blend_dir, results_file):
+    import_scene(ROOT / "assets" / "cornell.scene.json", resolution=(RES, RES), diffuse_only=True)
+    for mat in bpy.data.materials:  # only the walls are editable here
+        mat.relume.editable = False
+        mat.relume.override = False
+    walls = principled_material("Cornell walls", (0.6, 0.6, 0.6), roughness=0.5, editable=True)
+    old = bpy.data.materials["White walls"]
+    for obj in bpy.data.objects:
+        if obj.type == "MESH":
+            for slot in obj.material_slots:
+                if slot.material == old:
+                    slot.material = walls
+    figures = _sweep(addon, prefs, blend_dir, "cornell", _cornell_edits(walls))
+    _check("cornell", figures)
+
+
+def test_window_room_walls_and_floor_edited_after_one_bake(addon, prefs, blend_dir, results_file):
+    walls = cy.diffuse_material("Room", (0.7, 0.7, 0.7))
+    walls.relume.editable = True
+    floor = principled_material("RoomFloor", (0.5, 0.45, 0.4), roughness=0.5, editable=True)
+    window_room(RES, walls=walls, floor=floor)
+    edits = {name: (lambda rgb=rgb: _set_colour(walls, rgb), lambda: _set_colour(walls, (0.7, 0.7, 0.7)))
+             for name, rgb in WALL_EDITS.items()}
+    edits["floor_roughness_0.5_to_0.2"] = (lambda: _set_roughness(floor, 0.2),
+                                            lambda: _set_roughness(floor, 0.5))
+    figures = _sweep(addon, prefs, blend_dir, "window_room", edits)
+    _check("window_room", figures)
