@@ -463,6 +463,29 @@ fn the_bake_time_slot_is_exact_at_bake_time_and_never_worse_than_the_projection(
     }
 }
 
+/// Blinn–Phong values the projection tests give a Principled-basis region: diffuse and
+/// coloured, a broad grey lobe, and a sharp coloured one.
+fn blinn_phong_cases() -> [crate::brdf::BlinnPhong; 3] {
+    use crate::brdf::BlinnPhong;
+    [
+        BlinnPhong {
+            kd: [0.6, 0.3, 0.1],
+            ks: [0.0; 3],
+            ns: 1.0,
+        },
+        BlinnPhong {
+            kd: [0.4, 0.4, 0.4],
+            ks: [0.2, 0.1, 0.05],
+            ns: 20.0,
+        },
+        BlinnPhong {
+            kd: [0.1, 0.2, 0.3],
+            ks: [0.5, 0.4, 0.3],
+            ns: 200.0,
+        },
+    ]
+}
+
 #[test]
 fn blinn_phong_values_on_a_principled_region_are_projected_never_worse_than_the_basis_alone() {
     // The add-on's per-material Kd / Ks / ns override (and a materials file's Blinn–Phong
@@ -470,7 +493,7 @@ fn blinn_phong_values_on_a_principled_region_are_projected_never_worse_than_the_
     // the bake-time slot, as a Principled edit is.
     use crate::brdf::cycles_principled::CyclesPrincipled;
     use crate::brdf::region_basis::RegionBasis;
-    use crate::brdf::{BlinnPhong, MaterialSpec, Principled};
+    use crate::brdf::{MaterialSpec, Principled};
     let b = small();
     let n = b.count();
     let bake = Principled {
@@ -486,23 +509,7 @@ fn blinn_phong_values_on_a_principled_region_are_projected_never_worse_than_the_
         std::sync::Arc::new(PrincipledBasis::build(&small_config()).unwrap()),
         lobe,
     );
-    for bp in [
-        BlinnPhong {
-            kd: [0.6, 0.3, 0.1],
-            ks: [0.0; 3],
-            ns: 1.0,
-        },
-        BlinnPhong {
-            kd: [0.4, 0.4, 0.4],
-            ks: [0.2, 0.2, 0.2],
-            ns: 20.0,
-        },
-        BlinnPhong {
-            kd: [0.1, 0.2, 0.3],
-            ks: [0.5, 0.4, 0.3],
-            ns: 200.0,
-        },
-    ] {
+    for bp in blinn_phong_cases() {
         let coefs = region
             .slot_coefficients(false, &MaterialSpec::BlinnPhong(bp))
             .unwrap();
@@ -556,28 +563,12 @@ fn blinn_phong_values_on_a_plain_principled_region_are_their_projection() {
     // and `Kd` put on the constant slot: that shortcut must give the projection of the
     // whole BRDF, channel by channel, and keep nothing the basis cannot hold.
     use crate::brdf::region_basis::RegionBasis;
-    use crate::brdf::{BlinnPhong, MaterialSpec};
+    use crate::brdf::MaterialSpec;
     let region = RegionBasis::Principled(std::sync::Arc::new(
         PrincipledBasis::build(&small_config()).unwrap(),
     ));
     let b = small();
-    for bp in [
-        BlinnPhong {
-            kd: [0.6, 0.3, 0.1],
-            ks: [0.0; 3],
-            ns: 1.0,
-        },
-        BlinnPhong {
-            kd: [0.4, 0.4, 0.4],
-            ks: [0.2, 0.1, 0.05],
-            ns: 20.0,
-        },
-        BlinnPhong {
-            kd: [0.1, 0.2, 0.3],
-            ks: [0.5, 0.4, 0.3],
-            ns: 200.0,
-        },
-    ] {
+    for bp in blinn_phong_cases() {
         let coefs = region
             .slot_coefficients(false, &MaterialSpec::BlinnPhong(bp))
             .unwrap();
