@@ -114,6 +114,9 @@ def _compare(image: np.ndarray, c1: np.ndarray, c2: np.ndarray) -> dict:
 def _sweep(addon, prefs, folder: pathlib.Path, scene_name: str, edits: dict) -> dict:
     """Bake once as a user does, then relight each edit (a function that applies it, and
     one that undoes it) and render it with Cycles."""
+    # The scene's light paths at Blender's defaults, as a user's scene has them (the bake
+    # takes its bounce cap from them; an earlier test may have left other values).
+    cy.configure_cycles(bpy.context.scene, CYCLES_SPP // 2, seed=1, bounces=None)
     prefs.preset = "preview"
     prefs.bounces_from_scene = True
     prefs.material_lobes = "principled"
