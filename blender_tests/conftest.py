@@ -9,6 +9,7 @@ extension installer, exactly as a user's "Install from Disk" does.
 from __future__ import annotations
 
 import importlib
+import json
 import os
 import pathlib
 import subprocess
@@ -44,6 +45,18 @@ def addon():
     module = importlib.import_module("bl_ext.user_default.relume")
     assert "bl_ext.user_default.relume" in bpy.context.preferences.addons
     return module
+
+
+@pytest.fixture(scope="module")
+def results_file(request, tmp_path_factory):
+    """For the suites that measure against Cycles: when the module's tests have run, its
+    `_RESULTS` (figures by test) are written as JSON to pytest's basetemp under the module's
+    `RESULTS_NAME`, so a run's figures can be read without its output."""
+    module = request.module
+    path = tmp_path_factory.getbasetemp() / module.RESULTS_NAME
+    yield path
+    path.write_text(json.dumps(module._RESULTS, indent=2))
+    print(f"\nFigures of {module.__name__}: {path}")
 
 
 @pytest.fixture

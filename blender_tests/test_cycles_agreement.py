@@ -54,14 +54,8 @@ BLOCK = 8
 BLOCK_MARGIN = 0.002
 
 _RESULTS: dict[str, dict] = {}
-
-
-@pytest.fixture(scope="module")
-def results_file(tmp_path_factory):
-    path = tmp_path_factory.getbasetemp() / "cycles_agreement.json"
-    yield path
-    path.write_text(json.dumps(_RESULTS, indent=2))
-    print(f"\nCycles agreement figures: {path}")
+#: Where `results_file` (conftest.py) writes `_RESULTS`, in pytest's basetemp.
+RESULTS_NAME = "cycles_agreement.json"
 
 
 #: Cycles' two half-sample images per case, for the 2 % goal check.

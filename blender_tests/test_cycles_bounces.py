@@ -21,13 +21,11 @@ file at about a minute on 2 cores; the Cycles noise on tiles is printed with the
 
 from __future__ import annotations
 
-import json
 import pathlib
 import time
 
 import bpy
 import numpy as np
-import pytest
 from support import cycles as cy
 from support.rooms import window_room
 from support.scene_import import import_scene
@@ -40,14 +38,8 @@ TILE_TOLERANCE = 0.03
 MEAN_RATIO = (0.98, 1.02)
 
 _RESULTS: dict[str, dict] = {}
-
-
-@pytest.fixture(scope="module")
-def results_file(tmp_path_factory):
-    path = tmp_path_factory.getbasetemp() / "cycles_bounces.json"
-    yield path
-    path.write_text(json.dumps(_RESULTS, indent=2))
-    print(f"\nCycles default-bounce figures: {path}")
+#: Where `results_file` (conftest.py) writes `_RESULTS`, in pytest's basetemp.
+RESULTS_NAME = "cycles_bounces.json"
 
 
 def _relume(addon, prefs, tmp: pathlib.Path, name: str, preset: str = "final",

@@ -31,13 +31,11 @@ Figures go to stdout (`pytest -s`) and `glossy_agreement.json` in pytest's baset
 
 from __future__ import annotations
 
-import json
 import math
 import time
 
 import bpy
 import numpy as np
-import pytest
 from support import cycles as cy
 from support.scenes import add_camera_and_black_world, principled_material
 
@@ -59,14 +57,8 @@ GLOSSY_TILE_BOUND = 0.15
 GLOSSY_GOAL = 0.05
 
 _RESULTS: dict[str, dict] = {}
-
-
-@pytest.fixture(scope="module")
-def results_file(tmp_path_factory):
-    path = tmp_path_factory.getbasetemp() / "glossy_agreement.json"
-    yield path
-    path.write_text(json.dumps(_RESULTS, indent=2))
-    print(f"\nGlossy agreement figures: {path}")
+#: Where `results_file` (conftest.py) writes `_RESULTS`, in pytest's basetemp.
+RESULTS_NAME = "glossy_agreement.json"
 
 
 def sun_sky(width: int = 256, height: int = 128, sun: int = 1, radiance: float = 3000.0) -> dict:

@@ -67,14 +67,8 @@ GOAL = {"metal": 0.05, "dielectric": 0.03}
 #: in front and 0.25 to the side (2026-11-27, bpy 5.0.1), plus a margin.
 
 _RESULTS: dict[str, dict] = {}
-
-
-@pytest.fixture(scope="module")
-def results_file(tmp_path_factory):
-    path = tmp_path_factory.getbasetemp() / "principled_fit.json"
-    yield path
-    path.write_text(json.dumps(_RESULTS, indent=2))
-    print(f"\nPrincipled fit figures: {path}")
+#: Where `results_file` (conftest.py) writes `_RESULTS`, in pytest's basetemp.
+RESULTS_NAME = "principled_fit.json"
 
 
 def _sphere(name, centre, radius, material, segments=48, rings=24):

@@ -35,7 +35,6 @@ Figures go to stdout (`pytest -s`) and `relit_edit_agreement.json` in pytest's b
 
 from __future__ import annotations
 
-import json
 import time
 
 import bpy
@@ -80,14 +79,8 @@ GOAL_ASSERTED = {("one", "roughness_0.25_to_0.6"), ("one", "base_colour_blue_to_
 RELIGHT_BOUND = {"one": 0.02, "default": 0.08, "one_principled": 0.02}
 
 _RESULTS: dict[str, dict] = {}
-
-
-@pytest.fixture(scope="module")
-def results_file(tmp_path_factory):
-    path = tmp_path_factory.getbasetemp() / "relit_edit_agreement.json"
-    yield path
-    path.write_text(json.dumps(_RESULTS, indent=2))
-    print(f"\nRelit edit figures: {path}")
+#: Where `results_file` (conftest.py) writes `_RESULTS`, in pytest's basetemp.
+RESULTS_NAME = "relit_edit_agreement.json"
 
 
 def _glossy_box():

@@ -29,13 +29,11 @@ Figures go to stdout (`pytest -s`) and `tail_edit_agreement.json` in pytest's ba
 
 from __future__ import annotations
 
-import json
 import pathlib
 import time
 
 import bpy
 import numpy as np
-import pytest
 from support import cycles as cy
 from support.rooms import window_room
 from support.scene_import import import_scene
@@ -70,14 +68,8 @@ EDIT_BOUNDS: dict[tuple[str, str], tuple[float, float]] = {
 }
 
 _RESULTS: dict[str, dict] = {}
-
-
-@pytest.fixture(scope="module")
-def results_file(tmp_path_factory):
-    path = tmp_path_factory.getbasetemp() / "tail_edit_agreement.json"
-    yield path
-    path.write_text(json.dumps(_RESULTS, indent=2))
-    print(f"\nTail edit figures: {path}")
+#: Where `results_file` (conftest.py) writes `_RESULTS`, in pytest's basetemp.
+RESULTS_NAME = "tail_edit_agreement.json"
 
 
 def _colour_input(mat):

@@ -17,7 +17,6 @@ show the emission's radiance as Cycles shows it.
 
 from __future__ import annotations
 
-import json
 import pathlib
 import time
 
@@ -47,14 +46,8 @@ BOUNDS = {
 }
 
 _RESULTS: dict[str, dict] = {}
-
-
-@pytest.fixture(scope="module")
-def results_file(tmp_path_factory):
-    path = tmp_path_factory.getbasetemp() / "third_party_scenes.json"
-    yield path
-    path.write_text(json.dumps(_RESULTS, indent=2))
-    print(f"\nThird-party scene figures: {path}")
+#: Where `results_file` (conftest.py) writes `_RESULTS`, in pytest's basetemp.
+RESULTS_NAME = "third_party_scenes.json"
 
 
 def _open(name: str) -> None:

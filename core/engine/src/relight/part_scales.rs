@@ -17,6 +17,16 @@
 //! exponent, roughness) changes it only as much as the lobe's albedo changes, which is what
 //! a tail vertex sees of it on average. A part a region did not have at bake time (energy 0
 //! in a channel) scales by 1 there: such an edit keeps the frozen tail.
+//!
+//! **The Principled basis has one part.** Its specular slots are orthogonal to the constant
+//! slot under the basis' measure, so they have no mean: the constant slot's coefficient is
+//! the whole BRDF's mean reflectance, and what the other slots add at normal incidence is
+//! not an energy at all: read as a glossy energy, a Base Color edit of a roughness-0.2
+//! dielectric makes it −28 times its bake-time value, and the relit room negative. There
+//! both parts scale by the ratio of the mean
+//! reflectance, now to bake time ([`separable_parts`]): exact for an edit that scales the
+//! whole BRDF, and for a diffuse-only or specular-only edit the mean of the two parts'
+//! changes weighed by their shares, never negative.
 
 use glam::Vec3;
 
@@ -42,6 +52,24 @@ pub fn part_energies(coefs: &[Rgb], albedos: &[f32]) -> [Rgb; 2] {
         .skip(1)
         .fold(Rgb::ZERO, |a, (c, w)| a + *c * *w);
     [diffuse, glossy]
+}
+
+/// Whether `basis` tells a region's diffuse and glossy energies apart: the Blinn–Phong
+/// basis does (its diffuse slot holds Kd and its lobes Ks); the Principled basis does not
+/// (module docs), and its regions scale both parts by the ratio of their mean reflectance.
+pub fn separable_parts(basis: &RegionBasis) -> bool {
+    matches!(basis, RegionBasis::BlinnPhong(_))
+}
+
+/// [`part_energies`] of a region baked in `basis`: both parts the mean reflectance (the
+/// constant slot's coefficient) where the basis does not tell them apart.
+fn region_energies(basis: &RegionBasis, coefs: &[Rgb], albedos: &[f32]) -> [Rgb; 2] {
+    let [diffuse, glossy] = part_energies(coefs, albedos);
+    if separable_parts(basis) {
+        [diffuse, glossy]
+    } else {
+        [diffuse, diffuse]
+    }
 }
 
 /// Each BRDF basis function's albedo at normal incidence (∫ b(n, ω, n) cos θ dω), by a
@@ -115,7 +143,7 @@ impl PartScales {
             let basis = &bases.bases[r];
             let a = basis_albedos(basis, bases.textured[r]);
             let coefs = basis.fold_bake_lobe(&bases.region_coefficients(r, m)?);
-            bake.push(part_energies(&coefs, &a));
+            bake.push(region_energies(basis, &coefs, &a));
             albedos.push(a);
         }
         let scales = vec![[Rgb::ONE; 2]; bake.len()];
@@ -139,10 +167,19 @@ impl PartScales {
         let Some(bake) = self.bake.get(region) else {
             return;
         };
-        let coefs = self.bases[region].fold_bake_lobe(coefs);
-        let now = part_energies(&coefs, &self.albedos[region]);
+        let basis = &self.bases[region];
+        let coefs = basis.fold_bake_lobe(coefs);
+        let now = region_energies(basis, &coefs, &self.albedos[region]);
+        // A part reflects no less than nothing: a projection's small negative energy for a
+        // black material scales by 0.
         let ratio = |n: Rgb, b: Rgb| {
-            let r = |n: f32, b: f32| if b.abs() > ABSENT { n / b } else { 1.0 };
+            let r = |n: f32, b: f32| {
+                if b.abs() > ABSENT {
+                    (n / b).max(0.0)
+                } else {
+                    1.0
+                }
+            };
             Rgb::new(r(n.x, b.x), r(n.y, b.y), r(n.z, b.z))
         };
         self.scales[region] = [ratio(now[0], bake[0]), ratio(now[1], bake[1])];

@@ -1,8 +1,10 @@
 //! `relume report`: the measured preset table and chart.
 //!
 //! For every scene and preset it bakes from scratch (no cache: the bake time is the figure),
-//! relights the stack at the bake-time materials on the CPU, and compares that image with a
-//! converged reference of the *true* Blinn–Phong BRDF rendered with other seeds. The
+//! relights the stack at the bake-time materials on the CPU, and compares that image — and
+//! the shown one, the relit image through OpenImageDenoise with the scene's albedo and
+//! normals — with a converged reference of the *true* Blinn–Phong BRDF rendered with other
+//! seeds. The
 //! reference is rendered once per scene and resolution and cached under `OUT/references/`
 //! (keyed by the scene's hash and the reference settings). Its own noise is measured — it is
 //! rendered as two halves with different seeds, and ‖A − B‖ / ‖A + B‖ estimates the relative
@@ -193,7 +195,7 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
         "load_average_after": load_average(),
         "seconds": started.elapsed().as_secs_f64(),
         "bake_seed": BAKE_SEED,
-        "error_measure": "relative L2 (RGB) of the relit image at the bake-time materials against a converged reference of the true Blinn–Phong BRDF, at the bake's resolution (the reference box-filtered down for a preset's resolution scale); rel_l2 has the reference's own noise taken out in quadrature, rel_l2_raw does not",
+        "error_measure": "relative L2 (RGB) of the relit image at the bake-time materials against a converged reference of the true Blinn–Phong BRDF, at the bake's resolution (the reference box-filtered down for a preset's resolution scale); rel_l2 has the reference's own noise taken out in quadrature, rel_l2_raw does not; rel_l2_shown is the shown image's (the relit image through OpenImageDenoise with the scene's albedo and normals; shown_denoise says what ran), its reference noise taken out too",
         "bake_time": "wall clock of the bake from scratch: scene validation, basis, BVH, path tracing, layer assembly (not writing the file: write_seconds)",
         "relight_time": "median full CPU relight at the bake-time materials (relume bench relight)",
         "references": references,
@@ -516,7 +518,20 @@ fn measure_preset(
     // Box-filtering k×k pixels divides the reference's noise variance by k².
     let k = (reference.resolution.width / resolution.width).max(1) as f64;
     let ref_noise = reference.noise / k;
-    let corrected = (d.rel_l2.powi(2) - ref_noise.powi(2)).max(0.0).sqrt();
+    let without_noise = |e: f64| (e.powi(2) - ref_noise.powi(2)).max(0.0).sqrt();
+    let corrected = without_noise(d.rel_l2);
+    // What a user is shown: the relit image through OpenImageDenoise with the scene's
+    // features (docs/denoise.md); the linear image, and a note, where OIDN is not found.
+    let mut scene_at = scene.clone();
+    scene_at.resolution = resolution;
+    let (shown, denoise) = super::relight::shown_image(
+        &relit,
+        (resolution.width, resolution.height),
+        relume_denoise::DenoiseMode::Oidn,
+        Some(&scene_at),
+        &materials,
+    )?;
+    let shown_error = compare_rgb(&shown, &target, 4)?.rel_l2;
     let relight = super::bench::cpu_relight_figures(
         stack.clone(),
         args.relight_repeats,
@@ -550,6 +565,8 @@ fn measure_preset(
         "relight_bandwidth_bound_ms": relight["bandwidth_bound_ms"],
         "rel_l2": corrected,
         "rel_l2_raw": d.rel_l2,
+        "rel_l2_shown": without_noise(shown_error),
+        "shown_denoise": denoise.summary(),
         "reference_noise_at_this_resolution": ref_noise,
         "rmse": d.rmse,
     });
@@ -571,8 +588,8 @@ fn markdown(report: &Value) -> String {
         report["load_average_after"].as_str().unwrap_or("?"),
         report["seconds"].as_f64().unwrap_or(0.0),
     ));
-    s.push_str("| Scene | Preset | Resolution | spp × light × indirect | Denoise | N_b | Bake | Layers | Stack file | Relight (CPU) | Rel. L2 error | raw (ref. noise) |\n");
-    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    s.push_str("| Scene | Preset | Resolution | spp × light × indirect | Denoise | N_b | Bake | Layers | Stack file | Relight (CPU) | Rel. L2 error | raw (ref. noise) | shown (OIDN) |\n");
+    s.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for row in report["rows"].as_array().into_iter().flatten() {
         let bases: Vec<String> = row["bases_per_editable_region"]
             .as_array()
@@ -593,7 +610,7 @@ fn markdown(report: &Value) -> String {
             format!("bounce ×{denoise}")
         };
         s.push_str(&format!(
-            "| {} | {} | {}×{} | {} × {} × {} | {} | {} | {:.2} s | {} | {:.1} MB | {:.2} ms | **{:.2} %** | {:.2} % ({:.2} %) |\n",
+            "| {} | {} | {}×{} | {} × {} × {} | {} | {} | {:.2} s | {} | {:.1} MB | {:.2} ms | **{:.2} %** | {:.2} % ({:.2} %) | {} |\n",
             row["scene"].as_str().unwrap_or("?"),
             row["preset"].as_str().unwrap_or("?"),
             row["width"],
@@ -610,6 +627,10 @@ fn markdown(report: &Value) -> String {
             row["rel_l2"].as_f64().unwrap_or(f64::NAN) * 100.0,
             row["rel_l2_raw"].as_f64().unwrap_or(f64::NAN) * 100.0,
             row["reference_noise_at_this_resolution"].as_f64().unwrap_or(f64::NAN) * 100.0,
+            // Rows written before the shown image was measured have none.
+            row["rel_l2_shown"]
+                .as_f64()
+                .map_or("–".to_string(), |e| format!("{:.2} %", e * 100.0)),
         ));
     }
     s.push_str("\nReferences (true Blinn–Phong BRDF, other seeds than the bakes'):\n\n");
