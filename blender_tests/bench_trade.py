@@ -134,13 +134,11 @@ def _configure_denoised(scene, samples: int, seed: int) -> None:
 
 
 def _render(scene, path: pathlib.Path) -> tuple[np.ndarray, float]:
-    import relume
-
     scene.render.filepath = str(path)
     t0 = time.perf_counter()
     bpy.ops.render.render(write_still=True)
     seconds = time.perf_counter() - t0
-    return np.asarray(relume.read_exr(str(path)), dtype=np.float64)[..., :3], seconds
+    return _read(path), seconds
 
 
 def cycles_denoised(scene, path: pathlib.Path, samples: int, seed: int = 3):
@@ -210,7 +208,6 @@ def _set(edits) -> list:
 
 def _relume_images(addon, folder: pathlib.Path, tag: str) -> dict:
     """The shown (OIDN, `high`) and exact relit images with the current materials, timed."""
-    import relume
 
     live = addon.runtime.RUNTIME.live
     t0 = time.perf_counter()
@@ -218,8 +215,7 @@ def _relume_images(addon, folder: pathlib.Path, tag: str) -> dict:
     shown_s = time.perf_counter() - t0
     report = dict(live.last_denoise or {})
     relit = addon.api.render(str(folder / f"{tag}_relit.exr"), denoise="none")
-    read = lambda p: np.asarray(relume.read_exr(p), dtype=np.float64)[..., :3]  # noqa: E731
-    return {"shown": read(shown), "relit": read(relit), "shown_s": shown_s,
+    return {"shown": _read(shown), "relit": _read(relit), "shown_s": shown_s,
             "relight_ms": live.relighter.last_ms, "denoise": report}
 
 

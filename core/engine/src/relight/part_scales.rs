@@ -23,10 +23,10 @@
 //! the whole BRDF's mean reflectance, and what the other slots add at normal incidence is
 //! not an energy at all: read as a glossy energy, a Base Color edit of a roughness-0.2
 //! dielectric makes it −28 times its bake-time value, and the relit room negative. There
-//! both parts scale by the ratio of the mean
-//! reflectance, now to bake time ([`separable_parts`]): exact for an edit that scales the
-//! whole BRDF, and for a diffuse-only or specular-only edit the mean of the two parts'
-//! changes weighed by their shares, never negative.
+//! both parts scale by the ratio of the mean reflectance, now to bake time
+//! ([`separable_parts`]): exact for an edit that scales the whole BRDF, and for a
+//! diffuse-only or specular-only edit the mean of the two parts' changes weighed by their
+//! shares, never negative.
 
 use glam::Vec3;
 
@@ -57,7 +57,7 @@ pub fn part_energies(coefs: &[Rgb], albedos: &[f32]) -> [Rgb; 2] {
 /// Whether `basis` tells a region's diffuse and glossy energies apart: the Blinn–Phong
 /// basis does (its diffuse slot holds Kd and its lobes Ks); the Principled basis does not
 /// (module docs), and its regions scale both parts by the ratio of their mean reflectance.
-pub fn separable_parts(basis: &RegionBasis) -> bool {
+fn separable_parts(basis: &RegionBasis) -> bool {
     matches!(basis, RegionBasis::BlinnPhong(_))
 }
 
