@@ -208,7 +208,6 @@ def _set(edits) -> list:
 
 def _relume_images(addon, folder: pathlib.Path, tag: str) -> dict:
     """The shown (OIDN, `high`) and exact relit images with the current materials, timed."""
-
     live = addon.runtime.RUNTIME.live
     t0 = time.perf_counter()
     shown = addon.api.render(str(folder / f"{tag}_shown.exr"), denoise="oidn")
