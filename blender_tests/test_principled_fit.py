@@ -36,15 +36,13 @@ Every figure goes to `principled_fit.json` in pytest's basetemp.
 from __future__ import annotations
 
 import json
-import math
 import pathlib
 import time
 
-import bpy
 import numpy as np
 import pytest
 from support import cycles as cy
-from support.scenes import add_camera_and_black_world, principled_material
+from support.spheres import LIGHTS, build_scene
 
 RES = 96
 #: Cycles samples (two renders of half as many; their difference is the noise estimate):
@@ -69,80 +67,6 @@ GOAL = {"metal": 0.05, "dielectric": 0.03}
 _RESULTS: dict[str, dict] = {}
 #: Where `results_file` (conftest.py) writes `_RESULTS`, in pytest's basetemp.
 RESULTS_NAME = "principled_fit.json"
-
-
-def _sphere(name, centre, radius, material, segments=48, rings=24):
-    mesh = bpy.data.meshes.new(name)
-    cx, cy_, cz = centre
-    verts = [(cx, cy_, cz + radius)]
-    for i in range(1, rings):
-        t = math.pi * i / rings
-        for j in range(segments):
-            p = 2.0 * math.pi * j / segments
-            verts.append((cx + radius * math.sin(t) * math.cos(p), cy_ + radius * math.sin(t) * math.sin(p),
-                          cz + radius * math.cos(t)))
-    verts.append((cx, cy_, cz - radius))
-    faces = [(0, 1 + j, 1 + (j + 1) % segments) for j in range(segments)]
-    for i in range(rings - 2):
-        a, b = 1 + i * segments, 1 + (i + 1) * segments
-        faces += [(a + j, b + j, b + (j + 1) % segments, a + (j + 1) % segments) for j in range(segments)]
-    last, base = len(verts) - 1, 1 + (rings - 2) * segments
-    faces += [(base + j, last, base + (j + 1) % segments) for j in range(segments)]
-    mesh.from_pydata(verts, [], faces)
-    mesh.materials.append(material)
-    mesh.shade_smooth()
-    obj = bpy.data.objects.new(name, mesh)
-    bpy.context.scene.collection.objects.link(obj)
-    return obj
-
-
-def _quad(name, corners, material):
-    mesh = bpy.data.meshes.new(name)
-    mesh.from_pydata(corners, [], [(0, 1, 2, 3)])
-    mesh.materials.append(material)
-    obj = bpy.data.objects.new(name, mesh)
-    bpy.context.scene.collection.objects.link(obj)
-    return obj
-
-
-#: Where the area light stands: "front" above the camera (light and view close: the
-#: highlights face the camera), "side" to the right at the spheres' height (light and view
-#: about 90° apart, highlights near the silhouettes).
-LIGHTS = {"front": (0.5, -2.0, 3.0), "side": (3.0, 0.3, 1.2)}
-
-
-def build_scene(light_at: str):
-    """Six spheres (radius 0.3) in a row on a grey floor before a light wall, one area light
-    at `LIGHTS[light_at]` aimed at the row's centre; an editable diffuse floor so the scene
-    has an editable region."""
-    scene = bpy.context.scene
-    floor = cy.diffuse_material("Floor", (0.5, 0.5, 0.5), editable=True)
-    floor.relume.use_roughness_range = True
-    floor.relume.roughness_min = 0.9
-    floor.relume.roughness_max = 1.0
-    wall = cy.diffuse_material("Wall", (0.6, 0.55, 0.5))
-    s = 4.0
-    _quad("Floor", [(-s, -s, 0), (s, -s, 0), (s, s, 0), (-s, s, 0)], floor)
-    _quad("Wall", [(-s, 1.2, 0), (s, 1.2, 0), (s, 1.2, 3.0), (-s, 1.2, 3.0)], wall)
-    for k, (name, colour, metallic, roughness) in enumerate(SPHERES):
-        x = -1.75 + 0.7 * k
-        _sphere(name, (x, 0.0, 0.3), 0.3, principled_material(name, colour, roughness=roughness,
-                                                              metallic=metallic))
-    add_camera_and_black_world(scene, RES, 35, (0.0, -4.2, 1.6), (75, 0, 0))
-    data = bpy.data.lights.new("Area", "AREA")
-    data.energy = 400.0
-    data.shape = "RECTANGLE"
-    data.size = 2.0
-    data.size_y = 1.0
-    light = bpy.data.objects.new("Area", data)
-    light.location = LIGHTS[light_at]
-    import mathutils
-
-    d = mathutils.Vector((0.0, 0.0, 0.3)) - light.location
-    light.rotation_euler = (-d).to_track_quat("Z", "Y").to_euler()
-    scene.collection.objects.link(light)
-    bpy.context.view_layer.update()
-    return scene
 
 
 def relume_image(addon, tmp: pathlib.Path, mode: str, seed: int = 0) -> np.ndarray:
@@ -187,7 +111,7 @@ def per_material(image: np.ndarray, ids: np.ndarray, names: list[str]) -> dict[s
 
 @pytest.mark.parametrize("light_at", sorted(LIGHTS))
 def test_fixed_principled_per_material_against_cycles(addon, prefs, blend_dir, results_file, light_at):
-    scene = build_scene(light_at)
+    scene = build_scene(light_at, SPHERES, RES)
     ids, names = cy.material_ids(scene, blend_dir / "ids.exr")
     counts = {name: int((ids == k).sum()) for k, name in enumerate(names)}
     for name, *_ in SPHERES:

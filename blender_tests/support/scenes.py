@@ -27,7 +27,8 @@ def principled_material(name: str, color, roughness=0.5, metallic=0.0, editable=
     return mat
 
 
-def _quad(name, corners, material):
+def quad(name, corners, material):
+    """A one-sided quad object `name` with `corners` (counter-clockwise seen from its front)."""
     mesh = bpy.data.meshes.new(name)
     mesh.from_pydata(corners, [], [(0, 1, 2, 3)])
     mesh.materials.append(material)
@@ -46,11 +47,11 @@ def box_scene(resolution: int = 48, light_power: float = 60.0):
     green = principled_material("Green", (0.1, 0.6, 0.1), roughness=1.0)
     ball = principled_material("Ball", (0.2, 0.3, 0.8), roughness=0.4, editable=True)
     s = 1.0
-    _quad("FloorQuad", [(-s, -s, 0), (s, -s, 0), (s, s, 0), (-s, s, 0)], floor)
-    _quad("Ceiling", [(-s, -s, 2), (-s, s, 2), (s, s, 2), (s, -s, 2)], walls)
-    _quad("Back", [(-s, s, 0), (s, s, 0), (s, s, 2), (-s, s, 2)], walls)
-    _quad("Left", [(-s, -s, 0), (-s, s, 0), (-s, s, 2), (-s, -s, 2)], red)
-    _quad("Right", [(s, -s, 0), (s, -s, 2), (s, s, 2), (s, s, 0)], green)
+    quad("FloorQuad", [(-s, -s, 0), (s, -s, 0), (s, s, 0), (-s, s, 0)], floor)
+    quad("Ceiling", [(-s, -s, 2), (-s, s, 2), (s, s, 2), (s, -s, 2)], walls)
+    quad("Back", [(-s, s, 0), (s, s, 0), (s, s, 2), (-s, s, 2)], walls)
+    quad("Left", [(-s, -s, 0), (-s, s, 0), (-s, s, 2), (-s, -s, 2)], red)
+    quad("Right", [(s, -s, 0), (s, -s, 2), (s, s, 2), (s, s, 0)], green)
     bpy.ops.mesh.primitive_uv_sphere_add(radius=0.4, location=(0.2, 0.2, 0.4), segments=24, ring_count=12)
     sphere = bpy.context.active_object
     sphere.name = "Sphere"

@@ -1,0 +1,80 @@
+"""A row of Principled spheres on a grey floor before a light wall, lit by one area light:
+the scene on which materials are compared with Cycles one by one (test_principled_fit.py,
+bench_editable_spheres.py). Each sphere is an object of its own with a material of its own,
+so a material-ID render (`support.cycles.material_ids`) tells their pixels apart."""
+
+from __future__ import annotations
+
+import math
+
+import bpy
+import mathutils
+
+from support import cycles as cy
+from support.scenes import add_camera_and_black_world, principled_material, quad
+
+#: Where the area light stands: "front" above the camera (light and view close: the
+#: highlights face the camera), "side" to the right at the spheres' height (light and view
+#: about 90° apart, highlights near the silhouettes).
+LIGHTS = {"front": (0.5, -2.0, 3.0), "side": (3.0, 0.3, 1.2)}
+
+
+def sphere(name, centre, radius, material, segments=48, rings=24):
+    """A smooth-shaded UV sphere object `name` with `material`."""
+    mesh = bpy.data.meshes.new(name)
+    cx, cy_, cz = centre
+    verts = [(cx, cy_, cz + radius)]
+    for i in range(1, rings):
+        t = math.pi * i / rings
+        for j in range(segments):
+            p = 2.0 * math.pi * j / segments
+            verts.append((cx + radius * math.sin(t) * math.cos(p), cy_ + radius * math.sin(t) * math.sin(p),
+                          cz + radius * math.cos(t)))
+    verts.append((cx, cy_, cz - radius))
+    faces = [(0, 1 + j, 1 + (j + 1) % segments) for j in range(segments)]
+    for i in range(rings - 2):
+        a, b = 1 + i * segments, 1 + (i + 1) * segments
+        faces += [(a + j, b + j, b + (j + 1) % segments, a + (j + 1) % segments) for j in range(segments)]
+    last, base = len(verts) - 1, 1 + (rings - 2) * segments
+    faces += [(base + j, last, base + (j + 1) % segments) for j in range(segments)]
+    mesh.from_pydata(verts, [], faces)
+    mesh.materials.append(material)
+    mesh.shade_smooth()
+    obj = bpy.data.objects.new(name, mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def build_scene(light_at: str, spheres, resolution: int, editable_spheres: bool = False):
+    """`spheres` — (name, base colour, metallic, roughness) each — in a row (radius 0.3,
+    0.7 m apart, centred) on a grey floor before a light wall, one area light at
+    `LIGHTS[light_at]` aimed at the row's centre, a square `resolution`² camera. The floor is
+    editable (diffuse, roughness window 0.9–1) so every scene has an editable region; the
+    spheres are editable when `editable_spheres` is set, with the add-on's default window."""
+    scene = bpy.context.scene
+    floor = cy.diffuse_material("Floor", (0.5, 0.5, 0.5), editable=True)
+    floor.relume.use_roughness_range = True
+    floor.relume.roughness_min = 0.9
+    floor.relume.roughness_max = 1.0
+    wall = cy.diffuse_material("Wall", (0.6, 0.55, 0.5))
+    s = 4.0
+    quad("Floor", [(-s, -s, 0), (s, -s, 0), (s, s, 0), (-s, s, 0)], floor)
+    quad("Wall", [(-s, 1.2, 0), (s, 1.2, 0), (s, 1.2, 3.0), (-s, 1.2, 3.0)], wall)
+    first = -0.35 * (len(spheres) - 1)
+    for k, (name, colour, metallic, roughness) in enumerate(spheres):
+        material = principled_material(name, colour, roughness=roughness, metallic=metallic,
+                                       editable=editable_spheres)
+        sphere(name, (first + 0.7 * k, 0.0, 0.3), 0.3, material)
+    add_camera_and_black_world(scene, resolution, 35, (0.0, -4.2, 1.6), (75, 0, 0))
+    data = bpy.data.lights.new("Area", "AREA")
+    data.energy = 400.0
+    data.shape = "RECTANGLE"
+    data.size = 2.0
+    data.size_y = 1.0
+    light = bpy.data.objects.new("Area", data)
+    light.location = LIGHTS[light_at]
+    d = mathutils.Vector((0.0, 0.0, 0.3)) - light.location
+    light.rotation_euler = (-d).to_track_quat("Z", "Y").to_euler()
+    scene.collection.objects.link(light)
+    bpy.context.view_layer.update()
+    return scene
