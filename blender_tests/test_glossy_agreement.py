@@ -79,8 +79,8 @@ def sun_sky(width: int = 256, height: int = 128, sun: int = 1, radiance: float =
 
 
 def _sphere(name, centre, radius, material):
-    verts, faces = cy._uv_sphere(centre, radius, segments=48, rings=24)
-    return cy._mesh_object(name, verts, faces, material, smooth=True)
+    verts, faces = cy.uv_sphere(centre, radius, segments=48, rings=24)
+    return cy.mesh_object(name, verts, faces, material, smooth=True)
 
 
 def _area_light(power: float, size: float, location, target):
@@ -100,7 +100,7 @@ def _area_light(power: float, size: float, location, target):
 def _base_scene(ground, light_size: float = 0.25) -> bpy.types.Scene:
     scene = bpy.context.scene
     s = 6.0
-    cy._mesh_object("Floor", [(-s, -s, 0), (s, -s, 0), (s, s, 0), (-s, s, 0)], [(0, 1, 2, 3)], ground)
+    cy.mesh_object("Floor", [(-s, -s, 0), (s, -s, 0), (s, s, 0), (-s, s, 0)], [(0, 1, 2, 3)], ground)
     add_camera_and_black_world(scene, RES, 40, (0.0, -3.6, 1.3), (75, 0, 0))
     scene.render.resolution_y = 48
     from support.scene_import import set_world

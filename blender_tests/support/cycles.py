@@ -170,7 +170,7 @@ def diffuse_material(name: str, color, editable: bool = False) -> bpy.types.Mate
     return mat
 
 
-def _mesh_object(name, verts, faces, material, smooth=False):
+def mesh_object(name, verts, faces, material, smooth=False):
     mesh = bpy.data.meshes.new(name)
     mesh.from_pydata(verts, [], faces)
     mesh.materials.append(material)
@@ -182,7 +182,7 @@ def _mesh_object(name, verts, faces, material, smooth=False):
     return obj
 
 
-def _uv_sphere(centre, radius, segments=32, rings=16):
+def uv_sphere(centre, radius, segments=32, rings=16):
     cx, cy, cz = centre
     verts = [(cx, cy, cz + radius)]
     for i in range(1, rings):
@@ -215,10 +215,10 @@ def open_scene(resolution: int) -> bpy.types.Scene:
     wall = diffuse_material("Wall", (0.2, 0.4, 0.7))
     ball = diffuse_material("Ball", (0.8, 0.5, 0.2), editable=True)
     s = 3.0
-    _mesh_object("Floor", [(-s, -s, 0), (s, -s, 0), (s, s, 0), (-s, s, 0)], [(0, 1, 2, 3)], floor)
-    _mesh_object("Wall", [(-s, 1.5, 0), (s, 1.5, 0), (s, 1.5, 2.5), (-s, 1.5, 2.5)], [(0, 1, 2, 3)], wall)
-    verts, faces = _uv_sphere((0.0, 0.0, 0.5), 0.5)
-    _mesh_object("Sphere", verts, faces, ball, smooth=True)
+    mesh_object("Floor", [(-s, -s, 0), (s, -s, 0), (s, s, 0), (-s, s, 0)], [(0, 1, 2, 3)], floor)
+    mesh_object("Wall", [(-s, 1.5, 0), (s, 1.5, 0), (s, 1.5, 2.5), (-s, 1.5, 2.5)], [(0, 1, 2, 3)], wall)
+    verts, faces = uv_sphere((0.0, 0.0, 0.5), 0.5)
+    mesh_object("Sphere", verts, faces, ball, smooth=True)
     add_camera_and_black_world(scene, resolution, 35, (0.0, -4.5, 2.2), (68, 0, 0))
     return scene
 

@@ -32,7 +32,7 @@ def window_room(resolution: int, walls=None, floor=None) -> None:
         "WallN_right": ([(0.8, w, 0.8), (w, w, 0.8), (w, w, 2.0), (0.8, w, 2.0)], walls),
     }
     for name, (verts, mat) in quads.items():
-        cy._mesh_object(name, verts, [(0, 1, 2, 3)], mat)
+        cy.mesh_object(name, verts, [(0, 1, 2, 3)], mat)
     sun = bpy.data.lights.new("Sun", "SUN")
     sun.energy = 5.0
     sun.angle = math.radians(1.0)

@@ -5,8 +5,6 @@ so a material-ID render (`support.cycles.material_ids`) tells their pixels apart
 
 from __future__ import annotations
 
-import math
-
 import bpy
 import mathutils
 
@@ -21,28 +19,8 @@ LIGHTS = {"front": (0.5, -2.0, 3.0), "side": (3.0, 0.3, 1.2)}
 
 def sphere(name, centre, radius, material, segments=48, rings=24):
     """A smooth-shaded UV sphere object `name` with `material`."""
-    mesh = bpy.data.meshes.new(name)
-    cx, cy_, cz = centre
-    verts = [(cx, cy_, cz + radius)]
-    for i in range(1, rings):
-        t = math.pi * i / rings
-        for j in range(segments):
-            p = 2.0 * math.pi * j / segments
-            verts.append((cx + radius * math.sin(t) * math.cos(p), cy_ + radius * math.sin(t) * math.sin(p),
-                          cz + radius * math.cos(t)))
-    verts.append((cx, cy_, cz - radius))
-    faces = [(0, 1 + j, 1 + (j + 1) % segments) for j in range(segments)]
-    for i in range(rings - 2):
-        a, b = 1 + i * segments, 1 + (i + 1) * segments
-        faces += [(a + j, b + j, b + (j + 1) % segments, a + (j + 1) % segments) for j in range(segments)]
-    last, base = len(verts) - 1, 1 + (rings - 2) * segments
-    faces += [(base + j, last, base + (j + 1) % segments) for j in range(segments)]
-    mesh.from_pydata(verts, [], faces)
-    mesh.materials.append(material)
-    mesh.shade_smooth()
-    obj = bpy.data.objects.new(name, mesh)
-    bpy.context.scene.collection.objects.link(obj)
-    return obj
+    verts, faces = cy.uv_sphere(centre, radius, segments=segments, rings=rings)
+    return cy.mesh_object(name, verts, faces, material, smooth=True)
 
 
 def build_scene(light_at: str, spheres, resolution: int, editable_spheres: bool = False):
