@@ -28,7 +28,6 @@ asserted.
 from __future__ import annotations
 
 import argparse
-import importlib
 import json
 import os
 import pathlib
@@ -42,7 +41,7 @@ os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="relume-
 
 import bpy  # noqa: E402
 import numpy as np  # noqa: E402
-from conftest import ROOT, addon_zip  # noqa: E402
+from conftest import ROOT, install_addon  # noqa: E402
 from support.scene_import import import_scene  # noqa: E402
 from support.scenes import clear_scene  # noqa: E402
 
@@ -185,10 +184,7 @@ def main() -> int:
     ap.add_argument("--device", default="cpu", choices=["cpu", "gpu", "auto"])
     args = ap.parse_args()
 
-    bpy.ops.extensions.package_install_files(filepath=str(addon_zip()), repo="user_default",
-                                             enable_on_install=True)
-    addon = importlib.import_module("bl_ext.user_default.relume")
-    prefs = bpy.context.preferences.addons["bl_ext.user_default.relume"].preferences
+    addon, prefs = install_addon()
     prefs.device = args.device
     workdir = tempfile.mkdtemp(prefix="relume-bench-")
     cells = [bench_cell(addon, w, h, int(k), args.edits, workdir)

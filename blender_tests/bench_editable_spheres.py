@@ -30,7 +30,6 @@ at the final preset; this is the wider sweep docs/principled_fit.md reports.
 from __future__ import annotations
 
 import argparse
-import importlib
 import json
 import os
 import pathlib
@@ -43,7 +42,7 @@ os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="relume-
 
 import bpy  # noqa: E402
 import numpy as np  # noqa: E402
-from conftest import ROOT, addon_zip  # noqa: E402
+from conftest import ROOT, install_addon  # noqa: E402
 from support import cycles as cy  # noqa: E402
 from support.scenes import clear_scene  # noqa: E402
 from support.spheres import build_scene  # noqa: E402
@@ -222,9 +221,7 @@ def main() -> int:
     args.seeds = [int(s) for s in args.seeds.split(",")]
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    bpy.ops.extensions.package_install_files(filepath=str(addon_zip()), repo="user_default",
-                                             enable_on_install=True)
-    addon = importlib.import_module("bl_ext.user_default.relume")
+    addon, _ = install_addon()
     runs = []
     for light in args.lights.split(","):
         for family in args.families.split(","):

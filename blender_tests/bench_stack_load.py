@@ -30,7 +30,6 @@ Nothing is asserted.
 from __future__ import annotations
 
 import argparse
-import importlib
 import json
 import os
 import pathlib
@@ -46,7 +45,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
 import bench_edit_latency as latency  # noqa: E402  (sets Blender's user folder first)
 import bpy  # noqa: E402
 import numpy as np  # noqa: E402
-from conftest import addon_zip  # noqa: E402
+from conftest import addon_zip, install_addon  # noqa: E402
 from support.scene_import import import_scene  # noqa: E402
 from support.scenes import clear_scene  # noqa: E402
 
@@ -124,10 +123,7 @@ def main() -> int:
     args = ap.parse_args()
     width, height = latency._size(args.size)
 
-    bpy.ops.extensions.package_install_files(filepath=str(addon_zip()), repo="user_default",
-                                             enable_on_install=True)
-    addon = importlib.import_module("bl_ext.user_default.relume")
-    prefs = bpy.context.preferences.addons["bl_ext.user_default.relume"].preferences
+    addon, prefs = install_addon()
     prefs.device = "cpu"
     import relume
 

@@ -43,7 +43,6 @@ presets as points). Nothing is asserted: this is the figure docs/trade.md shows.
 from __future__ import annotations
 
 import argparse
-import importlib
 import json
 import math
 import os
@@ -57,7 +56,7 @@ os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="relume-
 
 import bpy  # noqa: E402
 import numpy as np  # noqa: E402
-from conftest import ROOT, addon_zip  # noqa: E402
+from conftest import ROOT, install_addon  # noqa: E402
 from support import cycles as cy  # noqa: E402
 
 BLOCK = 8
@@ -461,10 +460,7 @@ def main() -> int:
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
 
-    bpy.ops.extensions.package_install_files(filepath=str(addon_zip()), repo="user_default",
-                                             enable_on_install=True)
-    addon = importlib.import_module("bl_ext.user_default.relume")
-    prefs = bpy.context.preferences.addons["bl_ext.user_default.relume"].preferences
+    addon, prefs = install_addon()
     prefs.bounces_from_scene = True
     work = out / "work"
     scenes = []

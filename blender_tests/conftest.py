@@ -36,14 +36,22 @@ def addon_zip() -> pathlib.Path:
     return zips[-1]
 
 
-@pytest.fixture(scope="session")
-def addon():
-    """The installed and enabled add-on's module (`bl_ext.user_default.relume`)."""
+def install_addon():
+    """Installs the built extension zip with Blender's extension installer and enables it, as
+    a user does; returns the add-on's module (`bl_ext.user_default.relume`) and its
+    preferences. The tests' `addon` fixture and the benchmarks share it."""
     result = bpy.ops.extensions.package_install_files(
         filepath=str(addon_zip()), repo="user_default", enable_on_install=True)
     assert result == {"FINISHED"}, result
     module = importlib.import_module("bl_ext.user_default.relume")
     assert "bl_ext.user_default.relume" in bpy.context.preferences.addons
+    return module, bpy.context.preferences.addons["bl_ext.user_default.relume"].preferences
+
+
+@pytest.fixture(scope="session")
+def addon():
+    """The installed and enabled add-on's module (`bl_ext.user_default.relume`)."""
+    module, _ = install_addon()
     return module
 
 

@@ -223,7 +223,8 @@ def open_scene(resolution: int) -> bpy.types.Scene:
     return scene
 
 
-def _pointing(obj, target):
+def aim_at(obj, target):
+    """Turns `obj` (a light) so that it shines along its −Z axis towards `target`."""
     import mathutils
 
     d = mathutils.Vector(target) - obj.location
@@ -253,7 +254,7 @@ def add_light(kind: str):
         data.spot_blend = 0.3
         obj = bpy.data.objects.new("Spot", data)
         obj.location = (-1.5, -1.5, 3.0)
-        _pointing(obj, (0.0, 0.0, 0.5))
+        aim_at(obj, (0.0, 0.0, 0.5))
     elif kind == "sun":
         data = bpy.data.lights.new("Sun", "SUN")
         data.energy = 4.0
@@ -272,7 +273,7 @@ def add_light(kind: str):
         data.size_y = 0.5
         obj = bpy.data.objects.new("Area", data)
         obj.location = (0.3, -0.8, 2.4)
-        _pointing(obj, (0.0, 0.0, 0.5))
+        aim_at(obj, (0.0, 0.0, 0.5))
     else:
         raise ValueError(kind)
     scene.collection.objects.link(obj)

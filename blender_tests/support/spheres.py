@@ -6,7 +6,6 @@ so a material-ID render (`support.cycles.material_ids`) tells their pixels apart
 from __future__ import annotations
 
 import bpy
-import mathutils
 
 from support import cycles as cy
 from support.scenes import add_camera_and_black_world, principled_material, quad
@@ -51,8 +50,7 @@ def build_scene(light_at: str, spheres, resolution: int, editable_spheres: bool 
     data.size_y = 1.0
     light = bpy.data.objects.new("Area", data)
     light.location = LIGHTS[light_at]
-    d = mathutils.Vector((0.0, 0.0, 0.3)) - light.location
-    light.rotation_euler = (-d).to_track_quat("Z", "Y").to_euler()
+    cy.aim_at(light, (0.0, 0.0, 0.3))
     scene.collection.objects.link(light)
     bpy.context.view_layer.update()
     return scene
