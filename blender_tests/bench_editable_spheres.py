@@ -45,7 +45,7 @@ import numpy as np  # noqa: E402
 from conftest import ROOT, install_addon  # noqa: E402
 from support import cycles as cy  # noqa: E402
 from support.scenes import clear_scene  # noqa: E402
-from support.spheres import build_scene  # noqa: E402
+from support.spheres import build_scene, per_material  # noqa: E402
 
 RES = 96
 ROUGHNESS = (0.1, 0.15, 0.2, 0.3, 0.5, 0.8)
@@ -92,18 +92,14 @@ def _set_relit(relighter, material: str, values: dict) -> None:
                              specular_ior_level=values["Specular IOR Level"])
 
 
-def _per_material(image: np.ndarray, ids: np.ndarray, names: list[str]) -> dict[str, float]:
-    return {name: float(image[ids == k].sum()) for k, name in enumerate(names) if (ids == k).sum() > 0}
-
-
 def _ratios(images, ids, names, reference) -> dict[str, list[float]]:
-    ref = _per_material(reference, ids, names)
-    per_seed = [_per_material(image, ids, names) for image in images]
+    ref = per_material(reference, ids, names)
+    per_seed = [per_material(image, ids, names) for image in images]
     return {n: [m[n] / ref[n] for m in per_seed] for n in ref}
 
 
 def _noise(c1, c2, ids, names) -> dict[str, float]:
-    m1, m2 = _per_material(c1, ids, names), _per_material(c2, ids, names)
+    m1, m2 = per_material(c1, ids, names), per_material(c2, ids, names)
     return {n: abs(m1[n] - m2[n]) / (m1[n] + m2[n]) for n in m1}
 
 

@@ -42,7 +42,7 @@ import time
 import numpy as np
 import pytest
 from support import cycles as cy
-from support.spheres import LIGHTS, build_scene
+from support.spheres import LIGHTS, build_scene, per_material
 
 RES = 96
 #: Cycles samples (two renders of half as many; their difference is the noise estimate):
@@ -103,10 +103,6 @@ def relume_image(addon, tmp: pathlib.Path, mode: str, seed: int = 0) -> np.ndarr
     relume.bake(scene, settings, str(stack_path))
     relighter = relume.Relighter(relume.Stack.load(str(stack_path)), device="cpu")
     return np.asarray(relighter.relight(), dtype=np.float64)[..., :3]
-
-
-def per_material(image: np.ndarray, ids: np.ndarray, names: list[str]) -> dict[str, float]:
-    return {name: float(image[ids == k].sum()) for k, name in enumerate(names) if (ids == k).sum() > 0}
 
 
 @pytest.mark.parametrize("light_at", sorted(LIGHTS))

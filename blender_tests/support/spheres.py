@@ -16,6 +16,12 @@ from support.scenes import add_camera_and_black_world, principled_material, quad
 LIGHTS = {"front": (0.5, -2.0, 3.0), "side": (3.0, 0.3, 1.2)}
 
 
+def per_material(image, ids, names: list[str]) -> dict[str, float]:
+    """Per material (object) of a material-ID image (`support.cycles.material_ids`) the sum
+    of `image` over its pure pixels: its mean brightness times its pixel count."""
+    return {name: float(image[ids == k].sum()) for k, name in enumerate(names) if (ids == k).sum() > 0}
+
+
 def sphere(name, centre, radius, material, segments=48, rings=24):
     """A smooth-shaded UV sphere object `name` with `material`."""
     verts, faces = cy.uv_sphere(centre, radius, segments=segments, rings=rings)
