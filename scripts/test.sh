@@ -55,10 +55,6 @@ cargo clippy --workspace --all-targets --quiet -- -D warnings || status=1
 "$PYTHON" -m ruff check addon blender_tests core/py scripts examples farm || status=1
 stage "import graph: no circle in core/engine or addon/relume, nothing below the bake imports it, no file outside the repository cited"
 "$PYTHON" scripts/import_graph.py || status=1
-stage "cargo test (workspace)"
-cargo test --workspace --no-fail-fast 2>&1 || status=1
-stage "fuzzing: stack reader, scene and materials parsers, 20 s each (scripts/fuzz.sh)"
-bash scripts/fuzz.sh 20 || status=1
 stage "the relume wheel and the Blender extension zip"
 bash scripts/build_addon.sh
 stage "the wheel's platform tag and the release workflow (scripts/check_release.py)"
@@ -69,5 +65,14 @@ stage "Python bindings (core/py/tests)"
 PYTHONPATH="$PWD/build/py" "$PYTHON" -m pytest -q -p no:cacheprovider core/py/tests || status=1
 stage "Blender add-on (blender_tests, bpy $("$PYTHON" -c 'import importlib.metadata as m; print(m.version("bpy"))'))"
 "$PYTHON" -m pytest -q -p no:cacheprovider --durations=15 -W ignore::DeprecationWarning blender_tests || status=1
+# The Rust tests come after the add-on's: both bake with the Principled basis, which is
+# built once and cached (core/engine/src/brdf/principled_basis/cache.rs), and the release
+# wheel builds it several times faster than the tests' debug build.
+stage "cargo test (workspace)"
+cargo test --workspace --no-fail-fast 2>&1 || status=1
+# The smoke run: the seed stacks baked by the CLI `cargo test` just built, the targets in
+# the fuzz crate's dev profile (scripts/fuzz.sh).
+stage "fuzzing: stack reader, scene and materials parsers, 20 s each (scripts/fuzz.sh)"
+RELUME_FUZZ_CLI=target/debug/relume RELUME_FUZZ_PROFILE=dev bash scripts/fuzz.sh 20 || status=1
 stage "done"
 exit $status
