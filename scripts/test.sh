@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
-# Every test: the asset checks, style (cargo fmt, clippy, ruff), the Rust workspace (unit,
-# integration and CLI tests), the wheel (manylinux 2_28 at most) and the release workflow's
-# local checks, the Python bindings (core/py/tests, on the built wheel) and the Blender add-on
-# (blender_tests, on the real `bpy` module with the add-on installed from its zip by Blender's
-# extension installer). Works on a fresh machine with the Rust toolchain (with rustfmt and
-# clippy) and Python 3 ≥ 3.11 with pip: it installs what else it needs (Debian's lavapipe,
-# and bpy, pytest, maturin, ziglang, ruff, PyYAML from PyPI).
+# Every test, in this order: the asset checks, style (cargo fmt, clippy, ruff), the wheel
+# (manylinux 2_28 at most) and the release workflow's local checks, the Python bindings
+# (core/py/tests, on the built wheel), the Blender add-on (blender_tests, on the real `bpy`
+# module with the add-on installed from its zip by Blender's extension installer), the Rust
+# workspace (unit, integration and CLI tests) and a short fuzzing run of the parsers. Works
+# on a fresh machine with the Rust toolchain (with rustfmt and clippy) and Python 3 ≥ 3.11
+# with pip: it installs what else it needs (Debian's lavapipe, and bpy, pytest, maturin,
+# ziglang, ruff, PyYAML from PyPI).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # Each stage says when it starts (seconds since the run began), so a slow run shows where
