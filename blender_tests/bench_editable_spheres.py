@@ -116,11 +116,8 @@ def _cycles_pair(scene, folder: pathlib.Path, name: str, samples: int, reuse: pa
 
 
 def _relit(relighter) -> np.ndarray:
-    """The relit image at the render's size: a preset that bakes at a fraction of it (draft:
-    half) is compared with each of its pixels repeated."""
-    image = np.asarray(relighter.relight(), dtype=np.float64)[..., :3]
-    factor = RES // image.shape[0]
-    return np.repeat(np.repeat(image, factor, axis=0), factor, axis=1) if factor > 1 else image
+    """The relit image at the render's size (`support.cycles.at_size_of`)."""
+    return cy.at_size_of(np.asarray(relighter.relight(), dtype=np.float64)[..., :3], (RES, RES))
 
 
 def bench(addon, light: str, family: str, args, folder: pathlib.Path) -> dict:

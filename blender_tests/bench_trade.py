@@ -103,18 +103,8 @@ def _tiles(image: np.ndarray) -> np.ndarray:
     return cy.block_mean(image, BLOCK)
 
 
-def _at_size_of(image: np.ndarray, reference: np.ndarray) -> np.ndarray:
-    """`image` at the reference's size: a preset that bakes at a fraction of the resolution
-    (draft: half) is shown scaled up, each of its pixels repeated, as it is compared here."""
-    factor = reference.shape[0] // image.shape[0]
-    if factor > 1:
-        image = np.repeat(np.repeat(image, factor, axis=0), factor, axis=1)
-    assert image.shape == reference.shape, (image.shape, reference.shape)
-    return image
-
-
 def _error(image: np.ndarray, reference: np.ndarray, noise: float) -> dict:
-    raw = cy.rel_l2(_tiles(_at_size_of(image, reference)), _tiles(reference))
+    raw = cy.rel_l2(_tiles(cy.at_size_of(image, reference.shape)), _tiles(reference))
     return {"raw": raw, "corrected": math.sqrt(max(raw * raw - noise * noise, 0.0))}
 
 
@@ -356,7 +346,7 @@ def sweep(addon, scene, name: str, folder: pathlib.Path, spp: int) -> dict:
         target, seconds = cycles_denoised(scene, folder / f"sweep_{tag}_cycles.exr", spp)
         _set(undo)
         for kind in ("shown", "relit"):
-            images[kind] = _at_size_of(images[kind], target)
+            images[kind] = cy.at_size_of(images[kind], target.shape)
         rows[tag] = {
             "shown": cy.rel_l2(_tiles(images["shown"]), _tiles(target)),
             "relit": cy.rel_l2(_tiles(images["relit"]), _tiles(target)),

@@ -130,6 +130,17 @@ def block_mean(image: np.ndarray, block: int) -> np.ndarray:
     return image.reshape(h // block, block, w // block, block, c).mean(axis=(1, 3))
 
 
+def at_size_of(image: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """`image` at the size `shape` (height, width first): a preset that bakes at a fraction of
+    the render's resolution (draft: half) is compared, as it is shown, with each of its
+    pixels repeated."""
+    factor = shape[0] // image.shape[0]
+    if factor > 1:
+        image = np.repeat(np.repeat(image, factor, axis=0), factor, axis=1)
+    assert image.shape[:2] == tuple(shape[:2]), (image.shape, shape)
+    return image
+
+
 def rel_l2(a: np.ndarray, reference: np.ndarray) -> float:
     """‖a − ref‖ / ‖ref‖ over every pixel and channel."""
     return float(np.linalg.norm(a - reference) / np.linalg.norm(reference))
