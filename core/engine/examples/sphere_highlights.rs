@@ -40,16 +40,21 @@ fn cross(a: V, b: V) -> V {
     ]
 }
 
-/// `axis` tilted by `angle` toward azimuth `phi` of a frame around it.
-fn tilt(axis: V, angle: f64, phi: f64) -> V {
+/// Two unit axes perpendicular to `axis` and to each other.
+fn frame(axis: V) -> (V, V) {
     let helper = if axis[0].abs() < 0.9 {
         [1.0, 0.0, 0.0]
     } else {
         [0.0, 1.0, 0.0]
     };
     let t = unit(cross(axis, helper));
-    let b = cross(axis, t);
-    let (s, c) = angle.sin_cos();
+    (t, cross(axis, t))
+}
+
+/// `axis` tilted by the angle whose sine and cosine are `(s, c)` toward azimuth `phi` of its
+/// `frame`: the frame and the angle's sine and cosine are the caller's, made once per axis
+/// and angle rather than once per normal.
+fn tilt(axis: V, (t, b): (V, V), (s, c): (f64, f64), phi: f64) -> V {
     let (sp, cp) = phi.sin_cos();
     unit(std::array::from_fn(|i| {
         axis[i] * c + (t[i] * cp + b[i] * sp) * s
@@ -67,19 +72,23 @@ fn image_sum(f: &dyn Fn(Cosines) -> f64, light: V, view: V, radius: f64) -> f64 
     let first = 5e-4;
     let beta = (PI / first).ln_1p();
     let edge = |i: usize| first * (beta * i as f64 / THETA as f64).exp_m1();
+    let light_frame = frame(light);
     let mut total = 0.0;
     for ring in 0..RINGS {
         let a = radius * (ring as f64 + 0.5) / RINGS as f64;
         for k in 0..PER_RING {
-            let l = tilt(light, a, 2.0 * PI * (k as f64 + 0.5) / PER_RING as f64);
+            let phi = 2.0 * PI * (k as f64 + 0.5) / PER_RING as f64;
+            let l = tilt(light, light_frame, a.sin_cos(), phi);
             let h = unit([l[0] + view[0], l[1] + view[1], l[2] + view[2]]);
             let cos_d = dot(l, h);
+            let h_frame = frame(h);
             let mut sum = 0.0;
             for i in 0..THETA {
                 let (lo, hi) = (edge(i), edge(i + 1));
-                let t = 0.5 * (lo + hi);
+                let (sin_t, cos_t) = (0.5 * (lo + hi)).sin_cos();
                 for j in 0..PHI {
-                    let n = tilt(h, t, 2.0 * PI * (j as f64 + 0.5) / PHI as f64);
+                    let phi = 2.0 * PI * (j as f64 + 0.5) / PHI as f64;
+                    let n = tilt(h, h_frame, (sin_t, cos_t), phi);
                     let (cos_i, cos_o) = (dot(n, l), dot(n, view));
                     if cos_i <= 0.0 || cos_o <= 0.0 {
                         continue;
@@ -87,10 +96,10 @@ fn image_sum(f: &dyn Fn(Cosines) -> f64, light: V, view: V, radius: f64) -> f64 
                     let c = Cosines {
                         cos_i,
                         cos_o,
-                        cos_h: t.cos(),
+                        cos_h: cos_t,
                         cos_d,
                     };
-                    sum += f(c) * cos_i * cos_o * t.sin() * (hi - lo);
+                    sum += f(c) * cos_i * cos_o * sin_t * (hi - lo);
                 }
             }
             total += sum * a;
