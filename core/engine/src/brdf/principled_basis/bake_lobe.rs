@@ -1,5 +1,5 @@
 //! The region's bake-time lobe as one more slot beside the basis, and a relit material's
-//! coefficients as the least-squares projection onto the basis and that slot together.
+//! coefficients as a fit to the basis and that slot together.
 //!
 //! # Why
 //!
@@ -13,31 +13,34 @@
 //!
 //! # What it is
 //!
-//! Per channel, `g` is the bake-time material's BRDF ([`CyclesPrincipled`]), `P` the
-//! orthogonal projection onto the basis under its measure and `q = g − Pg` what the basis
-//! misses of `g`. The edited material `f` is projected onto the span of the basis and `g`:
-//! `α = ⟨f, q⟩ / ‖q‖²` on the bake-time slot and `P(f − α g)` on the basis. At the bake-time
-//! material `α` is exactly 1 and every basis coefficient exactly 0 (the same sums on the
-//! same values), so a relight there is the bake's exact lobe; an edit far from it (a rough
-//! lobe from a smooth bake) has `α` near 0 and is the plain projection. Never worse than
-//! the plain projection in the measure, since its span holds the basis'.
+//! Per channel, `g` is the bake-time material's BRDF ([`CyclesPrincipled`]). An edited
+//! material `f` is rebuilt from the basis' slots and `g` together by the fit of
+//! [`super::cells`]: least squares plus a chi-square term that keeps the energy of every
+//! part of the lobe a light can see. At the bake-time material the relight is the bake's
+//! exact lobe (slot `g` at 1, every basis coefficient 0: returned directly, and also the
+//! fit's solution, since both of its terms vanish there); an edit far from it (a rough lobe
+//! from a smooth bake) gives `g` little weight and is the basis' fit. Never worse than the
+//! basis alone in the fit's own measure, since its span holds the basis'.
 //!
-//! Both projections are direct sums over the quadrature nodes, not the metal curves: `‖q‖²`
-//! is `‖g‖² − ‖Pg‖²`, a small difference of large numbers that the curves' interpolation
-//! error (a few 10⁻³ of the coefficients) would swamp.
+//! The inner products are direct sums over the quadrature nodes, not the metal curves: the
+//! system is nearly singular where the basis almost holds `g` (`‖g − Pg‖²` is a small
+//! difference of large numbers), and the curves' interpolation error (a few 10⁻³ of the
+//! coefficients) would swamp it. Where the basis holds `g` to rounding, `g`'s slot is left
+//! out of the fit.
 
 use std::sync::{Arc, Mutex, Weak};
 
 use rayon::prelude::*;
 
+use super::cells::CellFit;
 use super::lobes::DIFFUSE;
 use super::quadrature::Node;
 use super::{Cosines, PrincipledBasis, PrincipledBasisConfig, MAX_SLOTS, NODES_PER_CHUNK};
 use crate::brdf::cycles_principled::CyclesPrincipled;
 use crate::brdf::Principled;
 
-/// Below this share of `‖g‖²` the basis holds the bake-time lobe already (`‖q‖²` is
-/// rounding): the bake-time slot then gets no weight and the relight is the projection.
+/// Below this share of `‖g‖²` the basis holds the bake-time lobe already (`‖g − Pg‖²` is
+/// rounding): the bake-time slot is then left out of an edit's fit.
 const IN_SPAN: f64 = 1e-10;
 
 /// A region's bake-time lobe on the quadrature nodes, and what the basis holds of it.
@@ -47,8 +50,13 @@ pub struct BakeLobe {
     at_nodes: Vec<[f64; 3]>,
     /// `Pg`'s coefficients per slot (slot 0 multiplies `1/π`) and channel.
     projection: Vec<[f64; 3]>,
-    /// `‖q‖²` per channel (0 where the basis holds `g`).
+    /// `‖g − Pg‖²` per channel, `P` the projection onto the basis (0 where the basis holds
+    /// `g`).
     missed: [f64; 3],
+    /// `‖g‖²` per channel.
+    norm2: [f64; 3],
+    /// `g`'s [`Sums::cells`] (its `⟨g, f⟩` entries `‖g‖²` over the cell).
+    cells: Vec<f64>,
 }
 
 impl BakeLobe {
@@ -71,11 +79,16 @@ pub struct AnchoredCoefficients {
 }
 
 /// Sums over the quadrature for one material `f` (per channel): its coefficients on the
-/// basis and, when `g` is given, `⟨f, g⟩` and `‖f‖²`.
+/// basis, `‖f‖²` and, when `g` is given, `⟨f, g⟩`; and the same per cell of
+/// [`super::cells`].
 struct Sums {
     coefficients: Vec<[f64; 3]>,
     dot_g: [f64; 3],
     norm2: [f64; 3],
+    /// Per cell and channel `count() + 3` sums over the cell: `⟨ψ_k, f⟩` per slot (slot 0's
+    /// function the constant `1/π`), `⟨g, f⟩`, `∫ f` and `‖f‖²`; at
+    /// `[(cell * 3 + ch) * (count() + 3) + j]`. The sums over the domain above are theirs.
+    cells: Vec<f64>,
 }
 
 impl PrincipledBasis {
@@ -88,7 +101,7 @@ impl PrincipledBasis {
             .map(|n| g.eval_cosines(n.c.cos_i, n.c.cos_o, n.c.cos_h, n.c.cos_d))
             .collect();
         // The sums read the values just computed rather than evaluating the BSDF again.
-        let sums = self.sums(&|i, _| at_nodes[i], None);
+        let sums = self.sums(&|i, _| at_nodes[i], Some(&at_nodes));
         let held = self.held(&sums.coefficients, &sums.coefficients);
         let missed = std::array::from_fn(|c| {
             let m = sums.norm2[c] - held[c];
@@ -103,6 +116,8 @@ impl PrincipledBasis {
             at_nodes,
             projection: sums.coefficients,
             missed,
+            norm2: sums.norm2,
+            cells: sums.cells,
         }
     }
 
@@ -158,35 +173,105 @@ impl PrincipledBasis {
         lobe: &BakeLobe,
         f: impl Fn(Cosines) -> [f64; 3] + Sync,
     ) -> Vec<[f64; 3]> {
-        let n = self.count();
         let sums = self.sums(&|_, c| f(c), Some(&lobe.at_nodes));
-        let alpha = self.bake_slot_weight(lobe, &sums);
-        let mut slots = vec![[0.0f64; 3]; n + 1];
-        for c in 0..3 {
-            for (k, s) in slots[..n].iter_mut().enumerate() {
-                s[c] = sums.coefficients[k][c] - alpha[c] * lobe.projection[k][c];
-            }
-            slots[n][c] = alpha[c];
-        }
-        slots
+        self.fitted(lobe, &sums).0
     }
 
-    /// `α = ⟨f, q⟩ / ‖q‖²` per channel (0 where the basis holds the bake-time lobe), from
-    /// `f`'s sums with the lobe's values.
-    fn bake_slot_weight(&self, lobe: &BakeLobe, sums: &Sums) -> [f64; 3] {
-        let onto_pg = self.held(&sums.coefficients, &lobe.projection);
-        std::array::from_fn(|c| {
-            if lobe.missed[c] > 0.0 {
-                (sums.dot_g[c] - onto_pg[c]) / lobe.missed[c]
-            } else {
-                0.0
+    /// Per slot and channel the fitted coefficients of the material whose sums are `sums`
+    /// (the bake-time slot last, 0 in a channel where the basis holds `g`), and per channel
+    /// the relative L2 error they leave.
+    fn fitted(&self, lobe: &BakeLobe, sums: &Sums) -> (Vec<[f64; 3]>, [f64; 3]) {
+        let n = self.count();
+        let mut slots = vec![[0.0f64; 3]; n + 1];
+        let mut errors = [0.0; 3];
+        for (c, error) in errors.iter_mut().enumerate() {
+            let (x, e) = self.cell_fit(lobe, sums, c).solve();
+            for (s, v) in slots.iter_mut().zip(&x) {
+                s[c] = *v;
             }
-        })
+            *error = e;
+        }
+        (slots, errors)
+    }
+
+    /// Channel `c`'s fit ([`super::cells`]) over the basis' slots and, unless the basis
+    /// holds the bake-time lobe already, that lobe's slot (last).
+    fn cell_fit(&self, lobe: &BakeLobe, sums: &Sums, c: usize) -> CellFit {
+        let n = self.count();
+        let with_g = lobe.missed[c] > 0.0;
+        let m = if with_g { n + 1 } else { n };
+        let d2 = DIFFUSE * DIFFUSE;
+        // ⟨ψ_k, h⟩ from a coefficient vector of h (slot 0's coefficient multiplies 1/π;
+        // the specular bases are orthonormal and orthogonal to the constant).
+        let dot = |k: usize, coefficients: &[[f64; 3]]| {
+            if k == 0 {
+                d2 * coefficients[0][c]
+            } else {
+                coefficients[k][c]
+            }
+        };
+        let mut gram = vec![0.0f64; m * m];
+        let mut rhs = vec![0.0f64; m];
+        gram[0] = d2;
+        for k in 1..n {
+            gram[k * m + k] = 1.0;
+        }
+        for (k, r) in rhs.iter_mut().enumerate().take(n) {
+            *r = dot(k, &sums.coefficients);
+        }
+        if with_g {
+            for k in 0..n {
+                let v = dot(k, &lobe.projection);
+                gram[k * m + n] = v;
+                gram[n * m + k] = v;
+            }
+            gram[n * m + n] = lobe.norm2[c];
+            rhs[n] = sums.dot_g[c];
+        }
+        let cells = self.cell_count();
+        let slot_grams = self.cell_grams();
+        let stride = n + 3;
+        let mut cell_grams = vec![0.0f64; cells * m * m];
+        let mut cell_rhs = vec![0.0f64; cells * m];
+        let mut cell_integral = vec![0.0f64; cells];
+        let mut cell_measure = vec![0.0f64; cells];
+        for cell in 0..cells {
+            let gc = &mut cell_grams[cell * m * m..(cell + 1) * m * m];
+            let basis = &slot_grams[cell * n * n..(cell + 1) * n * n];
+            for k in 0..n {
+                gc[k * m..k * m + n].copy_from_slice(&basis[k * n..(k + 1) * n]);
+            }
+            let at = (cell * 3 + c) * stride;
+            let fd = &sums.cells[at..at + stride];
+            cell_rhs[cell * m..cell * m + n].copy_from_slice(&fd[..n]);
+            cell_integral[cell] = fd[n + 1];
+            cell_measure[cell] = basis[0] / d2;
+            if with_g {
+                let gd = &lobe.cells[at..at + stride];
+                for k in 0..n {
+                    gc[k * m + n] = gd[k];
+                    gc[n * m + k] = gd[k];
+                }
+                gc[n * m + n] = gd[n];
+                cell_rhs[cell * m + n] = fd[n];
+            }
+        }
+        CellFit {
+            m,
+            gram,
+            rhs,
+            cell_grams,
+            cell_rhs,
+            cell_integral,
+            cell_measure,
+            norm2: sums.norm2[c],
+        }
     }
 
     /// The relative L2 error (per channel, under the basis' measure) of material `p` rebuilt
-    /// from the basis alone (its projection) and from the basis with `lobe`'s bake-time slot:
-    /// `‖Qf‖² = ‖f‖² − ‖Pf‖²` and, with the slot, `‖Qf‖² − α²‖q‖²`.
+    /// from the basis alone (its least-squares projection, `‖Qf‖² = ‖f‖² − ‖Pf‖²`) and from
+    /// the basis with `lobe`'s bake-time slot as a relight fits it ([`super::cells`]: larger
+    /// than the projection's where holding the lobe's energy costs its shape).
     pub fn rebuild_error_with_bake_lobe(
         &self,
         lobe: &BakeLobe,
@@ -196,16 +281,11 @@ impl PrincipledBasis {
         let f = principled_brdf(&f);
         let sums = self.sums(&|_, c| f(c), Some(&lobe.at_nodes));
         let held = self.held(&sums.coefficients, &sums.coefficients);
-        let alpha = self.bake_slot_weight(lobe, &sums);
-        let mut plain = [0.0; 3];
-        let mut with = [0.0; 3];
-        for c in 0..3 {
+        let (_, with) = self.fitted(lobe, &sums);
+        let plain = std::array::from_fn(|c| {
             let qf = (sums.norm2[c] - held[c]).max(0.0);
-            let rest = (qf - alpha[c] * alpha[c] * lobe.missed[c]).max(0.0);
-            let n = sums.norm2[c].max(1e-300);
-            plain[c] = (qf / n).sqrt();
-            with[c] = (rest / n).sqrt();
-        }
+            (qf / sums.norm2[c].max(1e-300)).sqrt()
+        });
         (plain, with)
     }
 
@@ -237,25 +317,30 @@ impl PrincipledBasis {
     ) -> Sums {
         let slots = self.count();
         let ns = self.nspec.max(1);
-        let len = 3 * slots + 6;
+        let stride = slots + 3;
+        let cells = self.cell_count();
+        let len = 3 * cells * stride;
         let chunk = |start: usize, nodes: &[Node], phis: &[f64]| {
             let mut acc = vec![0.0f64; len];
             for (i, (node, phi)) in nodes.iter().zip(phis.chunks(ns)).enumerate() {
                 let v = f(start + i, node.c);
+                let cell = self.cell_of(node);
                 for ch in 0..3 {
                     let wf = node.weight * v[ch];
                     if wf == 0.0 {
                         continue;
                     }
-                    let row = &mut acc[ch * slots..(ch + 1) * slots];
-                    row[0] += wf;
-                    for (r, b) in row[1..].iter_mut().zip(phi) {
+                    let at = (cell * 3 + ch) * stride;
+                    let sums = &mut acc[at..at + stride];
+                    sums[0] += wf * DIFFUSE;
+                    for (r, b) in sums[1..slots].iter_mut().zip(phi) {
                         *r += wf * b;
                     }
-                    acc[3 * slots + ch] += wf * v[ch];
                     if let Some(g) = g {
-                        acc[3 * slots + 3 + ch] += wf * g[start + i][ch];
+                        sums[slots] += wf * g[start + i][ch];
                     }
+                    sums[slots + 1] += wf;
+                    sums[slots + 2] += wf * v[ch];
                 }
             }
             acc
@@ -272,12 +357,19 @@ impl PrincipledBasis {
             total.iter_mut().zip(&p).for_each(|(t, v)| *t += v);
         }
         debug_assert!(slots <= MAX_SLOTS);
+        // The domain's sums are the cells' sums, added in cell order.
+        let over_domain = |ch: usize, j: usize| -> f64 {
+            (0..cells)
+                .map(|cell| total[(cell * 3 + ch) * stride + j])
+                .sum()
+        };
         let coefficients = (0..slots)
             .map(|k| {
                 std::array::from_fn(|ch| {
-                    let d = total[ch * slots + k];
+                    let d = over_domain(ch, k);
+                    // ⟨1/π, f⟩ to the coefficient that multiplies 1/π.
                     if k == 0 {
-                        d / DIFFUSE
+                        d / (DIFFUSE * DIFFUSE)
                     } else {
                         d
                     }
@@ -286,8 +378,9 @@ impl PrincipledBasis {
             .collect();
         Sums {
             coefficients,
-            norm2: std::array::from_fn(|ch| total[3 * slots + ch]),
-            dot_g: std::array::from_fn(|ch| total[3 * slots + 3 + ch]),
+            norm2: std::array::from_fn(|ch| over_domain(ch, slots + 2)),
+            dot_g: std::array::from_fn(|ch| over_domain(ch, slots)),
+            cells: total,
         }
     }
 }

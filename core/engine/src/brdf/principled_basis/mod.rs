@@ -37,6 +37,7 @@
 
 pub mod bake_lobe;
 mod cache;
+mod cells;
 mod curves;
 mod lobes;
 mod lune;
@@ -194,6 +195,8 @@ pub struct PrincipledBasis {
     table: LuneTable,
     curves: Option<MetalCurves>,
     report: PrincipledBasisReport,
+    /// Every slot pair's inner product per cell ([`cells`]), made on first use.
+    cell_grams: OnceLock<Vec<f64>>,
 }
 
 impl PrincipledBasis {
@@ -223,6 +226,7 @@ impl PrincipledBasis {
                 values: vec![],
             },
             curves: None,
+            cell_grams: OnceLock::new(),
             report: PrincipledBasisReport {
                 bases: 1 + nspec,
                 lobes: 0,
@@ -338,6 +342,7 @@ impl PrincipledBasis {
                 stored.curve_values,
             )),
             report,
+            cell_grams: OnceLock::new(),
         })
     }
 

@@ -21,11 +21,14 @@ pub struct QuadratureSize {
     pub phi_d: usize,
 }
 
-/// One node: the direction pair and its weight.
+/// One node: the direction pair, its weight, and where it lies on the rule's grid.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Node {
     pub c: Cosines,
     pub weight: f64,
+    /// The node's θh index (graded toward θh = 0) and θd index.
+    pub theta_h_index: u32,
+    pub theta_d_index: u32,
 }
 
 /// The first θh cell's width scale: the graded mesh `s(e^{βu} − 1)` starts with cells of
@@ -74,6 +77,8 @@ pub(crate) fn nodes(size: QuadratureSize) -> (Vec<Node>, f64) {
                         cos_d: cd,
                     },
                     weight,
+                    theta_h_index: a as u32,
+                    theta_d_index: b as u32,
                 });
             }
         }
