@@ -4,6 +4,7 @@ values and after edits, relit from one bake.
     python3 blender_tests/bench_editable_spheres.py [--out out/editable_spheres]
         [--preset preview] [--seeds 0,1,2,3] [--cycles-spp 8192] [--edit-spp 2048]
         [--lights front,side] [--families metal,dielectric] [--reuse-cycles OUT]
+        [--fixed-edits roughness_0.1,roughness_0.15]
 
 What a user ticking a glossy material Editable gets by default. Per light placement
 (`support.spheres.LIGHTS`) and family — six metals or six dielectrics at roughness 0.1,
@@ -21,6 +22,11 @@ as many; their difference gives its noise).
    every seed's stack (`Relighter.set_principled`) and compared with Cycles rendered with the
    same values at `--edit-spp`. The other spheres are unchanged by an edit and are reported
    as the control.
+
+`--fixed-edits` also bakes the scene with each named edit applied and the edited sphere not
+editable (evaluated exactly, as a fixed region), per seed: Relume's own image of the edited
+material, which splits a relit edit's difference from Cycles into the relight's part and
+the bake's.
 
 Prints one line per figure and writes OUT/editable_spheres.json and OUT/editable_spheres.md.
 Nothing is asserted: test_principled_fit.py asserts the bake-time goal on its six spheres
@@ -163,6 +169,7 @@ def bench(addon, light: str, family: str, args, folder: pathlib.Path) -> dict:
             _set_relit(relighter, target, values)
             images.append(_relit(relighter))
             _set_relit(relighter, target, base)
+        fixed = _fixed_bakes(addon, folder, target, edit, args) if edit in args.fixed_edits else None
         _set(target, base)
         ratios = _ratios(images, ids, names, 0.5 * (c1 + c2))
         noise = _noise(c1, c2, ids, names)
@@ -173,7 +180,35 @@ def bench(addon, light: str, family: str, args, folder: pathlib.Path) -> dict:
                               "others_max_abs_error": float(max(others))}
         print(f"[spheres] {light} {target} → {edit:18s} {np.mean(r):.3f} [{min(r):.3f}–{max(r):.3f}]"
               f"  Cycles noise {noise[target]:.4f}; other spheres within {max(others):.3f}", flush=True)
+        if fixed is not None:
+            f = _ratios(fixed, ids, names, 0.5 * (c1 + c2))[target]
+            out["edits"][edit]["fixed_ratio"] = float(np.mean(f))
+            out["edits"][edit]["fixed_ratio_per_seed"] = f
+            print(f"[spheres] {light} {target} → {edit:18s} baked as a fixed material: {np.mean(f):.3f} "
+                  f"[{min(f):.3f}–{max(f):.3f}]", flush=True)
     return out
+
+
+def _fixed_bakes(addon, folder: pathlib.Path, target: str, edit: str, args) -> list[np.ndarray]:
+    """The scene as it stands (the edit applied in Blender) baked with `target` not editable,
+    once per bake seed, relit at its baked materials: what Relume gives the edited material
+    when it is evaluated exactly, to split a relit edit's difference from Cycles into the
+    relight's and the bake's."""
+    import relume
+
+    material = bpy.data.materials[target]
+    material.relume.editable = False
+    try:
+        exported = addon.api.export()
+        images = []
+        for seed in args.seeds:
+            settings = relume.BakeSettings.preset(args.preset, seed=seed, bounces=1)
+            stack_path = folder / f"fixed_{edit}_seed{seed}.relume.exr"
+            relume.bake(exported.scene, settings, str(stack_path))
+            images.append(_relit(relume.Relighter(relume.Stack.load(str(stack_path)), device="cpu")))
+        return images
+    finally:
+        material.relume.editable = True
 
 
 def markdown(results: dict) -> str:
@@ -210,8 +245,12 @@ def main() -> int:
     ap.add_argument("--families", default="metal,dielectric")
     ap.add_argument("--reuse-cycles", type=pathlib.Path, default=None,
                     help="an earlier run's OUT: its Cycles renders, not rendered again")
+    ap.add_argument("--fixed-edits", default="",
+                    help="edits (e.g. roughness_0.1,roughness_0.15) also baked with the edited material "
+                         "fixed, per seed")
     args = ap.parse_args()
     args.seeds = [int(s) for s in args.seeds.split(",")]
+    args.fixed_edits = [e for e in args.fixed_edits.split(",") if e]
     out = pathlib.Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     addon, _ = install_addon()
