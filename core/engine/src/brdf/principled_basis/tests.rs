@@ -498,19 +498,22 @@ fn energy_errors_of(
     (worst_row, (rebuilt - exact).abs() / exact)
 }
 
-#[test]
-fn the_bake_time_slot_is_exact_at_bake_time_and_the_fit_never_worse_than_the_projection() {
-    use crate::brdf::cycles_principled::CyclesPrincipled;
-    use crate::brdf::Principled;
-    let b = small();
-    let n = b.count();
-    let material = |base: [f32; 3], metallic: f32, roughness: f32| Principled {
+/// A Principled material at Blender's default IOR and specular level.
+fn material(base: [f32; 3], metallic: f32, roughness: f32) -> crate::brdf::Principled {
+    crate::brdf::Principled {
         base_color: base,
         metallic,
         roughness,
         ior: 1.5,
         specular_ior_level: 0.5,
-    };
+    }
+}
+
+#[test]
+fn the_bake_time_slot_is_exact_at_bake_time_and_the_fit_never_worse_than_the_projection() {
+    use crate::brdf::cycles_principled::CyclesPrincipled;
+    let b = small();
+    let n = b.count();
     let bake = material([0.9, 0.65, 0.35], 1.0, 0.12);
     let lobe = b.bake_lobe(&bake);
     let at_bake = b.anchored_coefficients(&lobe, &bake);
@@ -566,16 +569,8 @@ fn a_sharpening_edit_keeps_its_energy_at_every_difference_angle_and_in_the_far_f
     // large light gathers the far field over the whole sphere. The least-squares projection
     // gives both up for a narrow lobe's peak; the fit must hold them.
     use crate::brdf::cycles_principled::CyclesPrincipled;
-    use crate::brdf::Principled;
     let b = small();
     let n = b.count();
-    let material = |base: [f32; 3], metallic: f32, roughness: f32| Principled {
-        base_color: base,
-        metallic,
-        roughness,
-        ior: 1.5,
-        specular_ior_level: 0.5,
-    };
     for (bake, edit) in [
         (
             material([0.9, 0.65, 0.35], 1.0, 0.3),
