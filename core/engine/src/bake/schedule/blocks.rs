@@ -14,7 +14,8 @@
 //!   relative to the smallest one: 24 bits of mantissa + log2(samples) + the dynamic range
 //!   of the contributions, which for HDR light is not bounded. Not provable: not used.
 //! - *A fixed binary tree over sample indices* (used here). Every pixel's per-sample values
-//!   (one [`leaf`](PixelTree::push_leaf) per eye sample: that sample's contributions summed in
+//!   (one [`leaf`](super::pixel_tree::PixelTree::push_leaf) per eye sample: that sample's
+//!   contributions summed in
 //!   the integrator's own order, the same on every machine) are combined pairwise in the
 //!   tree whose nodes are the aligned dyadic ranges `[k·2^j, (k+1)·2^j)`: a node's value is
 //!   `left + right`, its children's values. Above the last sample the tree has no nodes, so
@@ -34,8 +35,9 @@
 //! and `x + (+0.0) == x` bit for bit for every other `x`.
 //!
 //! The cost: a pixel keeps a stack of up to ≈ log2(spp) partial records while its samples
-//! are traced (one record per level, [`PixelTree`]), and each sample adds one record's worth
-//! of additions (amortised: the tree has one inner node per sample). A one-pass bake folds
+//! are traced (one record per level, [`super::pixel_tree::PixelTree`]), and each sample
+//! adds, amortised, one record's worth of additions — of the layers its samples reached
+//! (the tree has one inner node per sample). A one-pass bake folds
 //! each pixel's tree in the tile and keeps no store ([`super::stream`]: the tree's root is
 //! all it needs), a farm's partition writes each tile's blocks as they are traced and its
 //! merge sums one tile's blocks at a time. A progressive bake keeps each tile's blocks
@@ -45,8 +47,7 @@
 
 use std::ops::Range;
 
-use crate::bake::finish::denoise::{EyeFeatures, FEATURE_STRIDE};
-use crate::Result;
+use crate::bake::finish::denoise::EyeFeatures;
 
 /// Whether the aligned dyadic ranges `left` and `right` are the two children of one node.
 #[inline]
@@ -58,7 +59,7 @@ pub(crate) fn siblings(left: &Range<u32>, right: &Range<u32>) -> bool {
 }
 
 /// The maximal aligned dyadic ranges inside `[from, to)`, in order: what a sample range
-/// delivers ([`PixelTree`] leaves them on its stack).
+/// delivers ([`super::pixel_tree::PixelTree`] leaves them on its stack).
 pub fn dyadic_blocks(from: u32, to: u32) -> Vec<Range<u32>> {
     let mut out: Vec<Range<u32>> = Vec::new();
     for s in from..to {
@@ -81,95 +82,6 @@ pub fn combine(into: &mut [f32], from: &[f32], layer_floats: usize) {
         *x += *y;
     }
     EyeFeatures::merge(fa, fb);
-}
-
-/// The per-pixel stack of partial records while a pixel's samples are traced: push a leaf
-/// per sample, fill it, [`PixelTree::close_leaf`]; the stack then holds the blocks of
-/// [`dyadic_blocks`] for the samples pushed.
-pub struct PixelTree {
-    record: usize,
-    layer_floats: usize,
-    buf: Vec<f32>,
-    nodes: Vec<Range<u32>>,
-}
-
-impl PixelTree {
-    /// For records of `layers` layers.
-    pub fn new(layers: usize) -> Result<PixelTree> {
-        let record = layers * 3 + FEATURE_STRIDE;
-        Ok(PixelTree {
-            record,
-            layer_floats: layers * 3,
-            buf: crate::memory::try_zeroed(record * 8, "a pixel's sample tree")?,
-            nodes: Vec::with_capacity(64),
-        })
-    }
-
-    /// Empties the stack for the next pixel.
-    pub fn clear(&mut self) {
-        self.nodes.clear();
-    }
-
-    /// Starts the leaf of eye sample `sample` and returns its (zeroed) layer sums and
-    /// features for the integrator's sink.
-    pub fn push_leaf(&mut self, sample: u32) -> (&mut [f32], &mut [f32]) {
-        let k = self.nodes.len();
-        if self.buf.len() < (k + 1) * self.record {
-            self.buf.resize((k + 2) * self.record, 0.0);
-        }
-        self.nodes.push(sample..sample + 1);
-        let rec = &mut self.buf[k * self.record..(k + 1) * self.record];
-        let (layers, features) = rec.split_at_mut(self.layer_floats);
-        layers.fill(0.0);
-        features.copy_from_slice(&EyeFeatures::EMPTY);
-        (layers, features)
-    }
-
-    /// Ends the current leaf: merges it with its completed siblings up the tree.
-    pub fn close_leaf(&mut self) {
-        while self.nodes.len() >= 2 {
-            let k = self.nodes.len() - 1;
-            if !siblings(&self.nodes[k - 1], &self.nodes[k]) {
-                break;
-            }
-            let (head, tail) = self.buf.split_at_mut(k * self.record);
-            combine(
-                &mut head[(k - 1) * self.record..],
-                &tail[..self.record],
-                self.layer_floats,
-            );
-            let right = self.nodes.pop().expect("two nodes");
-            self.nodes[k - 1].end = right.end;
-        }
-    }
-
-    /// The blocks on the stack, in sample order.
-    pub fn blocks(&self) -> &[Range<u32>] {
-        &self.nodes
-    }
-
-    /// Record of block `k` of [`Self::blocks`].
-    pub fn record(&self, k: usize) -> &[f32] {
-        &self.buf[k * self.record..(k + 1) * self.record]
-    }
-
-    /// Folds the stack from the right into block 0 (`b₀ + (b₁ + (…))`): the tree's root when
-    /// the samples pushed are `[0, spp)`. Returns the record.
-    pub fn fold(&mut self) -> &[f32] {
-        for k in (1..self.nodes.len()).rev() {
-            let (head, tail) = self.buf.split_at_mut(k * self.record);
-            combine(
-                &mut head[(k - 1) * self.record..],
-                &tail[..self.record],
-                self.layer_floats,
-            );
-        }
-        if let Some(last) = self.nodes.last().map(|r| r.end) {
-            self.nodes.truncate(1);
-            self.nodes[0].end = last;
-        }
-        self.record(0)
-    }
 }
 
 #[cfg(test)]

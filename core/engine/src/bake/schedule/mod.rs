@@ -4,7 +4,8 @@
 //! - [`tiles`]: tiled, parallel, cancellable per-pixel work whose result does not depend on
 //!   the thread count.
 //! - [`trace`]: a range of eye samples of one tile, each pixel's samples summed in the
-//!   canonical order of [`blocks`].
+//!   canonical order of [`blocks`], each pixel's partial sums in a [`pixel_tree`] that
+//!   touches only the layers its samples reached.
 //! - The streaming schedule, for every bake: [`stream`] traces (or is handed) tile rows in
 //!   bands ([`band`]), keeps each tile as its sparse averages (`traced_tile`) and hands a
 //!   tile row to the finishing stage as soon as the rows its denoiser reads are traced, the
@@ -26,6 +27,7 @@ pub mod blocks;
 pub mod denoise_sparse;
 pub mod doubling;
 pub(crate) mod passes;
+pub mod pixel_tree;
 pub mod stream;
 pub(crate) mod summed_finish;
 pub mod tile_sums;

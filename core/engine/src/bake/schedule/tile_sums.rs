@@ -186,7 +186,9 @@ impl TileBlocks {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bake::schedule::blocks::{dyadic_blocks, PixelTree};
+    use crate::bake::schedule::blocks::dyadic_blocks;
+    use crate::bake::schedule::pixel_tree::PixelTree;
+    use crate::Rgb;
 
     /// Per-sample values whose sums round differently in every grouping.
     fn value(s: u32) -> f32 {
@@ -197,8 +199,7 @@ mod tests {
     fn tree_sum(from: u32, to: u32, fold: bool) -> (Vec<Range<u32>>, Vec<f32>) {
         let mut t = PixelTree::new(1).unwrap();
         for s in from..to {
-            let (layers, _) = t.push_leaf(s);
-            layers[0] = value(s);
+            t.push_leaf(s).add(0, Rgb::new(value(s), 0.0, 0.0));
             t.close_leaf();
         }
         if fold {

@@ -4,7 +4,7 @@
 //! root of each tile ([`super::traced_tile`]), a progressive bake and a farm's partitions
 //! keep the blocks sparse ([`super::tile_sums`]).
 
-use super::blocks;
+use super::pixel_tree::{Leaf, PixelTree};
 use super::tiles;
 use crate::bake::finish::denoise;
 use crate::bake::layout::DenseLayout;
@@ -17,20 +17,15 @@ use crate::{Result, Rgb};
 /// Accumulates one pixel of a tile densely: the tile buffer is pixel-major (all layers of
 /// a pixel together, so a path's writes stay in a few cache lines), then layer, then RGB.
 struct TileSink<'a> {
-    /// The layers of the current pixel.
-    buf: &'a mut [f32],
+    /// The current eye sample's leaf of the pixel's tree: its layers and eye-hit record.
+    leaf: Leaf<'a>,
     layout: DenseLayout,
-    /// The pixel's eye-hit record for the denoiser ([`denoise::EyeFeatures`]).
-    features: &'a mut [f32],
 }
 
 impl TileSink<'_> {
     #[inline]
     fn add(&mut self, layer: usize, v: Rgb) {
-        let i = layer * 3;
-        self.buf[i] += v.x;
-        self.buf[i + 1] += v.y;
-        self.buf[i + 2] += v.z;
+        self.leaf.add(layer, v);
     }
 }
 
@@ -49,7 +44,7 @@ impl PathSink for TileSink<'_> {
     }
     #[inline]
     fn eye_hit(&mut self, region: u32, normal: glam::Vec3, position: glam::Vec3) {
-        denoise::EyeFeatures::add(self.features, region, normal, position);
+        denoise::EyeFeatures::add(self.leaf.features, region, normal, position);
     }
     #[inline]
     fn tail_edits(&self) -> bool {
@@ -62,10 +57,10 @@ impl PathSink for TileSink<'_> {
 }
 
 /// Traces eye samples `samples` of every pixel of `tile` into per-pixel records (layer sums
-/// then features, [`blocks::combine`]'s layout), `blocks` of them per pixel (the
-/// [`blocks::dyadic_blocks`] of `samples`, or one when `fold`: the range is a whole bake
+/// then features, [`super::blocks::combine`]'s layout), `blocks` of them per pixel (the
+/// [`super::blocks::dyadic_blocks`] of `samples`, or one when `fold`: the range is a whole bake
 /// `[0, spp)` and its tree's root is all that is kept), block-major then pixel-major. Every
-/// pixel adds its samples in the canonical tree of [`blocks`], so any split of the samples
+/// pixel adds its samples in the canonical tree of [`super::blocks`], so any split of the samples
 /// gives the same bits. `None` when `progress` was cancelled midway.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn trace_tile_records(
@@ -84,7 +79,7 @@ pub(crate) fn trace_tile_records(
     let fs = denoise::FEATURE_STRIDE;
     let record = layer_count * 3 + fs;
     let mut buf: Vec<f32> = crate::memory::try_zeroed(blocks * tp * record, "a tile's layer sums")?;
-    let mut tree = blocks::PixelTree::new(layer_count)?;
+    let mut tree = PixelTree::new(layer_count)?;
     let mut tracer = CountingTracer::default();
     let mut discarded = 0u64;
     for ty in 0..tile.height {
@@ -95,11 +90,9 @@ pub(crate) fn trace_tile_records(
             let pixel = (ty * tile.width + tx) as usize;
             tree.clear();
             for s in samples.clone() {
-                let (layers, features) = tree.push_leaf(s);
                 let mut sink = TileSink {
-                    buf: layers,
+                    leaf: tree.push_leaf(s),
                     layout,
-                    features,
                 };
                 discarded += trace_eye_sample(
                     ctx,
@@ -118,7 +111,7 @@ pub(crate) fn trace_tile_records(
             debug_assert_eq!(tree.blocks().len(), blocks);
             for b in 0..blocks {
                 let dst = (b * tp + pixel) * record;
-                buf[dst..dst + record].copy_from_slice(tree.record(b));
+                tree.copy_record_into_zeros(b, &mut buf[dst..dst + record]);
             }
         }
     }
