@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Fuzzes Relume's three parsers with cargo fuzz (libFuzzer): the stack reader, the scene
 # file and the materials file. Usage: bash scripts/fuzz.sh [SECONDS_PER_TARGET] (default 60;
-# scripts/test.sh runs 20 s each; docs/reliability.md records the long runs).
+# scripts/test.sh runs 10 s each; docs/reliability.md records the long runs).
 # RELUME_FUZZ_PROFILE=dev builds the targets with fuzz/Cargo.toml's dev profile (parsers
 # unoptimised: a build minutes shorter, a few times fewer runs a second; the test command's
 # smoke run), else the release profile. RELUME_FUZZ_CLI names a relume binary already built

@@ -73,7 +73,7 @@ stage "cargo test (workspace)"
 cargo test --workspace --no-fail-fast 2>&1 || status=1
 # The smoke run: the seed stacks baked by the CLI `cargo test` just built, the targets in
 # the fuzz crate's dev profile (scripts/fuzz.sh).
-stage "fuzzing: stack reader, scene and materials parsers, 20 s each (scripts/fuzz.sh)"
-RELUME_FUZZ_CLI=target/debug/relume RELUME_FUZZ_PROFILE=dev bash scripts/fuzz.sh 20 || status=1
+stage "fuzzing: stack reader, scene and materials parsers, 10 s each (scripts/fuzz.sh)"
+RELUME_FUZZ_CLI=target/debug/relume RELUME_FUZZ_PROFILE=dev bash scripts/fuzz.sh 10 || status=1
 stage "done"
 exit $status
