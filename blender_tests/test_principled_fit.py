@@ -29,7 +29,7 @@ The same spheres made editable and baked in the basis of Principled lobes
 (`lobe="principled"`, core/engine/src/brdf/principled_basis), relit at their bake-time
 materials, are held to the same goal, the smoothest metal included: each region's bake-time
 lobe is a slot of its own there, evaluated as a fixed region's is, so what is left is the
-sampling (an editable region draws part of its directions across its roughness range).
+sampling.
 Every figure goes to `principled_fit.json` in pytest's basetemp.
 """
 
@@ -61,8 +61,6 @@ SPHERES = (
 )
 #: The issue's goals: metals within 5 % of Cycles' mean brightness, dielectrics within 3 %.
 GOAL = {"metal": 0.05, "dielectric": 0.03}
-#: The smoothest metal relit from the Principled basis: |mean over SEEDS − 1| measured 0.14
-#: in front and 0.25 to the side (2026-11-27, bpy 5.0.1), plus a margin.
 
 _RESULTS: dict[str, dict] = {}
 #: Where `results_file` (conftest.py) writes `_RESULTS`, in pytest's basetemp.
