@@ -28,5 +28,5 @@ $R compare "$T/default.exr" "$T/cpu.exr" --json
 $R compare "$T/raw.exr" "$T/default.exr" --json
 log "bake 1920×1080 (preview), relight + OIDN three times"
 $R bake $S -o "$T/h.exr" --preset preview --resolution 1920x1080 2>&1 | tail -1
-for _ in 1 2 3; do $R relight "$T/h.exr" --scene $S -o "$T/h.exr.oidn.exr" --device gpu --denoise oidn --json; echo; done
+for _ in 1 2 3; do $R relight "$T/h.exr" --scene $S -o "$T/h_oidn.exr" --device gpu --denoise oidn --json; echo; done
 rm -rf "$T"

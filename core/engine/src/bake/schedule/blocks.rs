@@ -15,8 +15,8 @@
 //!   of the contributions, which for HDR light is not bounded. Not provable: not used.
 //! - *A fixed binary tree over sample indices* (used here). Every pixel's per-sample values
 //!   (one [`leaf`](super::pixel_tree::PixelTree::push_leaf) per eye sample: that sample's
-//!   contributions summed in
-//!   the integrator's own order, the same on every machine) are combined pairwise in the
+//!   contributions summed in the integrator's own order, the same on every machine) are
+//!   combined pairwise in the
 //!   tree whose nodes are the aligned dyadic ranges `[k·2^j, (k+1)·2^j)`: a node's value is
 //!   `left + right`, its children's values. Above the last sample the tree has no nodes, so
 //!   for a bake of `spp` samples the root is the right fold `b₀ + (b₁ + (… + b_m))` of the
@@ -37,8 +37,8 @@
 //! The cost: a pixel keeps a stack of up to ≈ log2(spp) partial records while its samples
 //! are traced (one record per level, [`super::pixel_tree::PixelTree`]), and each sample
 //! adds, amortised, one record's worth of additions — of the layers its samples reached
-//! (the tree has one inner node per sample). A one-pass bake folds
-//! each pixel's tree in the tile and keeps no store ([`super::stream`]: the tree's root is
+//! (the tree has one inner node per sample). A one-pass bake folds each pixel's tree in
+//! the tile and keeps no store ([`super::stream`]: the tree's root is
 //! all it needs), a farm's partition writes each tile's blocks as they are traced and its
 //! merge sums one tile's blocks at a time. A progressive bake keeps each tile's blocks
 //! between its passes, sparse ([`super::tile_sums`]): popcount(samples so far) blocks per

@@ -90,7 +90,8 @@ impl PixelTree {
         self.nodes.clear();
     }
 
-    /// Zeroes the listed layers and bits of record `k`.
+    /// Zeroes the listed layers and bits of record `k`. A word of bits is cleared whole:
+    /// every bit set in it belongs to a listed layer, all of which are cleared here.
     fn clear_slot(&mut self, k: usize) {
         let values = &mut self.buf[k * self.record..k * self.record + self.layer_floats];
         let marks = &mut self.marks[k * self.words..(k + 1) * self.words];
@@ -141,7 +142,7 @@ impl PixelTree {
                 left[c] += right[c];
                 right[c] = 0.0;
             }
-            right_marks[layer as usize / 64] = 0;
+            right_marks[layer as usize / 64] = 0; // whole words: as in `clear_slot`
             mark(left_marks, left_touched, layer);
         }
         EyeFeatures::merge(&mut left[self.layer_floats..], &right[self.layer_floats..]);

@@ -14,8 +14,9 @@ use crate::bake::prepare::context::BakeContext;
 use crate::progress::Progress;
 use crate::{Result, Rgb};
 
-/// Accumulates one pixel of a tile densely: the tile buffer is pixel-major (all layers of
-/// a pixel together, so a path's writes stay in a few cache lines), then layer, then RGB.
+/// Accumulates one eye sample of a pixel into its leaf of the pixel's tree, by layer of
+/// the dense layout; the pixel's records are then copied into the tile buffer, which is
+/// pixel-major (all layers of a pixel together), then layer, then RGB.
 struct TileSink<'a> {
     /// The current eye sample's leaf of the pixel's tree: its layers and eye-hit record.
     leaf: Leaf<'a>,
