@@ -73,7 +73,7 @@ pub fn dyadic_blocks(from: u32, to: u32) -> Vec<Range<u32>> {
     out
 }
 
-/// One pixel's record: `layers × 3` sums, then the denoiser's [`FEATURE_STRIDE`] features.
+/// One pixel's record: `layers × 3` sums, then the denoiser's [`FEATURE_STRIDE`](crate::bake::finish::denoise::FEATURE_STRIDE) features.
 #[inline]
 pub fn combine(into: &mut [f32], from: &[f32], layer_floats: usize) {
     let (a, fa) = into.split_at_mut(layer_floats);
