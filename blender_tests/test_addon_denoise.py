@@ -1,6 +1,7 @@
 """The shown image in Blender: raw while a slider moves, through OpenImageDenoise (Blender's
 own copy, here the bpy wheel's `bpy/lib`) with the scene's albedo and normal features once
-the edits settle, and raw everywhere when the preference *Denoise Shown Image* is off.
+the edits settle, and raw everywhere when the preference *Denoise Shown Image* is off; then,
+with *Refine After Edits*, refined on the same worker until the next edit.
 
 Headless there is no event loop, so no timer fires: the tests call `show_settled` (the
 settled step done at once) and the worker-thread path's start and poll functions as the
@@ -92,9 +93,9 @@ def test_the_worker_threads_image_is_written_unless_an_edit_came_meanwhile(addon
     live, live_image = runtime.live, addon.live_image
     box_scene(resolution=32)
     addon.api.bake()
-    saved = prefs.denoise
+    saved = prefs.denoise, prefs.refine
     try:
-        prefs.denoise = True
+        prefs.denoise, prefs.refine = True, False
         _edit_floor(0.35)
         raw = _image()
         # Settled, OIDN on the worker thread; the poll (the timer's function) writes it.
@@ -113,4 +114,37 @@ def test_the_worker_threads_image_is_written_unless_an_edit_came_meanwhile(addon
         live_image._poll_settled()
         assert np.array_equal(_image(), raw)
     finally:
-        prefs.denoise = saved
+        prefs.denoise, prefs.refine = saved
+
+
+def test_the_worker_refines_the_settled_edit_until_the_next(addon, prefs, blend_dir):
+    runtime = addon.runtime.RUNTIME
+    live, live_image = runtime.live, addon.live_image
+    box_scene(resolution=32)
+    prefs.bounces = 3  # a tail to refine (the fixture's settings bake one bounce)
+    addon.api.bake()
+    saved = prefs.denoise, prefs.refine
+    try:
+        prefs.denoise, prefs.refine = False, True
+        _edit_floor(0.12)  # a roughness edit: what the tail-edit layers cannot follow
+        live_image.relight_now(force=True)
+        raw = _image()
+        runtime.settle.touch()
+        live_image._start_settled_worker()
+        runtime.settled_worker.join(timeout=120)
+        assert not runtime.settled_worker.is_alive()
+        assert live_image._poll_settled() is None
+        report = live.last_refine
+        assert report["needed"] and report["passes"] >= report["bake_samples"], report
+        assert live.refine_status() == f"Refined: {report['passes']} passes"
+        refined = _image()
+        assert np.isfinite(refined).all() and not np.array_equal(refined, raw)
+        # The shown image is the relit one plus the refinement of exactly these values.
+        again = live.relighter.relight(flip_y=True, refined=True)
+        assert np.array_equal(refined, again)
+        # An edit: the worker's refinement is not added to the next values' image.
+        _edit_floor(0.7)
+        live_image.relight_now(force=True)
+        assert np.array_equal(live.relighter.relight(flip_y=True, refined=True), _image())
+    finally:
+        prefs.denoise, prefs.refine = saved

@@ -24,6 +24,12 @@ recorded, with how far they miss, and held to the bound they were measured withi
 (`EDIT_BOUNDS`), so a regression fails. Teeth: every relit edit is closer to Cycles' edited
 render than the unedited relight is.
 
+Each edit is also rendered refined (`api.render(refine=REFINE_S)`: the bounces past the
+second traced again with the edited materials and the difference added, what the add-on does
+in the background once an edit settles) and held to the same goal, and to the relit edit's
+tile error plus `REFINE_MARGIN`: the refinement adds its own noise, and must not make an
+edit worse than that.
+
 Figures go to stdout (`pytest -s`) and `tail_edit_agreement.json` in pytest's basetemp.
 """
 
@@ -45,6 +51,10 @@ BLOCK = 8
 CYCLES_SPP = 256
 MEAN_SHIFT = 0.02
 TILE_MARGIN = 0.01
+#: Seconds of refinement per refined render (many passes at 64²), and how much worse on
+#: tiles than the relit edit a refined one may be (its own noise).
+REFINE_S = 2.0
+REFINE_MARGIN = 0.005
 
 WALL_EDITS = {
     "walls_to_0.9": (0.9, 0.9, 0.9),
@@ -86,11 +96,11 @@ def _set_roughness(mat, value: float) -> None:
     mat.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value = value
 
 
-def _relit(addon, folder: pathlib.Path, name: str) -> np.ndarray:
+def _relit(addon, folder: pathlib.Path, name: str, refine: float = 0.0) -> np.ndarray:
     import relume
 
     bpy.context.view_layer.update()
-    out = addon.api.render(str(folder / f"{name}_relume.exr"), denoise="none")
+    out = addon.api.render(str(folder / f"{name}_relume.exr"), denoise="none", refine=refine)
     return np.asarray(relume.read_exr(out), dtype=np.float64)[..., :3]
 
 
@@ -122,11 +132,17 @@ def _sweep(addon, prefs, folder: pathlib.Path, scene_name: str, edits: dict) -> 
     for name, (apply, undo) in states.items():
         apply()
         image = _relit(addon, folder, f"{scene_name}_{name}")
+        refined = _relit(addon, folder, f"{scene_name}_{name}_refined", refine=REFINE_S)
+        refine_report = addon.api.status()["refine"]
         c1, c2, cycles_s = cy.render_cycles_pair(scene, folder, f"{scene_name}_{name}", CYCLES_SPP,
                                                  bounces=None)
         undo()
         images[name] = (image, 0.5 * (c1 + c2))
-        figures["edits"][name] = {**_compare(image, c1, c2), "cycles_s": cycles_s}
+        r = _compare(refined, c1, c2)
+        figures["edits"][name] = {**_compare(image, c1, c2), "cycles_s": cycles_s,
+                                  "refined_tiles": r["tiles"], "refined_mean_ratio": r["mean_ratio"],
+                                  "refine_passes": refine_report["passes"],
+                                  "refine_needed": refine_report["needed"]}
     base = figures["edits"]["unedited"]
     for name, f in figures["edits"].items():
         if name == "unedited":
@@ -139,6 +155,9 @@ def _sweep(addon, prefs, folder: pathlib.Path, scene_name: str, edits: dict) -> 
         noise = float(np.hypot(f["cycles_tile_noise"], base["cycles_tile_noise"]))
         f["goal_met"] = bool(abs(f["mean_shift"]) <= MEAN_SHIFT
                              and f["tiles"] <= base["tiles"] + TILE_MARGIN + noise)
+        f["refined_mean_shift"] = f["refined_mean_ratio"] - base["mean_ratio"]
+        f["refined_goal_met"] = bool(abs(f["refined_mean_shift"]) <= MEAN_SHIFT
+                                     and f["refined_tiles"] <= base["tiles"] + TILE_MARGIN + noise)
     _RESULTS[scene_name] = figures
     for name, f in figures["edits"].items():
         print(f"[tail edits] {scene_name} {name}: " + ", ".join(
@@ -153,8 +172,13 @@ def _check(scene_name: str, figures: dict) -> None:
         key = (scene_name, name)
         # Teeth: the relit edit moved towards Cycles' edited render.
         assert f["tiles"] < f["unedited_relight_vs_edited_cycles"], (key, f)
+        # The refinement traced this edit (every one changes a material of a bake with a
+        # tail) and kept it at least as close to Cycles, up to its own noise.
+        assert f["refine_needed"] and f["refine_passes"] >= 1, (key, f)
+        assert f["refined_tiles"] <= f["tiles"] + REFINE_MARGIN, (key, f)
         if key in GOAL_ASSERTED:
             assert f["goal_met"], (key, f)
+            assert f["refined_goal_met"], (key, f)
         elif key in EDIT_BOUNDS:
             tiles, shift = EDIT_BOUNDS[key]
             assert f["tiles"] <= tiles and abs(f["mean_shift"]) <= shift, (key, f)

@@ -9,9 +9,13 @@ Each live relight shows the raw relit image; when the edits settle (`logic.settl
 for a short delay) and the preference *Denoise Shown Image* is on, the image is replaced by
 the same relight through OpenImageDenoise. OIDN takes up to seconds, so it runs on a worker
 thread (the relighter releases the GIL, and its raw relights do not wait for it) and a timer
-writes its image on Blender's thread unless an edit came meanwhile. Headless there is no
-event loop and so no timer: the live image stays raw, and scripts get the shown image from
-`api.render` (or call `show_settled`, the same step done at once).
+writes its image on Blender's thread unless an edit came meanwhile. Then, with the
+preference *Refine After Edits* on, the same worker refines the edit (the relighter's
+`refine`: bounces past the second traced again with the edited materials) about a second at a
+time and each refined image replaces the last, until the refinement has covered the bake's
+own samples; the next edit cancels it. Headless there is no event loop and so no timer: the
+live image stays raw, and scripts get the shown image from `api.render` (its `refine` seconds
+refine it first), or call `show_settled`, the same denoise step done at once.
 """
 
 from __future__ import annotations
@@ -29,6 +33,10 @@ from .runtime import RUNTIME
 from .ui.prefs import get_prefs
 
 IMAGE_NAME = "Relume"
+
+#: Seconds of refinement between two refined images: long enough for a pass at 512² on two
+#: cores, short enough that the image visibly improves.
+REFINE_STEP_S = 1.0
 
 
 def _bottom_first(pixels: np.ndarray) -> np.ndarray:
@@ -94,6 +102,11 @@ def denoise_mode(context=None) -> str:
     return "oidn" if get_prefs(context).denoise else "none"
 
 
+def refine_enabled(context=None) -> bool:
+    """Whether the preference asks for the background refinement after an edit."""
+    return bool(getattr(get_prefs(context), "refine", False))
+
+
 def set_oidn_dirs() -> None:
     """Point the relighter's OpenImageDenoise search at Blender's own copy."""
     RUNTIME.live.oidn_dirs = blender_lib_dirs(bpy.app.binary_path, getattr(bpy, "__file__", None))
@@ -125,50 +138,73 @@ def _settle_timer():
     if remaining > 0.0:
         return remaining + 1e-3
     RUNTIME.settle_timer_registered = False
-    if RUNTIME.settle.take() and denoise_mode() == "oidn":
+    if RUNTIME.settle.take() and (denoise_mode() == "oidn" or refine_enabled()):
         _start_settled_worker()
     return None
 
 
 def _start_settled_worker() -> None:
-    """OIDN on a worker thread; `_poll_settled` writes its image on Blender's thread."""
+    """OIDN, then the refinement, on a worker thread; `_poll_settled` writes each image it
+    posts on Blender's thread."""
     import relume
 
     generation, relighter = RUNTIME.settle.generation, RUNTIME.live.relighter
+    mode, refine = denoise_mode(), refine_enabled()
+    live = RUNTIME.live
+
+    def current() -> bool:
+        return generation == RUNTIME.settle.generation and relighter is live.relighter
+
+    def post(outcome, error=None) -> None:
+        RUNTIME.settled_result = (generation, relighter, outcome, error)
 
     def work():
         try:
-            RUNTIME.settled_result = (generation, relighter, RUNTIME.live.denoised(bottom_first=True), None)
+            if mode == "oidn":
+                post(live.denoised(bottom_first=True))
+            while refine and current():
+                report = live.refine(REFINE_STEP_S)
+                if report is None or not report["needed"] or not current():
+                    break
+                post(live.shown(bottom_first=True, denoise=mode, refined=True))
+                if report["passes"] >= report["bake_samples"]:
+                    break
         except relume.RelumeError as e:
-            RUNTIME.settled_result = (generation, relighter, None, f"{type(e).__name__}: {e}")
+            post(None, f"{type(e).__name__}: {e}")
 
     RUNTIME.settled_result = None
-    threading.Thread(target=work, name="relume-denoise", daemon=True).start()
+    RUNTIME.settled_worker = threading.Thread(target=work, name="relume-settled", daemon=True)
+    RUNTIME.settled_worker.start()
     bpy.app.timers.register(_poll_settled, first_interval=0.05)
 
 
 def _poll_settled():
     result = RUNTIME.settled_result
+    worker = RUNTIME.settled_worker
+    running = worker is not None and worker.is_alive()
     if result is None:
-        return 0.05
+        return 0.05 if running else None
     RUNTIME.settled_result = None
     generation, relighter, outcome, error = result
     # An edit since (a newer raw image is shown, a newer denoise is due) or another stack:
     # this image is out of date.
     if generation != RUNTIME.settle.generation or relighter is not RUNTIME.live.relighter:
-        return None
+        return 0.05 if running else None
     if error is not None:
         RUNTIME.live.relight_error = error
     elif outcome is not None:
         write_image(outcome.image, bottom_first=True)
     _redraw_image_editors()
-    return None
+    return 0.05 if running or RUNTIME.settled_result is not None else None
 
 
 def _schedule_settled() -> None:
-    """After a raw live relight: the denoised image once the edits settle (not headless:
-    no timers run there)."""
-    if bpy.app.background or denoise_mode() != "oidn":
+    """After a raw live relight: any refinement under way stops, and the denoised (and
+    refined) image follows once the edits settle (not headless: no timers run there)."""
+    relighter = RUNTIME.live.relighter
+    if relighter is not None:
+        relighter.cancel_refine()
+    if bpy.app.background or (denoise_mode() != "oidn" and not refine_enabled()):
         return
     RUNTIME.settle.touch()
     if not RUNTIME.settle_timer_registered:

@@ -23,8 +23,10 @@ class Runtime:
         #: When the live image is denoised (after the edits settle) and its timer.
         self.settle = Settle()
         self.settle_timer_registered = False
-        #: The denoise worker's (generation, relighter, outcome, error), polled by a timer.
+        #: The settled worker's latest (generation, relighter, outcome, error), polled by a
+        #: timer, and the worker (denoise, then refinement passes).
         self.settled_result = None
+        self.settled_worker = None
         #: The relit pixels in Blender's row order, reused by every write of a top-first
         #: image into the "Relume" image (`api.render`, `api.relight`; the live relight gets
         #: its rows in Blender's order from the relighter and needs no copy).

@@ -50,6 +50,8 @@ class LiveState:
         #: add-on; and the report of the last image shown (which denoiser ran, and why).
         self.oidn_dirs: list[str] = []
         self.last_denoise: dict | None = None
+        #: The report of the last `refine` (passes so far for the current edit).
+        self.last_refine: dict | None = None
 
     @property
     def ready(self) -> bool:
@@ -72,6 +74,7 @@ class LiveState:
     def unload(self) -> None:
         self.stack = None
         self.relighter = None
+        self.last_refine = None
         self.applied = {}
         self.applied_gains = {}
 
@@ -149,11 +152,13 @@ class LiveState:
 
     def relight(self, params: dict[str, RegionParams], force: bool = False,
                 gains: dict[str, tuple] | None = None,
-                bottom_first: bool = False, denoise: str = "none") -> RelightOutcome | None:
+                bottom_first: bool = False, denoise: str = "none",
+                refined: bool = False) -> RelightOutcome | None:
         """Apply `params` (and light group `gains`) and relight; None when nothing changed
         (and not forced). `bottom_first`: the image's rows in Blender's order, for the live
         image. `denoise`: "none" (the raw relit image) or "oidn" (the shown image, the
-        linear one when OIDN cannot run: `last_denoise` says which)."""
+        linear one when OIDN cannot run: `last_denoise` says which). `refined`: with what
+        `refine` traced for these very values added (nothing for other values)."""
         if not self.ready:
             return None
         changed = self.apply(params, force)
@@ -165,13 +170,47 @@ class LiveState:
         # incremental sum); asking it for Blender's row order makes that copy the flip, so
         # the live image is written from it directly, with no second frame-sized copy.
         image = self.relighter.relight(flip_y=bottom_first, denoise=denoise,
-                                       oidn_dirs=self.oidn_dirs)
+                                       oidn_dirs=self.oidn_dirs, refined=refined)
         self.last_relight_ms = (time.perf_counter() - t0) * 1e3
         self.last_denoise = self.relighter.last_denoise
         return RelightOutcome(image=image, changed=changed, relight_ms=self.last_relight_ms,
                               bottom_first=bottom_first, denoise=self.last_denoise)
 
-    def denoised(self, bottom_first: bool = False, quality: str = "balanced") -> RelightOutcome | None:
+    def refine(self, seconds: float, max_passes: int | None = None) -> dict | None:
+        """Refine the current edit for about `seconds` (the relighter's `refine`: what the
+        relight misses past the second bounce, traced with the edited materials and kept
+        for `refined` images); its report, or None without a usable stack."""
+        if not self.ready:
+            return None
+        self.last_refine = self.relighter.refine(seconds=seconds, max_passes=max_passes)
+        return self.last_refine
+
+    def refine_status(self) -> str | None:
+        """One line for the panel about the last refinement; None when there is none."""
+        r = self.last_refine
+        if not r or not r["needed"]:
+            return None
+        done = r["passes"] >= r["bake_samples"]
+        return (f"Refined: {r['passes']} passes" if done else
+                f"Refining: {r['passes']} of {r['bake_samples']} passes")
+
+    def shown(self, bottom_first: bool = False, denoise: str = "oidn",
+              refined: bool = False) -> RelightOutcome | None:
+        """The current image as shown (`denoise`: "oidn" at the live image's quality, or
+        "none"), with the refinement of these values added when `refined`; nothing
+        re-summed. None without a usable stack."""
+        if denoise == "oidn":
+            return self.denoised(bottom_first=bottom_first, refined=refined)
+        if not self.ready:
+            return None
+        t0 = time.perf_counter()
+        image = self.relighter.relight(flip_y=bottom_first, denoise="none", refined=refined)
+        self.last_denoise = self.relighter.last_denoise
+        return RelightOutcome(image=image, changed=[], relight_ms=(time.perf_counter() - t0) * 1e3,
+                              bottom_first=bottom_first, denoise=self.last_denoise)
+
+    def denoised(self, bottom_first: bool = False, quality: str = "balanced",
+                 refined: bool = False) -> RelightOutcome | None:
         """The current image through OpenImageDenoise, nothing re-summed (the edits are
         already in the relighter's image); None without a usable stack. `quality`: OIDN's
         "balanced" for the live image (its advice for interactive use, about a third of
@@ -180,7 +219,7 @@ class LiveState:
             return None
         t0 = time.perf_counter()
         image = self.relighter.relight(flip_y=bottom_first, denoise="oidn", oidn_dirs=self.oidn_dirs,
-                                       oidn_quality=quality)
+                                       oidn_quality=quality, refined=refined)
         self.last_denoise = self.relighter.last_denoise
         return RelightOutcome(image=image, changed=[], relight_ms=(time.perf_counter() - t0) * 1e3,
                               bottom_first=bottom_first, denoise=self.last_denoise)

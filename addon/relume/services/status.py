@@ -24,6 +24,7 @@ def status(context=None) -> dict:
         "last_latency_ms": live.last_latency_ms,
         # What the last image shown went through: {"asked", "ran", "note", "summary", …}.
         "denoise": live.last_denoise,
+        "refine": live.last_refine,
         "relight_error": live.relight_error,
         # Editable materials outside their baked roughness range (relit at the range's edge).
         "range_warnings": live.range_warnings,

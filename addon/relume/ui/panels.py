@@ -25,6 +25,9 @@ class RELUME_PT_image(bpy.types.Panel):
         layout.label(text=f"Device: {live.device_text}")
         if live.last_denoise is not None:
             layout.label(text=f"Shown: {live.last_denoise['summary']}"[:140])
+        refine_line = live.refine_status()
+        if refine_line is not None:
+            layout.label(text=refine_line)
         if live.relight_error:
             layout.label(text=live.relight_error[:140], icon="ERROR")
         for w in live.range_warnings:

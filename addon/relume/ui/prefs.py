@@ -87,6 +87,13 @@ class RelumePreferences(bpy.types.AddonPreferences):
         description="Show the relit image through OpenImageDenoise (Blender's own) with albedo "
                     "and normal features once an edit settles; while a slider moves, and with "
                     "this off, the raw relit image (the exact sum of the stack) is shown")
+    refine: BoolProperty(
+        name="Refine After Edits", default=True,
+        description="Once an edit settles, trace the bounces past the second again with the "
+                    "edited materials in the background and add what the relight misses there "
+                    "(roughness and mirror edits, several materials edited together), the image "
+                    "improving pass by pass; the next edit stops it. Stacks with one bounce "
+                    "need none")
     stack_folder: StringProperty(name="Stack Folder", subtype="DIR_PATH", default="",
                                  description="Where stacks are stored: empty = a 'relume' folder "
                                              "beside the .blend; '//' paths are relative to it")
@@ -110,6 +117,7 @@ class RelumePreferences(bpy.types.AddonPreferences):
         col.prop(self, "resolution_scale")
         col.prop(self, "device")
         col.prop(self, "denoise")
+        col.prop(self, "refine")
         col.prop(self, "material_lobes")
         col.prop(self, "light_groups")
         if self.light_groups != "none":

@@ -416,3 +416,79 @@ fn the_command_line_refuses_the_materials_python_refuses() {
         assert!(!out_path.exists());
     }
 }
+
+/// `relight --refine`: a three-bounce stack, walls made mirrors (an edit the tail-edit layers
+/// cannot follow): the refinement runs and says so; without the scene it is refused; and
+/// `compare --tiles` compares tile means.
+#[test]
+fn relight_refines_an_edit_of_a_multi_bounce_stack() {
+    let dir = scratch("refine");
+    let scene = root().join("assets/cornell.scene.json");
+    let stack = dir.join("c.exr");
+    json_of(&relume(&[
+        "bake",
+        s(&scene),
+        "-o",
+        s(&stack),
+        "--resolution",
+        "24x24",
+        "--spp",
+        "2",
+        "--bounces",
+        "3",
+        "--json",
+    ]));
+    let mats = dir.join("m.json");
+    std::fs::write(
+        &mats,
+        r#"{"format": "relume-materials", "version": 1, "regions": {"White walls": {"model": "blinn_phong", "kd": [0, 0, 0], "ks": [0.9, 0.9, 0.9], "ns": 150}}}"#,
+    )
+    .unwrap();
+    let relight = |out: &Path, refine: &str, scene_arg: bool| {
+        let mut args = vec![
+            "relight",
+            s(&stack),
+            "--materials",
+            s(&mats),
+            "-o",
+            s(out),
+            "--denoise",
+            "none",
+            "--refine",
+            refine,
+            "--json",
+        ];
+        if scene_arg {
+            args.extend(["--scene", s(&scene)]);
+        }
+        relume(&args)
+    };
+    let plain = dir.join("plain.exr");
+    let r = json_of(&relight(&plain, "0", true));
+    assert!(r["refine"].is_null(), "{r}");
+    let refined = dir.join("refined.exr");
+    let r = json_of(&relight(&refined, "0.2", true));
+    assert_eq!(r["refine"]["needed"], true, "{r}");
+    assert!(r["refine"]["passes"].as_u64().unwrap() >= 1, "{r}");
+    assert_eq!(r["refine"]["bake_samples"], 2, "{r}");
+    let cmp = json_of(&relume(&["compare", s(&refined), s(&plain), "--json"]));
+    assert!(
+        cmp["rel_l2"].as_f64().unwrap() > 0.0,
+        "the refinement changed nothing: {cmp}"
+    );
+    let tiles = json_of(&relume(&[
+        "compare",
+        s(&refined),
+        s(&plain),
+        "--tiles",
+        "4",
+        "--json",
+    ]));
+    assert_eq!(tiles["tiles"], 4);
+    assert_eq!(tiles["pixels"], 36, "{tiles}"); // 6 × 6 tiles of 4 × 4
+    assert!(tiles["mean_ratio"].as_f64().unwrap().is_finite());
+    let out = relight(&dir.join("no_scene.exr"), "1", false);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("needs --scene"), "{}", stderr(&out));
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -22,6 +22,8 @@
 //!   reference renderer.
 //! - [`stack`]: the transfer stack in memory and as one OpenEXR file.
 //! - [`relight`]: the CPU relight (the reference for the GPU one).
+//! - [`refine`]: after an edit settles, what the relight misses past the second path vertex,
+//!   traced in passes and added to the relit image.
 //! - [`materials`]: material edits (JSON) applied at relight time.
 //! - [`features`]: the surfaces each pixel sees (albedo, normal), for denoising the shown image.
 
@@ -44,6 +46,7 @@ pub mod memory;
 pub mod options;
 pub mod output_path;
 pub mod progress;
+pub mod refine;
 pub mod relight;
 pub mod scene;
 pub mod stack;

@@ -24,29 +24,8 @@ use relume_engine::stack::{bases::StackBases, Precision};
 
 const SIZE: u32 = 24;
 
-/// A closed sphere of radius 1 (one region, diffuse albedo `a`), a point light at its
-/// centre, the camera inside.
 fn closed_sphere(a: f32, editable: bool) -> Scene {
-    Scene {
-        meshes: vec![common::sphere("shell", [0.0; 3], 1.0, 48, 96, 0)],
-        regions: vec![common::region("Shell", editable, common::bp(a, 0.0, 1.0))],
-        lights: vec![Light::Point {
-            position: [0.0; 3],
-            power: 100.0,
-            color: [1.0; 3],
-            radius: 0.0,
-        }],
-        world: World::Color {
-            color: [0.0; 3],
-            strength: 1.0,
-        },
-        camera: common::look_at([0.0, -0.3, 0.1], [0.0, 1.0, -0.2], 30.0),
-        resolution: Resolution {
-            width: SIZE,
-            height: SIZE,
-        },
-        light_groups: Vec::new(),
-    }
+    common::closed_sphere(a, editable, SIZE)
 }
 
 fn settings(bounces: u32) -> BakeSettings {

@@ -12,6 +12,11 @@
 //! the search, the fallback to the linear image and the report) with the pixel features of
 //! the scene given to the constructor, traced at the first such call, the albedo from the
 //! current materials at every call.
+//!
+//! `refine()` traces, with the GIL released, what the relight misses past the second path
+//! vertex for the current edit (the core's `refine`), continuing the same edit's refinement
+//! across calls and starting anew after an edit; `relight(refined=True)` adds it;
+//! `cancel_refine()` stops a running `refine()` from another thread.
 
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
@@ -28,10 +33,13 @@ use relume_engine::brdf::{
 };
 use relume_engine::features::{albedo_of, PixelFeatures, FEATURE_SAMPLES_PER_AXIS};
 use relume_engine::materials::{LightGroupEdit, LiveMaterials};
+use relume_engine::progress::Progress;
+use relume_engine::refine::{Refinement, TailRefiner};
 use relume_engine::scene::{hash::scene_hash, Scene as EngineScene};
 use relume_engine::stack::bases::StackBases;
 use relume_engine::stack::tiled::TiledStack;
 use relume_engine::RelumeError;
+use relume_engine::Rgb;
 use relume_gpu::{DevicePreference, GpuError, Relighter as Engine};
 
 use crate::errors::{engine_err, new_err, IntoPy};
@@ -60,6 +68,18 @@ struct ShownState {
     features: Option<Result<PixelFeatures, String>>,
 }
 
+/// The refinement of the current edit: the scene prepared for tracing (at the first
+/// `refine()`), and the last edit's refinement with the materials and gains it is for.
+#[derive(Default)]
+struct RefineState {
+    refiner: Option<Arc<TailRefiner>>,
+    /// `None` while a `refine()` runs on it (taken out, so that a relight never waits for
+    /// a pass).
+    current: Option<(Vec<MaterialSpec>, Option<Vec<Rgb>>, Refinement)>,
+    /// The running `refine()`'s cancel flag.
+    progress: Arc<Progress>,
+}
+
 /// Relights one stack live.
 #[pyclass(module = "relume", frozen)]
 pub struct Relighter {
@@ -69,6 +89,7 @@ pub struct Relighter {
     scene: Option<EngineScene>,
     state: Mutex<State>,
     shown: Mutex<ShownState>,
+    refine: Mutex<RefineState>,
 }
 
 /// An edit the core refused: a value outside its rules is a `MaterialsError`.
@@ -119,9 +140,12 @@ impl Relighter {
         Ok(out)
     }
 
-    /// The relit image brought up to date (rows top first) and the materials it was relit
-    /// with, taken under one lock.
-    fn run_with_materials(&self) -> Result<(Vec<f32>, Vec<MaterialSpec>), GpuError> {
+    /// The relit image brought up to date (rows top first), the materials and the light
+    /// groups' gains it was relit with, taken under one lock.
+    #[allow(clippy::type_complexity)]
+    fn run_with_materials(
+        &self,
+    ) -> Result<(Vec<f32>, Vec<MaterialSpec>, Option<Vec<Rgb>>), GpuError> {
         let mut guard = self.lock();
         let st = &mut *guard;
         let t = Instant::now();
@@ -129,7 +153,81 @@ impl Relighter {
             .update(&self.stack.header, &self.bases, &mut st.engine)?;
         let image = st.engine.image().to_vec();
         st.last_ms = t.elapsed().as_secs_f64() * 1e3;
-        Ok((image, st.live.materials().to_vec()))
+        let gains = st.live.gains(&self.stack.header)?;
+        Ok((image, st.live.materials().to_vec(), gains))
+    }
+
+    fn refine_lock(&self) -> std::sync::MutexGuard<'_, RefineState> {
+        self.refine.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Adds the refinement of exactly these materials and gains to `image` (rows top
+    /// first); returns its passes (0: none there, or one of another edit).
+    fn add_refinement(
+        &self,
+        image: &mut [f32],
+        materials: &[MaterialSpec],
+        gains: &Option<Vec<Rgb>>,
+    ) -> Result<u32, RelumeError> {
+        let st = self.refine_lock();
+        match (&st.refiner, &st.current) {
+            (Some(refiner), Some((m, g, r)))
+                if m.as_slice() == materials && g == gains && r.is_needed() =>
+            {
+                refiner.add_to(r, image)?;
+                Ok(r.passes())
+            }
+            _ => Ok(0),
+        }
+    }
+
+    /// `refine()` without the GIL: continues the current edit's refinement (or starts
+    /// one) for `seconds` or `max_passes`.
+    fn refine_detached(
+        &self,
+        seconds: f64,
+        max_passes: u32,
+    ) -> Result<(bool, u32, u32, f64), RelumeError> {
+        let (materials, gains) = {
+            let st = self.lock();
+            (
+                st.live.materials().to_vec(),
+                st.live.gains(&self.stack.header)?,
+            )
+        };
+        let (refiner, current, progress) = {
+            let mut st = self.refine_lock();
+            let refiner = match &st.refiner {
+                Some(r) => r.clone(),
+                None => {
+                    let Some(scene) = &self.scene else {
+                        return Err(RelumeError::invalid(
+                            "refine",
+                            "the Relighter was made without the scene: refine() traces it",
+                        ));
+                    };
+                    let r = Arc::new(TailRefiner::for_stack(scene, &self.stack.header, 0)?);
+                    st.refiner = Some(r.clone());
+                    r
+                }
+            };
+            st.progress = Arc::new(Progress::new());
+            (refiner, st.current.take(), st.progress.clone())
+        };
+        let mut current = match current {
+            Some((m, g, r)) if m == materials && g == gains => r,
+            _ => refiner.start(&materials, gains.as_deref())?,
+        };
+        let t = Instant::now();
+        let result = refiner.refine_for(&mut current, seconds, max_passes, &progress);
+        let out = (
+            current.is_needed(),
+            current.passes(),
+            refiner.bake_samples(),
+            t.elapsed().as_secs_f64(),
+        );
+        self.refine_lock().current = Some((materials, gains, current));
+        result.map(|()| out)
     }
 
     /// The shown image of the relit `image` (rows top first, relit with `materials`) under
@@ -275,6 +373,7 @@ impl Relighter {
                 last_denoise: None,
             }),
             shown: Mutex::new(ShownState::default()),
+            refine: Mutex::new(RefineState::default()),
         })
     }
 
@@ -387,8 +486,10 @@ impl Relighter {
     /// searched in RELUME_OIDN_LIBRARY, `oidn_dirs` — by default the bpy wheel's lib folder
     /// when there is one — and the system; the linear image when none is found).
     /// `oidn_quality`: "high" (renders), "balanced" (OIDN's advice for interactive use,
-    /// faster) or "fast". `last_denoise` says which ran and why.
-    #[pyo3(signature = (flip_y = false, denoise = "none", oidn_dirs = None, oidn_quality = "high"))]
+    /// faster) or "fast". `last_denoise` says which ran and why. `refined`: with what
+    /// `refine()` traced for exactly the current materials and gains added before the
+    /// denoiser (nothing when it traced another edit or nothing yet).
+    #[pyo3(signature = (flip_y = false, denoise = "none", oidn_dirs = None, oidn_quality = "high", refined = false))]
     fn relight<'py>(
         &self,
         py: Python<'py>,
@@ -396,6 +497,7 @@ impl Relighter {
         denoise: &str,
         oidn_dirs: Option<Vec<PathBuf>>,
         oidn_quality: &str,
+        refined: bool,
     ) -> PyResult<Bound<'py, PyArray3<f32>>> {
         let mode: DenoiseMode = denoise
             .parse()
@@ -412,15 +514,23 @@ impl Relighter {
             self.stack.header.height as usize,
         );
         let out = guard_detached(py, "Relighter.relight", || -> Result<Vec<f32>, GpuError> {
-            if mode == DenoiseMode::None {
+            if mode == DenoiseMode::None && !refined {
                 let image = self.run(flip_y)?;
                 self.lock().last_denoise = Some(DenoiseReport::nothing(mode, mode, None));
                 return Ok(image);
             }
-            let (image, materials) = self.run_with_materials()?;
+            let (mut image, materials, gains) = self.run_with_materials()?;
+            if refined {
+                self.add_refinement(&mut image, &materials, &gains)?;
+            }
             // The core's last check on a relit image comes first (the shown image's input).
             relume_engine::relight::check_finite_image(&image, w as u32)?;
-            let shown = self.shown(image, &materials, mode, dirs, quality)?;
+            let shown = if mode == DenoiseMode::None {
+                self.lock().last_denoise = Some(DenoiseReport::nothing(mode, mode, None));
+                image
+            } else {
+                self.shown(image, &materials, mode, dirs, quality)?
+            };
             Ok(if flip_y { flip_rows(&shown, w) } else { shown })
         })?;
         let pixels = out.py_err(py)?;
@@ -435,6 +545,46 @@ impl Relighter {
             )
         })?;
         Ok(array.into_pyarray(py))
+    }
+
+    /// Refines the current edit for about `seconds` (whole passes, at least one; at most
+    /// `max_passes` in all for this edit): bounces past the second vertex traced again with
+    /// the edited materials, what the relight misses there summed for `relight(refined=True)`.
+    /// Continues the same edit's refinement across calls; an edit starts a new one. Needs
+    /// the scene given to the constructor (the first call prepares it for tracing:
+    /// seconds). Returns {"needed" (False: one bounce or the bake-time materials, nothing
+    /// to trace), "passes" (so far for this edit), "bake_samples" (the bake's samples per
+    /// pixel: after as many passes the refinement has covered the bake's own paths),
+    /// "seconds" (this call's)}. `cancel_refine()` from another thread stops it after
+    /// the pass under way, keeping the passes done.
+    #[pyo3(signature = (seconds = 1.0, max_passes = None))]
+    fn refine<'py>(
+        &self,
+        py: Python<'py>,
+        seconds: f64,
+        max_passes: Option<u32>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        if !(seconds.is_finite() && seconds >= 0.0) {
+            return Err(pyo3::exceptions::PyValueError::new_err(format!(
+                "seconds must be finite and >= 0, got {seconds}"
+            )));
+        }
+        let max_passes = max_passes.unwrap_or(u32::MAX);
+        let (needed, passes, bake_samples, took) = guard_detached(py, "Relighter.refine", || {
+            self.refine_detached(seconds, max_passes)
+        })?
+        .py_err(py)?;
+        let d = PyDict::new(py);
+        d.set_item("needed", needed)?;
+        d.set_item("passes", passes)?;
+        d.set_item("bake_samples", bake_samples)?;
+        d.set_item("seconds", took)?;
+        Ok(d)
+    }
+
+    /// Stops a `refine()` running on another thread after its current pass.
+    fn cancel_refine(&self) {
+        self.refine_lock().progress.cancel();
     }
 
     /// Wall time of the last relight() inside Rust, in milliseconds (sums and the copy out).

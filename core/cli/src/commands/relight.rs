@@ -98,6 +98,12 @@ pub struct Args {
     /// the stack's bake-time-denoised layers) or none (the relit image as summed).
     #[arg(long, value_enum, default_value = "oidn")]
     pub denoise: Denoise,
+    /// Seconds of refinement after the relight (needs --scene): bounces past the second
+    /// vertex traced again with the edited materials and the difference added (lobe-shape
+    /// edits, regions edited together; nothing to do for one-bounce stacks or the bake-time
+    /// materials). 0: the relit image as it is.
+    #[arg(long, default_value_t = 0.0)]
+    pub refine: f64,
     #[arg(long)]
     pub json: bool,
 }
@@ -153,6 +159,7 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
         eprintln!("warning: {w}");
     }
     let (width, height) = (stack.header.width, stack.header.height);
+    let header = (args.refine > 0.0).then(|| stack.header.clone());
     let mut relighter = Relighter::new(Arc::new(stack), args.device.preference())
         .map_err(|e| device_error(args.device, e))?;
     let t = Instant::now();
@@ -174,6 +181,20 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
     let first_image_seconds = start.elapsed().as_secs_f64();
     // An image with inf or NaN pixels is refused, not written as if it were right.
     relume_engine::relight::check_finite_image(&image, width)?;
+    let refine = match header {
+        Some(header) => Some(refine(
+            &mut image,
+            &header,
+            scene.as_ref(),
+            &materials,
+            gains.as_deref(),
+            args.refine,
+        )?),
+        None => None,
+    };
+    if let Some(r) = &refine {
+        eprintln!("{}", r.summary());
+    }
     let (shown, denoise) = shown_image(
         &image,
         (width, height),
@@ -201,6 +222,13 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
             "relight_ms": relight_ms,
             "first_image_seconds": first_image_seconds,
             "denoise": denoise_json(&denoise),
+            "refine": refine.as_ref().map(|r| json!({
+                "needed": r.needed,
+                "passes": r.passes,
+                "bake_samples": r.bake_samples,
+                "setup_seconds": r.setup_seconds,
+                "seconds": r.seconds,
+            })),
             "warnings": warnings,
         }));
     } else {
@@ -212,6 +240,73 @@ pub fn run(args: Args) -> Result<(), RelumeError> {
         );
     }
     Ok(())
+}
+
+/// What `--refine` did.
+struct RefineRun {
+    needed: bool,
+    passes: u32,
+    bake_samples: u32,
+    setup_seconds: f64,
+    seconds: f64,
+}
+
+impl RefineRun {
+    fn summary(&self) -> String {
+        if self.needed {
+            format!(
+                "refined: {} passes of the bake's {} samples per pixel in {:.1} s (set-up {:.1} s)",
+                self.passes, self.bake_samples, self.seconds, self.setup_seconds
+            )
+        } else {
+            "refined: nothing to refine (one bounce, or the bake-time materials)".into()
+        }
+    }
+}
+
+/// `--refine`: the tail of this edit traced for `seconds` and its correction added to `image`.
+fn refine(
+    image: &mut [f32],
+    header: &relume_engine::stack::StackHeader,
+    scene: Option<&relume_engine::scene::Scene>,
+    materials: &[relume_engine::brdf::MaterialSpec],
+    gains: Option<&[relume_engine::Rgb]>,
+    seconds: f64,
+) -> Result<RefineRun, RelumeError> {
+    let Some(scene) = scene else {
+        return Err(RelumeError::invalid(
+            "--refine",
+            "needs --scene: the refinement traces the scene",
+        ));
+    };
+    if !seconds.is_finite() {
+        return Err(RelumeError::invalid(
+            "--refine",
+            format!("{seconds} seconds"),
+        ));
+    }
+    let t = Instant::now();
+    let refiner = relume_engine::refine::TailRefiner::for_stack(scene, header, 0)?;
+    let mut r = refiner.start(materials, gains)?;
+    let setup_seconds = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    if r.is_needed() {
+        refiner.refine_for(
+            &mut r,
+            seconds,
+            u32::MAX,
+            &relume_engine::progress::Progress::new(),
+        )?;
+        refiner.add_to(&r, image)?;
+        relume_engine::relight::check_finite_image(image, header.width)?;
+    }
+    Ok(RefineRun {
+        needed: r.is_needed(),
+        passes: r.passes(),
+        bake_samples: refiner.bake_samples(),
+        setup_seconds,
+        seconds: t.elapsed().as_secs_f64(),
+    })
 }
 
 /// The image written: the relit one under `mode`, with the scene's pixel features (traced

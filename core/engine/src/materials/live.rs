@@ -133,11 +133,7 @@ impl LiveMaterials {
         bases: &StackBases,
         relighter: &mut R,
     ) -> std::result::Result<(), R::Error> {
-        let gains = if self.light_groups.is_empty() {
-            None
-        } else {
-            resolve_light_gains(header, &self.file_with(self.light_groups.clone()))?
-        };
+        let gains = self.gains(header)?;
         if !self.has_image {
             let coefs = self
                 .materials
@@ -164,6 +160,15 @@ impl LiveMaterials {
         self.dirty.iter_mut().for_each(|d| *d = false);
         self.gains_dirty = false;
         Ok(())
+    }
+
+    /// The light groups' gains as the relight takes them; `None` when no group was edited.
+    pub fn gains(&self, header: &StackHeader) -> Result<Option<Vec<Rgb>>> {
+        if self.light_groups.is_empty() {
+            Ok(None)
+        } else {
+            resolve_light_gains(header, &self.file_with(self.light_groups.clone()))
+        }
     }
 
     fn file_with(&self, light_groups: BTreeMap<String, LightGroupEdit>) -> MaterialsFile {

@@ -138,6 +138,32 @@ pub fn look_at(eye: [f32; 3], target: [f32; 3], lens_mm: f32) -> Camera {
     }
 }
 
+/// A closed sphere of radius 1 (one region, diffuse albedo `a`), a point light at its
+/// centre, the camera inside: every bounce after the first is uniform, bounce k brings aᵏ
+/// times the direct light.
+pub fn closed_sphere(a: f32, editable: bool, size: u32) -> Scene {
+    Scene {
+        meshes: vec![sphere("shell", [0.0; 3], 1.0, 48, 96, 0)],
+        regions: vec![region("Shell", editable, bp(a, 0.0, 1.0))],
+        lights: vec![Light::Point {
+            position: [0.0; 3],
+            power: 100.0,
+            color: [1.0; 3],
+            radius: 0.0,
+        }],
+        world: World::Color {
+            color: [0.0; 3],
+            strength: 1.0,
+        },
+        camera: look_at([0.0, -0.3, 0.1], [0.0, 1.0, -0.2], 30.0),
+        resolution: Resolution {
+            width: size,
+            height: size,
+        },
+        light_groups: Vec::new(),
+    }
+}
+
 /// A Cornell-like box, open towards −Y, with an area light under the ceiling: regions
 /// 0 "White walls" (editable), 1 "Object" (editable sphere), 2 "Red" and 3 "Green" (fixed).
 pub fn cornell(size: u32) -> Scene {

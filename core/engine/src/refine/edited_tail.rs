@@ -1,0 +1,94 @@
+//! The vertex BRDF of a refinement's second trace: the first two vertices exactly as the
+//! bake evaluates them (every basis value, so the relight's weights apply), the tail with
+//! the edited materials.
+
+use glam::{Vec2, Vec3};
+
+use crate::bake::path::frozen::frozen_value;
+use crate::bake::path::integrator::VertexBrdf;
+use crate::bake::path::surface_brdf::SurfaceBrdf;
+use crate::bake::path::vertex_brdf::BasisBrdf;
+use crate::bake::prepare::context::{BakeContext, RegionModel};
+use crate::brdf::MaterialSpec;
+use crate::options::MAX_BASES;
+use crate::{RelumeError, Result, Rgb};
+
+/// [`BasisBrdf`] at the keyed vertices; beyond them each editable region has its edited
+/// material, built as the bake builds a region's bake-time one
+/// ([`crate::bake::prepare::context::PreparedRegion::frozen`]): exactly (Cycles'
+/// Principled) where the region's basis holds its bake-time lobe, its Blinn–Phong mapping
+/// where the basis is Blinn–Phong. At the bake-time materials its tail is the bake's.
+pub struct EditedTailBrdf<'a> {
+    basis: BasisBrdf<'a>,
+    /// Per editable region (editable order), its edited surface.
+    edited: Vec<SurfaceBrdf>,
+}
+
+impl<'a> EditedTailBrdf<'a> {
+    /// `materials`: one per editable region of `ctx`, in editable order.
+    pub fn new(ctx: &'a BakeContext, materials: &[MaterialSpec]) -> Result<Self> {
+        let mut edited = Vec::with_capacity(materials.len());
+        for r in &ctx.regions {
+            if let RegionModel::Editable { index, basis } = &r.model {
+                let Some(m) = materials.get(*index as usize) else {
+                    return Err(RelumeError::Materials(format!(
+                        "{} materials given for {} editable regions",
+                        materials.len(),
+                        ctx.editable_count()
+                    )));
+                };
+                edited.push(if basis.bake_lobe_slot().is_some() {
+                    SurfaceBrdf::exact(m)
+                } else {
+                    SurfaceBrdf::BlinnPhong(m.to_blinn_phong())
+                });
+            }
+        }
+        if edited.len() != materials.len() {
+            return Err(RelumeError::Materials(format!(
+                "{} materials given for {} editable regions",
+                materials.len(),
+                edited.len()
+            )));
+        }
+        Ok(EditedTailBrdf {
+            basis: BasisBrdf { ctx },
+            edited,
+        })
+    }
+}
+
+impl VertexBrdf for EditedTailBrdf<'_> {
+    fn subsurface(&self) -> bool {
+        self.basis.subsurface()
+    }
+
+    #[inline]
+    fn tail(&self, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3) -> Rgb {
+        let ctx = self.basis.ctx;
+        let r = &ctx.regions[region as usize];
+        match &r.model {
+            RegionModel::Editable { index, .. } => {
+                let albedo = match &r.texture {
+                    Some(t) => t.lookup(uv.x, uv.y),
+                    None => Rgb::ONE,
+                };
+                self.edited[*index as usize].value(albedo, n, wi, wo)
+            }
+            RegionModel::Fixed { .. } => frozen_value(ctx, region, uv, n, wi, wo),
+        }
+    }
+
+    #[inline]
+    fn eval(
+        &self,
+        region: u32,
+        uv: Vec2,
+        n: Vec3,
+        wi: Vec3,
+        wo: Vec3,
+        out: &mut [Rgb; MAX_BASES],
+    ) -> (u32, usize) {
+        self.basis.eval(region, uv, n, wi, wo, out)
+    }
+}
