@@ -28,9 +28,10 @@ editable materials ticked as `EDITABLE` says), on this machine, in one run:
    which Relume has paid for its bake (each Cycles render to that error against each denoised
    relight).
 5. **Ten edits** (`SWEEPS`, not `--no-sweep`), from the default preset's bake: each edit's
-   shown image and exact relit image against Cycles + OIDN at `--sweep-spp` with the same
-   values; the tolerance is the unedited shown image's error against its own Cycles + OIDN
-   render plus one point. A denoiser artefact that moves with the edit shows as an edit whose
+   shown image and exact relit image (and, with `--refine S`, the shown image after S seconds
+   of refinement) against Cycles + OIDN at `--sweep-spp` with the same values; the
+   tolerance is the unedited shown image's error against its own Cycles + OIDN render plus
+   one point. A denoiser artefact that moves with the edit shows as an edit whose
    shown image is further from Cycles than its relit image is.
 
 Errors are relative L2 over 8×8-pixel tile means against the reference, with the
@@ -331,18 +332,24 @@ def bench_scene(addon, prefs, scene_dir: pathlib.Path, name: str, args, folder: 
               f"(relit {relit['corrected']:.4f}), Cycles + OIDN {cycles['seconds']:.2f} s "
               f"({cycles['bound']}), ratio {row['first_image_over_cycles_oidn']:.2f}", file=sys.stderr)
         if preset == args.sweep_preset and not args.no_sweep and name in SWEEPS:
-            out["sweep"] = sweep(addon, scene, name, folder, args.sweep_spp)
+            out["sweep"] = sweep(addon, scene, name, folder, args.sweep_spp, args.refine)
         addon.runtime.RUNTIME.live.unload()
     out["relume"] = presets
     return out
 
 
-def sweep(addon, scene, name: str, folder: pathlib.Path, spp: int) -> dict:
-    """The ten edits against Cycles + OIDN at `spp` with the same values (seed 3)."""
+def sweep(addon, scene, name: str, folder: pathlib.Path, spp: int, refine: float = 0.0) -> dict:
+    """The ten edits against Cycles + OIDN at `spp` with the same values (seed 3); with
+    `refine` > 0 also the shown image after that many seconds of refinement."""
     rows = {}
     for tag, changes in {"unedited": [], **SWEEPS[name]}.items():
         undo = _set(changes)
         images = _relume_images(addon, folder, f"sweep_{tag}")
+        refined = None
+        if refine > 0.0:
+            refined = _read(addon.api.render(str(folder / f"sweep_{tag}_refined.exr"), denoise="oidn",
+                                             refine=refine))
+            refine_report = dict(addon.api.status()["refine"] or {})
         target, seconds = cycles_denoised(scene, folder / f"sweep_{tag}_cycles.exr", spp)
         _set(undo)
         for kind in ("shown", "relit"):
@@ -353,8 +360,15 @@ def sweep(addon, scene, name: str, folder: pathlib.Path, spp: int) -> dict:
             "mean_ratio": float(images["shown"].sum() / target.sum()),
             "cycles_s": seconds,
         }
+        if refined is not None:
+            refined = cy.at_size_of(refined, target.shape)
+            rows[tag]["refined"] = cy.rel_l2(_tiles(refined), _tiles(target))
+            rows[tag]["refined_mean_ratio"] = float(refined.sum() / target.sum())
+            rows[tag]["refine_passes"] = refine_report.get("passes")
         print(f"[trade] {name} sweep {tag}: shown {rows[tag]['shown']:.4f}, relit "
-              f"{rows[tag]['relit']:.4f}, mean {rows[tag]['mean_ratio']:.4f}", file=sys.stderr)
+              f"{rows[tag]['relit']:.4f}, mean {rows[tag]['mean_ratio']:.4f}"
+              + (f", refined {rows[tag]['refined']:.4f} (mean {rows[tag]['refined_mean_ratio']:.4f}, "
+                 f"{rows[tag]['refine_passes']} passes)" if refined is not None else ""), file=sys.stderr)
     tolerance = rows["unedited"]["shown"] + 0.01
     for row in rows.values():
         row["within_tolerance"] = bool(row["shown"] <= tolerance)
@@ -437,6 +451,8 @@ def main() -> int:
     ap.add_argument("--sweep-spp", type=int, default=128)
     ap.add_argument("--sweep-preset", default="preview")
     ap.add_argument("--no-sweep", action="store_true")
+    ap.add_argument("--refine", type=float, default=0.0,
+                    help="seconds of refinement for a third image of each edit (api.render(refine=…))")
     ap.add_argument("--out", default=str(ROOT / "out" / "trade"))
     ap.add_argument("--reuse-cycles", type=pathlib.Path, default=None,
                     help="an earlier run's OUT: its reference and Cycles + OIDN ladder, not re-rendered")

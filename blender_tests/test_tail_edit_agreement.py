@@ -40,6 +40,7 @@ import time
 
 import bpy
 import numpy as np
+import pytest
 from support import cycles as cy
 from support.rooms import window_room
 from support.scene_import import import_scene
@@ -61,18 +62,22 @@ WALL_EDITS = {
     "walls_to_0.05": (0.05, 0.05, 0.05),
     "walls_to_rust": (0.7, 0.25, 0.1),
 }
-#: Edits the goal is asserted for (scene, edit): measured to meet it (bpy 5.0.1, 2026-11-29).
+#: Edits the goal is asserted for (scene, edit): measured to meet it (bpy 5.0.1, 2026-11-29;
+#: the third-party glossy box 2026-11-30).
 GOAL_ASSERTED: set[tuple[str, str]] = {
     ("cornell", "walls_to_0.9"), ("cornell", "walls_to_0.05"), ("cornell", "walls_to_rust"),
     ("cornell", "floor_roughness_0.5_to_0.2"),
     ("window_room", "walls_to_0.9"), ("window_room", "walls_to_0.05"),
     ("window_room", "walls_to_rust"),
+    ("cornell_glossy", "walls_to_0.9"), ("cornell_glossy", "walls_to_0.05"),
+    ("cornell_glossy", "walls_to_rust"), ("cornell_glossy", "floor_roughness_doubled"),
 }
-#: The others, held to (tile error, |mean shift|) a little above what they measured, so a
-#: regression fails. The window room's floor roughness 0.5 → 0.2 turns the sunlit patch
-#: into a sharp reflection of a 1° sun (Cycles' image changes by 77 % on tiles): 5.5 % and
-#: a mean 3.2 % high, the same with one bounce, so the preview basis' limit at the first two
-#: vertices, not the tail's.
+#: The others, held to (tile error, |mean shift|) above what they measured, so a regression
+#: fails. The window room's floor roughness 0.5 → 0.2 turns the sunlit patch into a sharp
+#: reflection of a 1° sun (Cycles' image changes by 77 % on tiles): 5.5 % and a mean 3.2 %
+#: high with the preview basis' least-squares edits, 2.0 % and 1.4 % low with the edit fit
+#: that holds a lobe's energy (2026-11-30), within the goal but by a thin margin; the
+#: refinement leaves it where it is (the first two vertices' share, not the tail's).
 EDIT_BOUNDS: dict[tuple[str, str], tuple[float, float]] = {
     ("window_room", "floor_roughness_0.5_to_0.2"): (0.07, 0.045),
 }
@@ -219,3 +224,32 @@ def test_window_room_walls_and_floor_edited_after_one_bake(addon, prefs, blend_d
                                             lambda: _set_roughness(floor, 0.5))
     figures = _sweep(addon, prefs, blend_dir, "window_room", edits)
     _check("window_room", figures)
+
+
+def test_third_party_glossy_box_edited_after_one_bake(addon, prefs, tmp_path, results_file):
+    """McGuire's glossy Cornell box from the shared third-party scenes (skipped with a message
+    when the folder is absent): its back wall and its glossy floor ticked Editable, the back
+    wall recoloured and the floor's roughness doubled (0.2 in the file → 0.4)."""
+    path = ROOT.parent / "shared" / "scenes" / "cornell_glossy.blend"
+    if not path.exists():
+        pytest.skip(f"{path} is absent: the third-party scenes live in ../shared/scenes/ beside the "
+                    "repository (not part of it)")
+    bpy.ops.wm.open_mainfile(filepath=str(path))
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "cornell_glossy.blend"))  # stacks go here
+    scene = bpy.context.scene
+    aspect = scene.render.resolution_y / scene.render.resolution_x
+    scene.render.resolution_x = RES
+    scene.render.resolution_y = max(BLOCK, int(round(RES * aspect / BLOCK)) * BLOCK)
+    scene.render.resolution_percentage = 100
+    for mat in bpy.data.materials:
+        mat.relume.editable = mat.name in ("backWall", "floor")
+    wall, floor = bpy.data.materials["backWall"], bpy.data.materials["floor"]
+    colour = tuple(_colour_input(wall).default_value)[:3]
+    roughness = floor.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value
+    edits = {name: (lambda rgb=rgb: _set_colour(wall, rgb), lambda: _set_colour(wall, colour))
+             for name, rgb in WALL_EDITS.items()}
+    edits["floor_roughness_doubled"] = (lambda: _set_roughness(floor, 2.0 * roughness),
+                                         lambda: _set_roughness(floor, roughness))
+    figures = _sweep(addon, prefs, tmp_path, "cornell_glossy", edits)
+    figures["floor_roughness_baked"] = roughness
+    _check("cornell_glossy", figures)

@@ -4,7 +4,7 @@
 
 use glam::{Vec2, Vec3};
 
-use crate::bake::path::frozen::frozen_value;
+use crate::bake::path::frozen::{albedo_at, frozen_value};
 use crate::bake::path::integrator::VertexBrdf;
 use crate::bake::path::surface_brdf::SurfaceBrdf;
 use crate::bake::path::vertex_brdf::BasisBrdf;
@@ -69,11 +69,7 @@ impl VertexBrdf for EditedTailBrdf<'_> {
         let r = &ctx.regions[region as usize];
         match &r.model {
             RegionModel::Editable { index, .. } => {
-                let albedo = match &r.texture {
-                    Some(t) => t.lookup(uv.x, uv.y),
-                    None => Rgb::ONE,
-                };
-                self.edited[*index as usize].value(albedo, n, wi, wo)
+                self.edited[*index as usize].value(albedo_at(r, uv), n, wi, wo)
             }
             RegionModel::Fixed { .. } => frozen_value(ctx, region, uv, n, wi, wo),
         }

@@ -18,7 +18,7 @@
 //! Their difference is zero wherever the stack's model of the tail is exact, so it adds
 //! little noise where the relight is already right, and its mean over passes converges to
 //! what the relight is missing: the image with the edited tail, the first two vertices
-//! relit as the stack relights them ([`refiner`]). Pass `k` traces the bake's own eye sample
+//! relit as the stack relights them. Pass `k` traces the bake's own eye sample
 //! `k` of every pixel, so after as many passes as the bake had samples per pixel the
 //! refined image is the one the bake would have made along its own paths with the edited
 //! tail. The next edit starts a new refinement.
@@ -32,9 +32,17 @@
 //! makes a noisy difference, and the tail is indirect light. That filter is a bias where the
 //! tail's light changes faster than the geometry, as it is in the bake; a stack baked
 //! without it gets the raw mean, the exact one along the bake's paths.
+//!
+//! Files: [`refiner`] prepares the scene for one stack and starts a [`Refinement`] per edit;
+//! [`passes`] traces them; [`correction`] turns the sums into the image added to the relit
+//! one.
 
+pub mod correction;
 pub mod edited_tail;
+pub mod passes;
+pub mod refinement;
 pub mod refiner;
 pub mod weighted_sink;
 
-pub use refiner::{Refinement, TailRefiner};
+pub use refinement::Refinement;
+pub use refiner::TailRefiner;

@@ -1,25 +1,17 @@
-//! The refinement of one edit: passes of eye samples traced twice, their difference summed
-//! per pixel (the module docs of [`super`] say why that difference is what the relight
-//! misses past the second vertex).
-
-use std::sync::Mutex;
-use std::time::Instant;
+//! What refines the edits of one stack: the scene prepared for tracing as the bake traced
+//! it, checked against the stack's header, and a new refinement per edit.
 
 use super::edited_tail::EditedTailBrdf;
-use super::weighted_sink::{dense_weights, WeightedSink};
+use super::refinement::Refinement;
+use super::weighted_sink::dense_weights;
 use crate::bake::finish::denoise::{EyeFeatures, FEATURE_STRIDE};
 use crate::bake::finish::describe::stack_header;
-use crate::bake::finish::drop::RawLayer;
-use crate::bake::path::integrator::{trace_eye_sample, CountingTracer};
-use crate::bake::path::vertex_brdf::BasisBrdf;
 use crate::bake::prepare::context::BakeContext;
-use crate::bake::schedule::tiles::{run_tiles, tiles};
 use crate::bake::settings::BakeSettings;
 use crate::brdf::MaterialSpec;
 use crate::geometry::lights::LightSet;
-use crate::layer_key::LayerKey;
+use crate::memory::{try_with_capacity, try_zeroed};
 use crate::options::{IndirectSampling, LightGrouping};
-use crate::progress::Progress;
 use crate::relight::part_scales::PartScales;
 use crate::scene::hash::scene_hash;
 use crate::scene::{Resolution, Scene};
@@ -31,26 +23,10 @@ use crate::{RelumeError, Result, Rgb};
 /// tail-edit layers, its bounces), built once per stack, and the stack's bases, which turn
 /// an edit's materials into layer weights as the relight does.
 pub struct TailRefiner {
-    ctx: BakeContext,
-    header: StackHeader,
+    pub(super) ctx: BakeContext,
+    pub(super) header: StackHeader,
     bases: StackBases,
     part_scales: PartScales,
-}
-
-/// One edit's refinement: its layer weights and materials, and the per-pixel sum of the
-/// passes traced so far.
-pub struct Refinement {
-    weights: Vec<Rgb>,
-    materials: Vec<MaterialSpec>,
-    /// Whether anything is missing: a tail (two bounces or more) and an edited material.
-    needed: bool,
-    sum: Vec<Rgb>,
-    /// Per pixel, the eye hits of the passes ([`FEATURE_STRIDE`] floats: what the bake's
-    /// linear denoiser weighs by).
-    features: Vec<f32>,
-    passes: u32,
-    width: u32,
-    height: u32,
 }
 
 impl TailRefiner {
@@ -199,118 +175,23 @@ impl TailRefiner {
             .collect();
         let edited = materials.iter().zip(&bake_time).any(|(m, b)| m != *b);
         let res = self.ctx.resolution;
+        let pixels = (res.width * res.height) as usize;
+        let mut features = try_with_capacity(pixels * FEATURE_STRIDE, "the refinement's eye hits")?;
+        for _ in 0..pixels {
+            features.extend_from_slice(&EyeFeatures::EMPTY);
+        }
         // Checks the materials against the regions once, here.
         EditedTailBrdf::new(&self.ctx, materials)?;
         Ok(Refinement {
             weights,
             materials: materials.to_vec(),
             needed: edited && self.ctx.settings.bounces >= 2,
-            sum: vec![Rgb::ZERO; (res.width * res.height) as usize],
-            features: EyeFeatures::EMPTY
-                .iter()
-                .copied()
-                .cycle()
-                .take((res.width * res.height) as usize * FEATURE_STRIDE)
-                .collect(),
+            sum: try_zeroed(pixels, "the refinement's sums")?,
+            features,
             passes: 0,
             width: res.width,
             height: res.height,
         })
-    }
-
-    /// Traces one pass (eye sample number `refinement.passes()` of every pixel) and adds it
-    /// to `refinement`. A cancelled pass adds nothing and returns
-    /// [`RelumeError::Cancelled`]; the passes before it stay.
-    pub fn pass(&self, refinement: &mut Refinement, progress: &Progress) -> Result<()> {
-        if !refinement.needed {
-            return Ok(());
-        }
-        let ctx = &self.ctx;
-        let res = ctx.resolution;
-        let width = res.width as usize;
-        let model = BasisBrdf { ctx };
-        let edited = EditedTailBrdf::new(ctx, &refinement.materials)?;
-        let weights = &refinement.weights;
-        let sample = refinement.passes;
-        let image = Mutex::new(vec![Rgb::ZERO; refinement.sum.len()]);
-        let eye_hits = Mutex::new(vec![None; refinement.sum.len()]);
-        progress.start(tiles(res).len() as u64);
-        run_tiles(res, ctx.settings.threads, progress, 1, |tile| {
-            let mut tracer = CountingTracer::default();
-            let mut out = vec![Rgb::ZERO; tile.pixels()];
-            let mut eyes = vec![None; tile.pixels()];
-            for ty in 0..tile.height {
-                if progress.is_cancelled() {
-                    return false;
-                }
-                for tx in 0..tile.width {
-                    let (x, y) = (tile.x0 + tx, tile.y0 + ty);
-                    let mut bake = WeightedSink::new(ctx, weights, true);
-                    trace_eye_sample(ctx, &model, &mut bake, &mut tracer, x, y, sample);
-                    let mut truth = WeightedSink::new(ctx, weights, false);
-                    trace_eye_sample(ctx, &edited, &mut truth, &mut tracer, x, y, sample);
-                    let d = truth.sum - bake.sum;
-                    let i = (ty * tile.width + tx) as usize;
-                    // Each trace keeps only finite light; their difference can still
-                    // overflow, and a refinement must never spoil the relit image.
-                    out[i] = if d.is_finite() { d } else { Rgb::ZERO };
-                    eyes[i] = bake.eye;
-                }
-            }
-            let mut img = image.lock().unwrap_or_else(|e| e.into_inner());
-            for ty in 0..tile.height as usize {
-                let row = (tile.y0 as usize + ty) * width + tile.x0 as usize;
-                let w = tile.width as usize;
-                img[row..row + w].copy_from_slice(&out[ty * w..(ty + 1) * w]);
-            }
-            drop(img);
-            let mut hits = eye_hits.lock().unwrap_or_else(|e| e.into_inner());
-            for ty in 0..tile.height as usize {
-                let row = (tile.y0 as usize + ty) * width + tile.x0 as usize;
-                let w = tile.width as usize;
-                hits[row..row + w].copy_from_slice(&eyes[ty * w..(ty + 1) * w]);
-            }
-            true
-        })?;
-        let image = image.into_inner().unwrap_or_else(|e| e.into_inner());
-        for (s, d) in refinement.sum.iter_mut().zip(image) {
-            *s += d;
-        }
-        let hits = eye_hits.into_inner().unwrap_or_else(|e| e.into_inner());
-        for (rec, hit) in refinement
-            .features
-            .chunks_exact_mut(FEATURE_STRIDE)
-            .zip(hits)
-        {
-            if let Some((r, n, x)) = hit {
-                EyeFeatures::add(rec, r, n, x);
-            }
-        }
-        refinement.passes += 1;
-        Ok(())
-    }
-
-    /// Passes until `seconds` have gone by (at least one pass), `max_passes` are done or
-    /// `progress` is cancelled (then the passes done so far stay and this returns `Ok`).
-    pub fn refine_for(
-        &self,
-        refinement: &mut Refinement,
-        seconds: f64,
-        max_passes: u32,
-        progress: &Progress,
-    ) -> Result<()> {
-        let start = Instant::now();
-        while refinement.needed && refinement.passes < max_passes {
-            match self.pass(refinement, progress) {
-                Ok(()) => {}
-                Err(RelumeError::Cancelled) => return Ok(()),
-                Err(e) => return Err(e),
-            }
-            if start.elapsed().as_secs_f64() >= seconds {
-                break;
-            }
-        }
-        Ok(())
     }
 
     /// The samples per pixel the bake traced: after as many passes the refinement has
@@ -354,87 +235,4 @@ fn same_bases(
         }
     }
     Ok(())
-}
-
-impl TailRefiner {
-    /// The correction of `refinement` so far, per pixel (rows top to bottom): the mean
-    /// difference over its passes, smoothed by the bake's linear denoiser at the stack's
-    /// bounce-layer iterations (the tail is indirect light, as smooth as the bounce
-    /// layers; the filter's weights come from the passes' eye hits only, as the bake's do).
-    /// Zero before the first pass and where nothing is needed.
-    pub fn correction(&self, refinement: &Refinement) -> Vec<Rgb> {
-        if refinement.passes == 0 || !refinement.needed {
-            return vec![Rgb::ZERO; refinement.sum.len()];
-        }
-        let inv = 1.0 / refinement.passes as f32;
-        let mean: Vec<Rgb> = refinement.sum.iter().map(|d| *d * inv).collect();
-        let iterations = self.header.denoise.bounce_iterations;
-        if iterations == 0 {
-            return mean;
-        }
-        let (w, h) = (refinement.width as usize, refinement.height as usize);
-        let features = EyeFeatures::from_window_sums(
-            &self.ctx,
-            &refinement.features,
-            refinement.passes,
-            (0, 0),
-            (w, h),
-        );
-        let mut layer = RawLayer {
-            key: LayerKey::new(vec![]),
-            channels: 3,
-            data: mean.iter().flat_map(|d| [d.x, d.y, d.z]).collect(),
-        };
-        features.filter_one(&features.weights_for(iterations), &mut layer);
-        layer
-            .data
-            .chunks_exact(3)
-            .map(|c| Rgb::new(c[0], c[1], c[2]))
-            .collect()
-    }
-
-    /// [`Self::correction`] as RGBA f32 (alpha 0).
-    pub fn correction_rgba(&self, refinement: &Refinement) -> Vec<f32> {
-        self.correction(refinement)
-            .iter()
-            .flat_map(|d| [d.x, d.y, d.z, 0.0])
-            .collect()
-    }
-
-    /// Adds [`Self::correction`] to a relit RGBA image of the same size (rows top first).
-    pub fn add_to(&self, refinement: &Refinement, rgba: &mut [f32]) -> Result<()> {
-        let n = (refinement.width * refinement.height) as usize;
-        if rgba.len() != n * 4 {
-            return Err(RelumeError::invalid(
-                "image",
-                format!(
-                    "{} values for a {}×{} refinement",
-                    rgba.len(),
-                    refinement.width,
-                    refinement.height
-                ),
-            ));
-        }
-        if refinement.passes == 0 || !refinement.needed {
-            return Ok(());
-        }
-        for (p, d) in rgba.chunks_exact_mut(4).zip(self.correction(refinement)) {
-            p[0] += d.x;
-            p[1] += d.y;
-            p[2] += d.z;
-        }
-        Ok(())
-    }
-}
-
-impl Refinement {
-    /// Passes traced so far.
-    pub fn passes(&self) -> u32 {
-        self.passes
-    }
-
-    /// Whether the edit leaves anything to refine (a tail and an edited material).
-    pub fn is_needed(&self) -> bool {
-        self.needed
-    }
 }
