@@ -149,8 +149,8 @@ def _start_settled_worker() -> None:
     import relume
 
     generation, relighter = RUNTIME.settle.generation, RUNTIME.live.relighter
-    mode, refine = denoise_mode(), refine_enabled()
     live = RUNTIME.live
+    mode, refine = denoise_mode(), refine_enabled() and live.refinable
 
     def current() -> bool:
         return generation == RUNTIME.settle.generation and relighter is live.relighter

@@ -50,8 +50,10 @@ class LiveState:
         #: add-on; and the report of the last image shown (which denoiser ran, and why).
         self.oidn_dirs: list[str] = []
         self.last_denoise: dict | None = None
-        #: The report of the last `refine` (passes so far for the current edit).
+        #: The report of the last `refine` (passes so far for the current edit), and whether
+        #: the relighter was given the scene a refinement traces.
         self.last_refine: dict | None = None
+        self.refinable = False
 
     @property
     def ready(self) -> bool:
@@ -75,6 +77,7 @@ class LiveState:
         self.stack = None
         self.relighter = None
         self.last_refine = None
+        self.refinable = False
         self.applied = {}
         self.applied_gains = {}
 
@@ -101,6 +104,8 @@ class LiveState:
             # The scene gives the denoiser its pixel features; a stale one is not the stack's.
             features_from = scene if scene is not None and self.stale_reason is None else None
             self.relighter = relume.Relighter(self.stack, device, scene=features_from)
+            # The refinement traces the scene: without it there is none to run.
+            self.refinable = features_from is not None
         except relume.RelumeError as e:
             self.load_error = f"{type(e).__name__}: {e}"
             self.unload()
