@@ -195,24 +195,26 @@ impl Relighter {
                 st.live.gains(&self.stack.header)?,
             )
         };
-        let (refiner, current, progress) = {
+        // The scene is prepared for tracing (seconds) outside the lock: `cancel_refine()`,
+        // which the add-on calls on every edit, must never wait for it.
+        let prepared = self.refine_lock().refiner.clone();
+        let refiner = match prepared {
+            Some(r) => r,
+            None => {
+                let Some(scene) = &self.scene else {
+                    return Err(RelumeError::invalid(
+                        "refine",
+                        "the Relighter was made without the scene: refine() traces it",
+                    ));
+                };
+                let r = Arc::new(TailRefiner::for_stack(scene, &self.stack.header, 0)?);
+                self.refine_lock().refiner.get_or_insert(r).clone()
+            }
+        };
+        let (current, progress) = {
             let mut st = self.refine_lock();
-            let refiner = match &st.refiner {
-                Some(r) => r.clone(),
-                None => {
-                    let Some(scene) = &self.scene else {
-                        return Err(RelumeError::invalid(
-                            "refine",
-                            "the Relighter was made without the scene: refine() traces it",
-                        ));
-                    };
-                    let r = Arc::new(TailRefiner::for_stack(scene, &self.stack.header, 0)?);
-                    st.refiner = Some(r.clone());
-                    r
-                }
-            };
             st.progress = Arc::new(Progress::new());
-            (refiner, st.current.take(), st.progress.clone())
+            (st.current.take(), st.progress.clone())
         };
         let mut current = match current {
             Some((m, g, r)) if m == materials && g == gains => r,
