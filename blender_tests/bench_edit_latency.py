@@ -1,14 +1,16 @@
 """Edit-to-pixels latency inside Blender, against the relight alone: the add-on's overhead.
 
     python blender_tests/bench_edit_latency.py [--sizes 512x512,1024x1024,1920x1080] [--k 2]
-                                               [--edits 30] [--device cpu]
+                                               [--edits 30] [--device cpu] [--bounces 1]
 
 For every size × k (editable materials) it builds the eight-material Cornell scene of the
 scale benchmarks (`scripts/make_cornell8.py`; k of its materials editable, visible ones
 first: `EDITABLE_ORDER`) as a Blender scene, with the editable materials driven by their
 shader sliders (no Blinn–Phong override), bakes it at that size with the draft preset's
 basis and denoiser but one sample of each kind and one bounce (the layers, and so the
-relight's work, follow the basis and the editable materials, not the sample counts), then
+relight's work, follow the basis and the editable materials, not the sample counts; with
+`--bounces` above 1 the stack also has its tail-edit layers, which every edit re-weighs, and
+the add-on's edit path cancels a background refinement as it does after a bake), then
 edits the editable materials in turn: a Principled Roughness or Base Color, a Diffuse Color.
 Each edit is timed from the `default_value` assignment through `view_layer.update()` —
 Blender's depsgraph evaluation, Relume's handler, the relight and the copy into the "Relume"
@@ -111,7 +113,8 @@ def _upload_floor(width: int, height: int, repeats: int = 10) -> dict:
     return _stats(times[1:])
 
 
-def bench_cell(addon, width: int, height: int, k: int, edits: int, workdir: str) -> dict:
+def bench_cell(addon, width: int, height: int, k: int, edits: int, workdir: str,
+               bounces: int = 1) -> dict:
     import relume
 
     clear_scene()
@@ -125,7 +128,7 @@ def bench_cell(addon, width: int, height: int, k: int, edits: int, workdir: str)
         bpy.data.materials[name].relume.editable = True
         bpy.data.materials[name].relume.override = False
     settings = relume.BakeSettings.preset("draft", resolution_scale=1.0, spp=1, light_samples=1,
-                                          indirect_samples=1, bounces=1)
+                                          indirect_samples=1, bounces=bounces)
     t0 = time.perf_counter()
     addon.api.bake(settings=settings)
     bake_s = time.perf_counter() - t0
@@ -152,7 +155,7 @@ def bench_cell(addon, width: int, height: int, k: int, edits: int, workdir: str)
     total, relight, relight_call, upload, relight_now = (list(c) for c in zip(*rows, strict=True))
     overhead = _minus(total, relight)
     cell = {
-        "size": [width, height], "k": k, "editable": names,
+        "size": [width, height], "k": k, "bounces": bounces, "editable": names,
         "device": live.relighter.device, "layers": live.stack.layer_count,
         "stack_mb": round(live.stack.bytes / 1e6, 1),
         "bake_s": round(bake_s, 1), "edits": edits,
@@ -182,12 +185,14 @@ def main() -> int:
     ap.add_argument("--k", default="2", help="comma-separated editable-material counts (1–8)")
     ap.add_argument("--edits", type=int, default=30)
     ap.add_argument("--device", default="cpu", choices=["cpu", "gpu", "auto"])
+    ap.add_argument("--bounces", type=int, default=1,
+                    help="bounces baked (above 1: a tail and its tail-edit layers)")
     args = ap.parse_args()
 
     addon, prefs = install_addon()
     prefs.device = args.device
     workdir = tempfile.mkdtemp(prefix="relume-bench-")
-    cells = [bench_cell(addon, w, h, int(k), args.edits, workdir)
+    cells = [bench_cell(addon, w, h, int(k), args.edits, workdir, args.bounces)
              for w, h in map(_size, args.sizes.split(",")) for k in args.k.split(",")]
     print(json.dumps({
         "benchmark": "edit_to_pixels_latency",

@@ -2,7 +2,7 @@
 light has bounced more than once: does the whole path follow the edit, not just its first
 two vertices?
 
-Two rooms, each baked once through the add-on as a user bakes (the default preset, bounces
+Two rooms (and two third-party scenes), each baked once through the add-on as a user bakes (the default preset, bounces
 from the scene's Cycles settings, the default editable-material basis), then edited with
 the shader sliders and relit, each edit compared with Cycles rendering the same edited
 scene (12 bounces, 2 × 128 spp; the mean of the two is the reference, their difference its
@@ -11,7 +11,11 @@ noise):
 - the assets' Cornell box, its white walls (floor, ceiling, back wall) an editable
   Principled material (grey 0.6, roughness 0.5);
 - a closed room lit only by a sun through a window (`support.rooms`), its walls and ceiling
-  an editable Diffuse BSDF (grey 0.7) and its floor an editable Principled (roughness 0.5).
+  an editable Diffuse BSDF (grey 0.7) and its floor an editable Principled (roughness 0.5);
+- and, when the shared third-party scenes are beside the repository, McGuire's glossy
+  Cornell box (back wall and glossy floor editable) and the bunny on its glossy ground tile
+  (ground and bunny editable), each a wall (the ground) recoloured and a floor's roughness
+  doubled.
 
 Edits, each alone from the baked values: the walls' colour → 0.9, → 0.05, → (0.7, 0.25,
 0.1), and a floor's roughness 0.5 → 0.2 (the Cornell box's floor is part of its white walls).
@@ -63,7 +67,7 @@ WALL_EDITS = {
     "walls_to_rust": (0.7, 0.25, 0.1),
 }
 #: Edits the goal is asserted for (scene, edit): measured to meet it (bpy 5.0.1, 2026-11-29;
-#: the third-party glossy box 2026-11-30).
+#: the third-party scenes 2026-11-30).
 GOAL_ASSERTED: set[tuple[str, str]] = {
     ("cornell", "walls_to_0.9"), ("cornell", "walls_to_0.05"), ("cornell", "walls_to_rust"),
     ("cornell", "floor_roughness_0.5_to_0.2"),
@@ -71,6 +75,8 @@ GOAL_ASSERTED: set[tuple[str, str]] = {
     ("window_room", "walls_to_rust"),
     ("cornell_glossy", "walls_to_0.9"), ("cornell_glossy", "walls_to_0.05"),
     ("cornell_glossy", "walls_to_rust"), ("cornell_glossy", "floor_roughness_doubled"),
+    ("bunny", "walls_to_0.9"), ("bunny", "walls_to_0.05"), ("bunny", "walls_to_rust"),
+    ("bunny", "floor_roughness_doubled"),
 }
 #: The others, held to (tile error, |mean shift|) above what they measured, so a regression
 #: fails. The window room's floor roughness 0.5 → 0.2 turns the sunlit patch into a sharp
@@ -226,30 +232,56 @@ def test_window_room_walls_and_floor_edited_after_one_bake(addon, prefs, blend_d
     _check("window_room", figures)
 
 
-def test_third_party_glossy_box_edited_after_one_bake(addon, prefs, tmp_path, results_file):
-    """McGuire's glossy Cornell box from the shared third-party scenes (skipped with a message
-    when the folder is absent): its back wall and its glossy floor ticked Editable, the back
-    wall recoloured and the floor's roughness doubled (0.2 in the file → 0.4)."""
-    path = ROOT.parent / "shared" / "scenes" / "cornell_glossy.blend"
+def _third_party(name: str, tmp_path: pathlib.Path) -> None:
+    """Open a shared third-party scene (skipped with a message when the folder is absent),
+    saved into `tmp_path` (the stacks go beside it), at the test's resolution."""
+    path = ROOT.parent / "shared" / "scenes" / name
     if not path.exists():
         pytest.skip(f"{path} is absent: the third-party scenes live in ../shared/scenes/ beside the "
                     "repository (not part of it)")
     bpy.ops.wm.open_mainfile(filepath=str(path))
-    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "cornell_glossy.blend"))  # stacks go here
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / name))
     scene = bpy.context.scene
     aspect = scene.render.resolution_y / scene.render.resolution_x
     scene.render.resolution_x = RES
     scene.render.resolution_y = max(BLOCK, int(round(RES * aspect / BLOCK)) * BLOCK)
     scene.render.resolution_percentage = 100
-    for mat in bpy.data.materials:
-        mat.relume.editable = mat.name in ("backWall", "floor")
-    wall, floor = bpy.data.materials["backWall"], bpy.data.materials["floor"]
+
+
+def _third_party_edits(wall, floor) -> tuple[dict, float]:
+    """`WALL_EDITS` on `wall`'s colour and `floor`'s roughness doubled, each undone after."""
     colour = tuple(_colour_input(wall).default_value)[:3]
     roughness = floor.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value
     edits = {name: (lambda rgb=rgb: _set_colour(wall, rgb), lambda: _set_colour(wall, colour))
              for name, rgb in WALL_EDITS.items()}
     edits["floor_roughness_doubled"] = (lambda: _set_roughness(floor, 2.0 * roughness),
                                          lambda: _set_roughness(floor, roughness))
+    return edits, roughness
+
+
+def test_third_party_glossy_box_edited_after_one_bake(addon, prefs, tmp_path, results_file):
+    """McGuire's glossy Cornell box from the shared third-party scenes: its back wall and its
+    glossy floor ticked Editable, the back wall recoloured and the floor's roughness doubled
+    (0.2 in the file → 0.4)."""
+    _third_party("cornell_glossy.blend", tmp_path)
+    for mat in bpy.data.materials:
+        mat.relume.editable = mat.name in ("backWall", "floor")
+    edits, roughness = _third_party_edits(bpy.data.materials["backWall"], bpy.data.materials["floor"])
     figures = _sweep(addon, prefs, tmp_path, "cornell_glossy", edits)
     figures["floor_roughness_baked"] = roughness
     _check("cornell_glossy", figures)
+
+
+def test_third_party_bunny_ground_edited_after_one_bake(addon, prefs, tmp_path, results_file):
+    """The shared bunny on its glossy ground tile under a sunny HDRI, outdoors: the ground
+    and the bunny ticked Editable, the ground recoloured (the edits `WALL_EDITS` name) and its
+    roughness doubled (0.15 in the file → 0.3). Outdoors little light bounces twice, so this
+    mostly checks that the edits' first two vertices and the tail agree at once."""
+    _third_party("bunny.blend", tmp_path)
+    for mat in bpy.data.materials:
+        mat.relume.editable = mat.name in ("GroundTile", "BunnyTerracotta")
+    ground = bpy.data.materials["GroundTile"]
+    edits, roughness = _third_party_edits(ground, ground)
+    figures = _sweep(addon, prefs, tmp_path, "bunny", edits)
+    figures["ground_roughness_baked"] = roughness
+    _check("bunny", figures)

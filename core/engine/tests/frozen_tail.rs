@@ -177,34 +177,7 @@ fn relit_tail_follows_an_albedo_edit() {
 #[test]
 fn frozen_tail_error_under_edits_is_measured() {
     let scene = common::cornell(32);
-    let m = |kd: f32, ks: f32, ns: f32| BlinnPhong {
-        kd: [kd; 3],
-        ks: [ks; 3],
-        ns,
-    };
-    let edits: Vec<(&str, [BlinnPhong; 2])> = vec![
-        ("bake-time", [m(0.3, 0.3, 5.0), m(0.2, 0.4, 5.0)]),
-        ("glossy ns 180", [m(0.3, 0.3, 180.0), m(0.2, 0.4, 180.0)]),
-        ("Kd 1 / Ks 1", [m(1.0, 0.0, 1.0), m(0.0, 1.0, 1.0)]),
-        (
-            "Ks 1 ns 200 / Kd 1",
-            [m(0.0, 1.0, 200.0), m(1.0, 0.0, 200.0)],
-        ),
-        ("Kd 0.9 walls", [m(0.9, 0.0, 1.0), m(0.2, 0.4, 5.0)]),
-        ("black walls", [m(0.0, 0.0, 1.0), m(0.5, 0.5, 60.0)]),
-        ("Kd .5 Ks .5 ns 60", [m(0.5, 0.5, 60.0), m(0.0, 1.0, 30.0)]),
-        (
-            "coloured",
-            [
-                BlinnPhong {
-                    kd: [0.7, 0.2, 0.1],
-                    ks: [0.1, 0.3, 0.5],
-                    ns: 12.0,
-                },
-                m(0.4, 0.6, 100.0),
-            ],
-        ),
-    ];
+    let edits = common::cornell_edits();
     let mut worst_tail = 0.0f64;
     for bounces in [1u32, 12] {
         let s = BakeSettings {

@@ -549,9 +549,11 @@ impl Relighter {
         Ok(array.into_pyarray(py))
     }
 
-    /// Refines the current edit for about `seconds` (whole passes, at least one; at most
-    /// `max_passes` in all for this edit): bounces past the second vertex traced again with
-    /// the edited materials, what the relight misses there summed for `relight(refined=True)`.
+    /// Refines the current edit for about `seconds` (whole passes, at least one and two in
+    /// all: one pass has no estimate of its noise and shows nothing; at most `max_passes`
+    /// in all for this edit): bounces past the second vertex traced again with the edited
+    /// materials, what the relight misses there summed for `relight(refined=True)`, which
+    /// adds it shrunk where it is within its own noise.
     /// Continues the same edit's refinement across calls; an edit starts a new one. Needs
     /// the scene given to the constructor (the first call prepares it for tracing:
     /// seconds). Returns {"needed" (False: one bounce or the bake-time materials, nothing

@@ -35,13 +35,14 @@
 //!
 //! Files: [`refiner`] prepares the scene for one stack and starts a [`Refinement`] per edit;
 //! [`passes`] traces them; [`correction`] turns the sums into the image added to the relit
-//! one.
+//! one, shrunk where it is within its own noise ([`shrinkage`]).
 
 pub mod correction;
 pub mod edited_tail;
 pub mod passes;
 pub mod refinement;
 pub mod refiner;
+pub mod shrinkage;
 pub mod weighted_sink;
 
 pub use refinement::Refinement;

@@ -77,8 +77,13 @@ impl TailRefiner {
             true
         })?;
         let image = image.into_inner().unwrap_or_else(|e| e.into_inner());
-        for (s, d) in refinement.sum.iter_mut().zip(image) {
-            *s += d;
+        for (s, d) in refinement.sum.iter_mut().zip(&image) {
+            *s += *d;
+        }
+        if sample % 2 == 1 {
+            for (s, d) in refinement.sum_odd.iter_mut().zip(&image) {
+                *s += *d;
+            }
         }
         let hits = eye_hits.into_inner().unwrap_or_else(|e| e.into_inner());
         for (rec, hit) in refinement
@@ -94,8 +99,10 @@ impl TailRefiner {
         Ok(())
     }
 
-    /// Passes until `seconds` have gone by (at least one pass), `max_passes` are done or
-    /// `progress` is cancelled (then the passes done so far stay and this returns `Ok`).
+    /// Passes until `seconds` have gone by (at least one pass, and at least two in all: one
+    /// pass has no estimate of its noise, so nothing of it is shown), `max_passes` are
+    /// done or `progress` is cancelled (then the passes done so far stay and this returns
+    /// `Ok`).
     pub fn refine_for(
         &self,
         refinement: &mut Refinement,
@@ -110,7 +117,7 @@ impl TailRefiner {
                 Err(RelumeError::Cancelled) => return Ok(()),
                 Err(e) => return Err(e),
             }
-            if start.elapsed().as_secs_f64() >= seconds {
+            if start.elapsed().as_secs_f64() >= seconds && refinement.passes >= 2 {
                 break;
             }
         }

@@ -11,6 +11,10 @@ pub struct Refinement {
     /// Whether anything is missing: a tail (two bounces or more) and an edited material.
     pub(super) needed: bool,
     pub(super) sum: Vec<Rgb>,
+    /// The same sum over the odd-numbered passes only: the even and odd halves are
+    /// independent estimates, whose difference says how noisy the mean is
+    /// ([`super::shrinkage`]).
+    pub(super) sum_odd: Vec<Rgb>,
     /// Per pixel, the eye hits of the passes ([`FEATURE_STRIDE`] floats: what the bake's
     /// linear denoiser weighs by).
     pub(super) features: Vec<f32>,

@@ -187,6 +187,7 @@ impl TailRefiner {
             materials: materials.to_vec(),
             needed: edited && self.ctx.settings.bounces >= 2,
             sum: try_zeroed(pixels, "the refinement's sums")?,
+            sum_odd: try_zeroed(pixels, "the refinement's sums of odd passes")?,
             features,
             passes: 0,
             width: res.width,

@@ -164,6 +164,41 @@ pub fn closed_sphere(a: f32, editable: bool, size: u32) -> Scene {
     }
 }
 
+/// Edits of [`cornell`]'s two editable regions (walls, sphere) across the editable range,
+/// the first the bake-time materials (walls Kd 0.3 Ks 0.3 ns 5, sphere Kd 0.2 Ks 0.4
+/// ns 5): albedo, colour, lobe-shape and two-region edits, the grid docs/bounces.md
+/// reports.
+pub fn cornell_edits() -> Vec<(&'static str, [BlinnPhong; 2])> {
+    let m = |kd: f32, ks: f32, ns: f32| BlinnPhong {
+        kd: [kd; 3],
+        ks: [ks; 3],
+        ns,
+    };
+    vec![
+        ("bake-time", [m(0.3, 0.3, 5.0), m(0.2, 0.4, 5.0)]),
+        ("glossy ns 180", [m(0.3, 0.3, 180.0), m(0.2, 0.4, 180.0)]),
+        ("Kd 1 / Ks 1", [m(1.0, 0.0, 1.0), m(0.0, 1.0, 1.0)]),
+        (
+            "Ks 1 ns 200 / Kd 1",
+            [m(0.0, 1.0, 200.0), m(1.0, 0.0, 200.0)],
+        ),
+        ("Kd 0.9 walls", [m(0.9, 0.0, 1.0), m(0.2, 0.4, 5.0)]),
+        ("black walls", [m(0.0, 0.0, 1.0), m(0.5, 0.5, 60.0)]),
+        ("Kd .5 Ks .5 ns 60", [m(0.5, 0.5, 60.0), m(0.0, 1.0, 30.0)]),
+        (
+            "coloured",
+            [
+                BlinnPhong {
+                    kd: [0.7, 0.2, 0.1],
+                    ks: [0.1, 0.3, 0.5],
+                    ns: 12.0,
+                },
+                m(0.4, 0.6, 100.0),
+            ],
+        ),
+    ]
+}
+
 /// A Cornell-like box, open towards −Y, with an area light under the ceiling: regions
 /// 0 "White walls" (editable), 1 "Object" (editable sphere), 2 "Red" and 3 "Green" (fixed).
 pub fn cornell(size: u32) -> Scene {
