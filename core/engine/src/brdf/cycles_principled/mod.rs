@@ -81,6 +81,50 @@ pub(crate) fn single_scatter_albedo(alpha: f64) -> MuTable {
     })
 }
 
+/// The view-dependent tables of a Principled material, which depend on its roughness and
+/// IOR only: `E(μo)` ([`single_scatter_albedo`]) and the dielectric Fresnel's lobe-averaged
+/// interpolation factor per `μo`. About 10⁶ BRDF evaluations, most of what building a
+/// material costs, so they are kept for the last few (α, η) pairs: a slider that moves a
+/// material's colour or metallic (the relight rebuilds the material at every step) builds
+/// them once. The same numbers either way.
+fn view_tables(alpha: f64, eta: f64) -> (MuTable, MuTable) {
+    type Entry = ((u64, u64), MuTable, MuTable);
+    /// Pairs kept: a few materials edited in turn, each at its own roughness and IOR.
+    const KEPT: usize = 16;
+    static TABLES: std::sync::Mutex<Vec<Entry>> = std::sync::Mutex::new(Vec::new());
+    let key = (alpha.to_bits(), eta.to_bits());
+    {
+        let tables = TABLES.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, energy, layer_s)) = tables.iter().find(|(k, _, _)| *k == key) {
+            return (energy.clone(), layer_s.clone());
+        }
+    }
+    // Built outside the lock: two threads racing on one pair build it twice, which is
+    // correct, rather than one holding every other material's build up.
+    let energy = single_scatter_albedo(alpha);
+    let f0_real = f0_from_ior(eta);
+    let layer_s = MuTable::build(|mu| {
+        let (mut num, mut den) = (0.0, 0.0);
+        incident_nodes(mu, alpha, Resolution::FINE, |n| {
+            let w = ggx_single(alpha, n.cos_i, mu, n.cos_h) * n.cos_i * n.d_omega_i;
+            let f = fresnel_dielectric(n.cos_d, eta);
+            num += w * ((f - f0_real) / (1.0 - f0_real).max(1e-12)).clamp(0.0, 1.0);
+            den += w;
+        });
+        if den > 0.0 {
+            num / den
+        } else {
+            0.0
+        }
+    });
+    let mut tables = TABLES.lock().unwrap_or_else(|e| e.into_inner());
+    if tables.len() >= KEPT {
+        tables.remove(0);
+    }
+    tables.push((key, energy.clone(), layer_s.clone()));
+    (energy, layer_s)
+}
+
 /// Cycles' Principled reflection for one set of inputs, ready to evaluate.
 #[derive(Clone, Debug)]
 pub struct CyclesPrincipled {
@@ -131,30 +175,16 @@ fn finite_or(x: f32, default: f32, lo: f32, hi: f32) -> f64 {
 }
 
 impl CyclesPrincipled {
-    /// Precomputes the view-dependent tables for `p` (about 10⁶ BRDF evaluations).
+    /// Precomputes the view-dependent tables for `p` (about 10⁶ BRDF evaluations, kept for
+    /// the last few roughness and IOR pairs: [`view_tables`]).
     pub fn new(p: &Principled) -> CyclesPrincipled {
         let r = finite_or(p.roughness, 0.5, 0.0, 1.0).max(ROUGHNESS_MIN);
         let alpha = r * r;
         let base = p.base_color.map(|b| finite_or(b, 0.8, 0.0, 1.0));
         let metallic = finite_or(p.metallic, 0.0, 0.0, 1.0);
         let (spec_f0, eta) = dielectric_spec(p.ior, p.specular_ior_level);
-        let energy = single_scatter_albedo(alpha);
+        let (energy, layer_s) = view_tables(alpha, eta);
         let e_avg = energy.cosine_mean();
-        let f0_real = f0_from_ior(eta);
-        let layer_s = MuTable::build(|mu| {
-            let (mut num, mut den) = (0.0, 0.0);
-            incident_nodes(mu, alpha, Resolution::FINE, |n| {
-                let w = ggx_single(alpha, n.cos_i, mu, n.cos_h) * n.cos_i * n.d_omega_i;
-                let f = fresnel_dielectric(n.cos_d, eta);
-                num += w * ((f - f0_real) / (1.0 - f0_real).max(1e-12)).clamp(0.0, 1.0);
-                den += w;
-            });
-            if den > 0.0 {
-                num / den
-            } else {
-                0.0
-            }
-        });
         CyclesPrincipled {
             base,
             metallic,

@@ -131,3 +131,26 @@ fn total_on_odd_inputs() {
         assert!(v.iter().all(|c| c.is_finite() && *c >= 0.0), "{x}: {v:?}");
     }
 }
+
+#[test]
+fn kept_view_tables_are_the_ones_built_for_their_roughness_and_ior() {
+    let (alpha, eta) = (0.3f64 * 0.3, 1.45f64);
+    let (energy, layer_s) = view_tables(alpha, eta);
+    // Kept: the same numbers, and the same as building them afresh.
+    let (again, layer_again) = view_tables(alpha, eta);
+    assert_eq!(energy.0, again.0);
+    assert_eq!(layer_s.0, layer_again.0);
+    assert_eq!(energy.0, single_scatter_albedo(alpha).0);
+    // Another IOR or roughness is not served the kept pair.
+    let (_, other_eta) = view_tables(alpha, 1.9);
+    assert_ne!(other_eta.0, layer_s.0);
+    let (other_alpha, _) = view_tables(0.5 * 0.5, eta);
+    assert_ne!(other_alpha.0, energy.0);
+    // A material rebuilt with another colour evaluates as a first build of it does.
+    let a = CyclesPrincipled::new(&principled(0.3, 0.4, 0.3, 0.5));
+    let b = CyclesPrincipled::new(&principled(0.7, 0.4, 0.3, 0.5));
+    let (_, a_diffuse) = a.eval_parts(0.6, 0.8, 0.9, 0.7);
+    let (_, b_diffuse) = b.eval_parts(0.6, 0.8, 0.9, 0.7);
+    let ratio = 0.7f32 as f64 / 0.3f32 as f64;
+    assert!((b_diffuse[0] / a_diffuse[0] - ratio).abs() < 1e-12);
+}
