@@ -94,8 +94,8 @@ mod tests {
 
     /// A deterministic stand-in for noise: a hash of the pixel and pass mapped to ±1.
     fn jitter(i: usize, pass: usize) -> f32 {
-        let mut h =
-            (i as u64 * 0x9E37_79B9_7F4A_7C15) ^ (pass as u64).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        let mut h = (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            ^ (pass as u64).wrapping_mul(0xBF58_476D_1CE4_E5B9);
         h ^= h >> 31;
         h = h.wrapping_mul(0x94D0_49BB_1331_11EB);
         h ^= h >> 29;
