@@ -156,6 +156,52 @@ fn refined_closed_sphere_follows_the_geometric_series() {
     );
 }
 
+/// A bounce budget judges the later bounces at the bake-time materials: a dark sphere
+/// (a = 0.3) keeps two or three of its cap of eight. Made bright (0.8), the bounces left out
+/// hold a large share of its light; the refinement traces the edit to the cap, so the
+/// refined image is the reference at eight bounces along the same paths.
+#[test]
+fn bounces_a_budget_left_out_are_refined_with_the_edit() {
+    let (a, e, cap) = (0.3f32, 0.8f32, 8u32);
+    let scene: Scene = common::closed_sphere(a, true, 24);
+    let s = BakeSettings {
+        bounce_budget: 0.05,
+        ..settings(8, cap)
+    };
+    let (stack, report) = bake(&scene, &s, &Progress::new()).unwrap();
+    assert!(stack.header.bounces < cap, "{:?}", report.bounce_estimate);
+    assert_eq!(stack.header.bounce_cap, cap);
+    let reference = |s: &BakeSettings| {
+        mean_red(
+            &render_reference(
+                &scene,
+                s,
+                &[bp(e, 0.0, 1.0)],
+                ReferenceBrdf::True,
+                &Progress::new(),
+            )
+            .unwrap()
+            .rgba,
+        )
+    };
+    let direct = reference(&settings(8, 0));
+    let truth = reference(&settings(8, cap)) / direct;
+    let refiner = TailRefiner::new(&scene, &s, &stack.header).unwrap();
+    let relit = mean_red(&relight(&stack, &[bp(e, 0.0, 1.0)])) / direct;
+    let (img, _) = refined(&refiner, &stack, &[bp(e, 0.0, 1.0)], 8);
+    let ratio = mean_red(&img) / direct;
+    eprintln!(
+        "closed sphere baked at {a} ({} of {cap} bounces), relit at {e}: relit {relit:.4}, \
+         refined {ratio:.4}, reference at {cap} bounces {truth:.4}",
+        stack.header.bounces
+    );
+    assert!((ratio / truth - 1.0).abs() < 1e-4, "{ratio} vs {truth}");
+    assert!(
+        relit / truth < 0.9,
+        "the relight alone lacks the bounces left out"
+    );
+}
+
 /// The Cornell grid of docs/bounces.md: every edit, refined over the bake's own samples,
 /// equals the projected reference along the same paths; printed after 1, 2 and 4 passes.
 #[test]

@@ -1,6 +1,6 @@
 //! The vertex BRDF of a refinement's second trace: the first two vertices exactly as the
 //! bake evaluates them (every basis value, so the relight's weights apply), the tail with
-//! the edited materials.
+//! the edited materials, up to the bake's bounce cap.
 
 use glam::{Vec2, Vec3};
 
@@ -18,15 +18,23 @@ use crate::{RelumeError, Result, Rgb};
 /// ([`crate::bake::prepare::context::PreparedRegion::frozen`]): exactly (Cycles'
 /// Principled) where the region's basis holds its bake-time lobe, its Blinn–Phong mapping
 /// where the basis is Blinn–Phong. At the bake-time materials its tail is the bake's.
+///
+/// Its paths go on past the bounces baked to `bounces`, the bake's cap: a bounce budget
+/// leaves out later bounces that hold little light at the bake-time materials, and an edit
+/// that brightens a material can make them matter (a grey ground made white under a
+/// bunny: the ground–bunny bounces past the second).
 pub struct EditedTailBrdf<'a> {
     basis: BasisBrdf<'a>,
     /// Per editable region (editable order), its edited surface.
     edited: Vec<SurfaceBrdf>,
+    /// The last bounce its paths reach ([`crate::stack::StackHeader::refine_bounces`]).
+    bounces: u32,
 }
 
 impl<'a> EditedTailBrdf<'a> {
-    /// `materials`: one per editable region of `ctx`, in editable order.
-    pub fn new(ctx: &'a BakeContext, materials: &[MaterialSpec]) -> Result<Self> {
+    /// `materials`: one per editable region of `ctx`, in editable order; `bounces`: the
+    /// last bounce to trace (at least the bake's own, `ctx.settings.bounces`).
+    pub fn new(ctx: &'a BakeContext, materials: &[MaterialSpec], bounces: u32) -> Result<Self> {
         let mut edited = Vec::with_capacity(materials.len());
         for r in &ctx.regions {
             if let RegionModel::Editable { index, basis } = &r.model {
@@ -54,6 +62,7 @@ impl<'a> EditedTailBrdf<'a> {
         Ok(EditedTailBrdf {
             basis: BasisBrdf { ctx },
             edited,
+            bounces: bounces.max(ctx.settings.bounces),
         })
     }
 }
@@ -61,6 +70,11 @@ impl<'a> EditedTailBrdf<'a> {
 impl VertexBrdf for EditedTailBrdf<'_> {
     fn subsurface(&self) -> bool {
         self.basis.subsurface()
+    }
+
+    #[inline]
+    fn bounces(&self, _baked: u32) -> u32 {
+        self.bounces
     }
 
     #[inline]

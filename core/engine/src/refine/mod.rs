@@ -13,9 +13,12 @@
 //!   for the current materials and lights ([`weighted_sink`]) — that path's share of the
 //!   relit image, the tail-edit layers included;
 //! - once with the first two vertices still in the basis but the tail evaluated with the
-//!   edited materials ([`edited_tail`]).
+//!   edited materials ([`edited_tail`]), and the path going on past the bounces baked to
+//!   the bake's cap ([`crate::stack::StackHeader::refine_bounces`]): a bounce budget judged
+//!   the later bounces at the bake-time materials, and an edit can make them matter.
 //!
-//! Their difference is zero wherever the stack's model of the tail is exact, so it adds
+//! Their difference is zero wherever the stack's model of the tail is exact (and the bake
+//! traced every bounce its cap allowed), so it adds
 //! little noise where the relight is already right, and its mean over passes converges to
 //! what the relight is missing: the image with the edited tail, the first two vertices
 //! relit as the stack relights them. Pass `k` traces the bake's own eye sample

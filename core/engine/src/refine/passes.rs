@@ -29,7 +29,7 @@ impl TailRefiner {
         let res = ctx.resolution;
         let width = res.width as usize;
         let model = BasisBrdf { ctx };
-        let edited = EditedTailBrdf::new(ctx, &refinement.materials)?;
+        let edited = EditedTailBrdf::new(ctx, &refinement.materials, self.header.refine_bounces())?;
         let weights = &refinement.weights;
         let sample = refinement.passes;
         let n = refinement.sum.len();

@@ -181,11 +181,11 @@ impl TailRefiner {
             features.extend_from_slice(&EyeFeatures::EMPTY);
         }
         // Checks the materials against the regions once, here.
-        EditedTailBrdf::new(&self.ctx, materials)?;
+        EditedTailBrdf::new(&self.ctx, materials, self.header.refine_bounces())?;
         Ok(Refinement {
             weights,
             materials: materials.to_vec(),
-            needed: edited && self.ctx.settings.bounces >= 2,
+            needed: edited && self.header.refine_bounces() >= 2,
             sum: try_zeroed(pixels, "the refinement's sums")?,
             sum_odd: try_zeroed(pixels, "the refinement's sums of odd passes")?,
             features,

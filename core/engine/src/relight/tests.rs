@@ -48,6 +48,7 @@ fn header(width: u32, height: u32) -> StackHeader {
         light_tint: [1.0; 3],
         light_groups: Vec::new(),
         denoise: Default::default(),
+        bounce_cap: 0,
     }
 }
 

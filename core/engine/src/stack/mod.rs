@@ -48,6 +48,12 @@ pub struct StackHeader {
     /// written before it existed.
     #[serde(default)]
     pub denoise: crate::options::Denoise,
+    /// The bounces the bake was allowed: its settings' cap where a bounce budget chose
+    /// fewer (`bounces`). A refinement traces an edit up to it, so the bounces the budget
+    /// left out at the bake-time materials come back where an edit makes them matter; 0 in
+    /// stacks written before it was recorded ([`Self::refine_bounces`]).
+    #[serde(default)]
+    pub bounce_cap: u32,
 }
 
 /// A light group of a stack: its name and the colour factored out of its layers.
@@ -58,6 +64,12 @@ pub struct LightGroupInfo {
 }
 
 impl StackHeader {
+    /// The bounces a refinement traces an edit's paths to: the bake's cap, at least the
+    /// bounces baked.
+    pub fn refine_bounces(&self) -> u32 {
+        self.bounce_cap.max(self.bounces)
+    }
+
     /// The colour factored out of the layers of light group `key_group` (a layer key's
     /// `light_group`: 0 for all lights together, g + 1 for group g).
     pub fn group_tint(&self, key_group: u16) -> Option<[f32; 3]> {

@@ -29,6 +29,7 @@ pub fn stack_header(width: u32, height: u32, regions: Vec<RegionInfo>) -> StackH
         light_tint: [1.0; 3],
         light_groups: Vec::new(),
         denoise: Default::default(),
+        bounce_cap: 0,
     }
 }
 

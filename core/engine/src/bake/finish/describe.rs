@@ -30,6 +30,10 @@ pub(crate) fn stack_header(
         spp,
         light_samples: settings.light_samples,
         bounces: ctx.settings.bounces,
+        bounce_cap: ctx
+            .bounce_estimate
+            .as_ref()
+            .map_or(ctx.settings.bounces, |e| e.cap),
         sampling: settings.sampling.name().into(),
         seed: settings.seed,
         regions: scene

@@ -120,6 +120,14 @@ pub trait VertexBrdf: Sync {
     fn tail_is_frozen(&self) -> bool {
         false
     }
+
+    /// The last bounce a path reaches, for a bake of `baked` bounces: the bake's own and
+    /// the reference renderer's stop there; a refinement's edited tail goes on to the
+    /// bake's cap (the bounces a bounce budget left out at the bake-time materials).
+    #[inline]
+    fn bounces(&self, baked: u32) -> u32 {
+        baked
+    }
 }
 
 /// A vertex beyond the first bounce: [`VertexBrdf::tail`] as a one-slot BRDF, so
@@ -468,7 +476,7 @@ fn trace_path<B: VertexBrdf, S: PathSink, T: Tracer>(
         };
         // The bounce vertex traces a BSDF ray when the path goes on, or for a lobe's light.
         let mixture2 = &ctx.regions[hit2.region as usize].mixture;
-        let bounce_rays = settings.bounces >= 2 || traces_bsdf_ray(mixture2);
+        let bounce_rays = brdf.bounces(settings.bounces) >= 2 || traces_bsdf_ray(mixture2);
         let bounce_strategy = bounce_rays.then(|| BsdfStrategy::mixture(ctx, hit2.region));
         let (mut bounce_first, mut bounce_count) = direct_light(
             ctx,
@@ -717,7 +725,7 @@ fn emit_tail_edits<B: VertexBrdf, S: PathSink>(
 /// The radiance, per light group, that arrives at `from` along `dir` (drawn there from its
 /// region's mixture with pdf `pdf`): the emitters met along each segment, MIS-weighted
 /// against the light samples of the vertex the segment leaves, and the light of the
-/// vertices at bounces 2..=`ctx.settings.bounces` evaluated with [`VertexBrdf::tail`]
+/// vertices at bounces 2..=[`VertexBrdf::bounces`] evaluated with [`VertexBrdf::tail`]
 /// (next-event estimation at each, mixture continuation, Russian roulette from
 /// [`RR_START`] driven by the bake-time throughput). The last vertex traces one more
 /// segment, for emitters only, where its region has a lobe ([`crate::bake::path::mis`]). Adds
@@ -735,7 +743,7 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
     mut edits: Option<&mut TailEdits>,
 ) -> bool {
     let tail = TailBrdf(brdf, edits.is_some());
-    let max_bounce = ctx.settings.bounces;
+    let max_bounce = brdf.bounces(ctx.settings.bounces);
     let mut values = [Rgb::ZERO; MAX_BASES];
     let mut light = [Rgb::ZERO; MAX_GROUPS * MAX_BASES];
     let mut emitted = [Rgb::ZERO; MAX_GROUPS];
