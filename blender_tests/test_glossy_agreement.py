@@ -14,7 +14,7 @@ and a glossy scene with the roughness range that covers its materials.
   be within three standard errors of the converged value, so a systematically brighter (or
   dimmer) highlight fails too. Multiple importance sampling against the BSDF mixture's
   directions (`core/engine/src/bake/path/mis.rs`) is what keeps fireflies out; at this preset and
-  scene light sampling alone also stayed within the bound (the engine's `tests/mis.rs` shows
+  scene light sampling alone also stayed within the bound (the engine's `tests/engine/mis.rs` shows
   the difference at low sample counts), so this test guards the behaviour users see rather
   than telling the two estimators apart.
 - **Glossy scene.** A ground at Principled roughness 0.15 and a metallic sphere at 0.25

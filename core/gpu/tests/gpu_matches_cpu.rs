@@ -73,7 +73,7 @@ fn incremental_edits_across_the_full_resum() {
     assert!(gpu.last_stats().incremental);
 }
 
-/// The extremes suite's stacks (core/engine/tests/extremes.rs) on the assets Cornell box:
+/// The extremes suite's stacks (core/engine/tests/engine/extremes.rs) on the assets Cornell box:
 /// lights 10⁶ times brighter and dimmer (per-layer f16 scales at both ends), the scene at
 /// 10⁻³ and 10⁴ scale, a [1, 10 000] exponent range with a tolerance basis (9 bases), and
 /// per-light groups. GPU and CPU agree within 1e-6, full and incremental.

@@ -55,7 +55,7 @@ pub struct BakeSettings {
     pub subsurface_samples: u32,
     /// Opening criterion θ of the subsurface octree: a cluster of samples is summed as one
     /// point when its radius is ≤ θ × its distance (error ≈ θ²/2 of the far field). The
-    /// default keeps octree + PCA + f16 close to the brute-force sum (`tests/subsurface.rs`)
+    /// default keeps octree + PCA + f16 close to the brute-force sum (`tests/engine/subsurface.rs`)
     /// while the gather stays most of a translucent bake's cost rather than all of it
     /// (docs/measurements.md, "Figures that were in code comments").
     #[serde(default = "default_subsurface_theta")]

@@ -40,7 +40,7 @@ use crate::{RelumeError, Result};
 /// Standard deviation of the sample-scale blur in units of ρ. Samples are `h = ρ√π` apart
 /// on average; a Gaussian of σ = 3ρ ≈ 1.7h holds ≈ 35 samples within 2σ, so the sum over
 /// (stratified, jittered) samples of the blurred profile is a smooth quadrature, where σ = ρ
-/// (≈ 1 sample) leaves the image at the mercy of the nearest sample (tests/subsurface.rs
+/// (≈ 1 sample) leaves the image at the mercy of the nearest sample (tests/engine/subsurface.rs
 /// checks a uniformly lit plane; figures in docs/measurements.md, "Subsurface basis").
 pub const BLUR_PER_RHO: f64 = 3.0;
 /// Radii at which the profiles are sampled (and the basis tabulated).

@@ -7,7 +7,7 @@
 //! point at its centroid. The centroid makes the first-order error vanish, so the relative
 //! error of a node is O(θ²·d²·|b″|/|b|), checked on an e^{−r} kernel by the unit test below;
 //! the bake's default θ = 0.15 keeps the whole relit subsurface image (octree + PCA + f16)
-//! close to the brute-force sum (tests/subsurface.rs; figures in docs/measurements.md,
+//! close to the brute-force sum (tests/engine/subsurface.rs; figures in docs/measurements.md,
 //! "Subsurface basis"). Samples with no light are not stored.
 
 use glam::Vec3;

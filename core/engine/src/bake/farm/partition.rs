@@ -10,7 +10,7 @@
 //! [`merge_files`] the sum, the average, grey detection, the denoiser, layer dropping and the
 //! header — the one-machine bake's streaming finish ([`crate::bake::schedule::stream`]) fed
 //! with the parts' tiles instead of traced ones, on the same bits, so the merged file is the
-//! one-machine bake's, byte for byte (`core/cli/tests/farm.rs`, `tests/farm.rs`).
+//! one-machine bake's, byte for byte (`core/cli/tests/farm.rs`, `tests/engine/farm.rs`).
 
 use std::ops::Range;
 use std::path::{Path, PathBuf};

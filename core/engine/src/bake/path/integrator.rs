@@ -18,7 +18,7 @@
 //! added to the (eye slot, bounce slot) layers, so it stays linear in the coefficients of
 //! the two keyed vertices and neither the stack's layout nor the relighter changes. It is
 //! an approximation under edits: an edited region met at the third vertex or later still
-//! reflects with its bake-time material (measured in `tests/frozen_tail.rs`). Translucent
+//! reflects with its bake-time material (measured in `tests/engine/frozen_tail.rs`). Translucent
 //! regions at later vertices reflect with their surface BRDF only, as at x″ (subsurface
 //! light is gathered at the eye only). Roulette and direction choices depend on the
 //! bake-time materials only, so the bake and a reference with other materials still trace

@@ -14,7 +14,7 @@
 //!
 //! Why per material: the earlier ½ cosine + ½ four range lobes (whatever the material)
 //! wasted half the directions of a diffuse region (editable, Ks = 0) on lobes, and did worse
-//! there than uniform sampling (`tests/sampling_comparison.rs`; the figure is in
+//! there than uniform sampling (`tests/engine/sampling_comparison.rs`; the figure is in
 //! docs/measurements.md, "Figures that were in code comments").
 //!
 //! Every weight is fixed before the bake, and [`DirectionMixture::pdf`] evaluates the whole

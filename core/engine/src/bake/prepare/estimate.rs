@@ -24,7 +24,7 @@
 //! that it traces about [`PROBE_RAYS`] rays (a scene of many lights is probed at fewer
 //! pixels), checks the cancel before every eye sample, and keeps only the layers its paths
 //! reach (never a flag per possible layer: 300 editable regions make 3.3 million). The
-//! forecast is then arithmetic on what it found (`tests/forecast_bounds.rs`).
+//! forecast is then arithmetic on what it found (`tests/engine/forecast_bounds.rs`).
 
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -376,7 +376,7 @@ pub(crate) const BYTES_PER_TRIANGLE: u64 = 160;
 /// Bytes a BVH build holds per triangle beyond the prepared geometry, at its peak: the
 /// unordered triangles and shading records next to their BVH-ordered copies, and the
 /// builder's bounding boxes, Morton codes and binary tree (obvhs' PLOC). Set from the
-/// measured peak of building grids of 0.3–2.9 M triangles (`tests/forecast_bounds.rs`); a
+/// measured peak of building grids of 0.3–2.9 M triangles (`tests/engine/forecast_bounds.rs`); a
 /// 2.9 M-triangle scene was forecast at 464 MiB without it and peaked at 1.5 GiB.
 pub(crate) const BVH_BUILD_BYTES_PER_TRIANGLE: u64 = 256;
 

@@ -25,7 +25,7 @@
 //!
 //! **What it costs in exactness.** The stop rule reads the samples it stops on, so the
 //! estimate is not unbiased: a tile whose early samples happen to agree stops with them.
-//! This is the same approximation Cycles makes; `tests/adaptive_sampling.rs` measures the
+//! This is the same approximation Cycles makes; `tests/engine/adaptive_sampling.rs` measures the
 //! bias on the Cornell scene and bounds it by the image's noise. The edit-time weights do
 //! not enter the rule: a tile stops on its bake-time image, and its layers keep the noise
 //! of `n` samples whatever the edit.

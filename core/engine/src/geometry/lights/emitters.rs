@@ -125,7 +125,7 @@ pub enum AreaSampling {
     /// close or large light.
     Area,
     /// Uniformly in the solid angle the light subtends (the default): weight L·Ω for every
-    /// sample. See `cargo test --test area_sampling -- --nocapture` for the measured gain.
+    /// sample. See `cargo test --test engine area_sampling -- --nocapture` for the measured gain.
     #[default]
     SolidAngle,
 }
@@ -137,7 +137,7 @@ pub enum WorldSampling {
     Cosine,
     /// ½ hierarchical warping of the image's luminance + ½ cosine (the default): far lower
     /// variance than cosine alone where a small bright sun sits in a dim sky
-    /// (`tests/env_sampling.rs`; the figure is in docs/measurements.md, "Figures that were in
+    /// (`tests/engine/env_sampling.rs`; the figure is in docs/measurements.md, "Figures that were in
     /// code comments").
     #[default]
     Mixture,

@@ -25,7 +25,7 @@ use super::parts::{
 
 /// How the writer compresses the parts' chunks (all lossless). The bake writes with
 /// [`StackCompression::default`]; the others are kept to measure against it
-/// (`tests/stack_write.rs`, docs/scale.md).
+/// (`tests/engine/stack_write.rs`, docs/scale.md).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum StackCompression {
     /// Deflate over blocks of 16 scanlines.
