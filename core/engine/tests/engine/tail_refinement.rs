@@ -202,6 +202,48 @@ fn bounces_a_budget_left_out_are_refined_with_the_edit() {
     );
 }
 
+/// A sphere dark enough (a = 0.1) that the budget keeps one bounce: an explicit one-bounce
+/// bake has nothing to refine, but this one's cap is eight, so an edit that brightens it
+/// refines to the eight-bounce reference along the same paths, from the bounce vertex on.
+#[test]
+fn a_one_bounce_bake_under_a_budget_refines_to_its_cap() {
+    let (a, e, cap) = (0.1f32, 0.8f32, 8u32);
+    let scene: Scene = common::closed_sphere(a, true, 24);
+    let s = BakeSettings {
+        bounce_budget: 0.05,
+        ..settings(8, cap)
+    };
+    let (stack, report) = bake(&scene, &s, &Progress::new()).unwrap();
+    assert_eq!(stack.header.bounces, 1, "{:?}", report.bounce_estimate);
+    let reference = |s: &BakeSettings| {
+        mean_red(
+            &render_reference(
+                &scene,
+                s,
+                &[bp(e, 0.0, 1.0)],
+                ReferenceBrdf::True,
+                &Progress::new(),
+            )
+            .unwrap()
+            .rgba,
+        )
+    };
+    let truth = reference(&settings(8, cap));
+    let refiner = TailRefiner::new(&scene, &s, &stack.header).unwrap();
+    let relit = mean_red(&relight(&stack, &[bp(e, 0.0, 1.0)]));
+    let (img, _) = refined(&refiner, &stack, &[bp(e, 0.0, 1.0)], 8);
+    let ratio = mean_red(&img);
+    eprintln!(
+        "closed sphere baked at {a} (1 of {cap} bounces), relit at {e}: relit {relit:.5}, \
+         refined {ratio:.5}, reference at {cap} bounces {truth:.5}"
+    );
+    assert!((ratio / truth - 1.0).abs() < 1e-4, "{ratio} vs {truth}");
+    assert!(
+        relit / truth < 0.9,
+        "the relight alone lacks the bounces left out"
+    );
+}
+
 /// The Cornell grid of docs/bounces.md: every edit, refined over the bake's own samples,
 /// equals the projected reference along the same paths; printed after 1, 2 and 4 passes.
 #[test]
