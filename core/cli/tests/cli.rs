@@ -438,6 +438,10 @@ fn relight_refines_an_edit_of_a_multi_bounce_stack() {
         "3",
         "--json",
     ]));
+    // No bounce budget: the cap is the bounces baked, and a refinement traces to it.
+    let info = json_of(&relume(&["info", s(&stack), "--json"]));
+    assert_eq!(info["bounces"], 3, "{info}");
+    assert_eq!(info["refine_bounces"], 3, "{info}");
     let mats = dir.join("m.json");
     std::fs::write(
         &mats,

@@ -54,6 +54,7 @@ pub fn run(path: &Path, json_out: bool) -> Result<(), RelumeError> {
         "editable_regions": h.regions.iter().filter(|r| r.editable).map(|r| &r.name).collect::<Vec<_>>(),
         "light_groups": h.light_groups.iter().map(|g| &g.name).collect::<Vec<_>>(),
         "bounces": h.bounces,
+        "refine_bounces": h.refine_bounces(),
         "tail_edit_layers_stored": tail.len(),
         "tail_edit_bytes": tail_bytes,
     });
@@ -97,6 +98,15 @@ pub fn run(path: &Path, json_out: bool) -> Result<(), RelumeError> {
                 tail.len(),
                 tail_bytes as f64 / 1e6,
                 100.0 * tail_bytes as f64 / stored.max(1) as f64
+            );
+        }
+        if h.refine_bounces() > h.bounces {
+            println!(
+                "  baked {} of a cap of {} bounces (the bounce pre-pass left the rest out at \
+                 the bake-time materials); `relight --refine` traces an edit to {}",
+                h.bounces,
+                h.refine_bounces(),
+                h.refine_bounces()
             );
         }
     }
