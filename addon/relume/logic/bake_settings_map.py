@@ -30,6 +30,7 @@ CUSTOM_ONLY = frozenset({"spp", "light_samples", "indirect_samples", "basis_tole
 NOT_A_PREFERENCE = {
     "bounce_budget": "the preset's: the bake measures the bounces the scene needs",
     "sampling": "the preset's",
+    "bounce_light_samples": "the preset's (custom: as many as Light Samples)",
     "seed": "the core's default: a bake is reproducible; scripts set it",
     "resolution": "the render resolution, exported with the scene",
     "resolution_scale": "applied to the render resolution when the scene is exported",

@@ -149,6 +149,7 @@ impl Stack {
             &json!({
                 "spp": h.spp,
                 "light_samples": h.light_samples,
+                "bounce_light_samples": h.bounce_light_samples.unwrap_or(h.light_samples),
                 "bounces": h.bounces,
                 "sampling": h.sampling,
                 "seed": h.seed,

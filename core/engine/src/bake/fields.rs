@@ -61,8 +61,13 @@ macro_rules! bake_fields {
 bake_fields! {
     /// Eye samples per pixel (anti-aliasing; the eye region is in the layer key).
     spp: u32,
-    /// Samples per light (and for the world) at every shading point; at most 1024.
+    /// Samples per light (and for the world) at the eye's shading point, and past it unless
+    /// `bounce_light_samples` is given; at most 1024.
     light_samples: u32,
+    /// Samples per light at the vertices past the eye (the bounces), at most 1024; null: as
+    /// many as `light_samples`. A preset sets 1, as Cycles takes one per vertex: light
+    /// there is averaged by the indirect samples anyway.
+    bounce_light_samples: Option<u32>,
     /// Indirect directions per eye hit; at most 1024.
     indirect_samples: u32,
     /// Indirect bounces as Cycles' Max Bounces counts them (0: direct light only; 1: one
@@ -180,6 +185,7 @@ impl BakeFields {
         BakeFields {
             spp: s.spp,
             light_samples: s.light_samples,
+            bounce_light_samples: s.bounce_light_samples,
             indirect_samples: s.indirect_samples,
             bounces: s.bounces,
             bounce_budget: s.bounce_budget,
@@ -227,6 +233,7 @@ impl BakeFields {
         BakeSettings {
             spp: self.spp,
             light_samples: self.light_samples,
+            bounce_light_samples: self.bounce_light_samples,
             indirect_samples: self.indirect_samples,
             bounces: self.bounces,
             bounce_budget: self.bounce_budget,

@@ -44,6 +44,11 @@ pub enum Preset {
 pub struct PresetValues {
     pub spp: u32,
     pub light_samples: u32,
+    /// Light samples at the vertices past the eye. One, as Cycles takes: a bounce vertex's
+    /// direct light is averaged over the indirect samples anyway, and each further sample
+    /// costs a shadow ray and the vertex's basis values; measured on the shared glossy
+    /// scenes as the same error for a third less bake (docs/trade.md).
+    pub bounce_light_samples: u32,
     pub indirect_samples: u32,
     pub sampling: IndirectSampling,
     /// Largest relative L2 error of the BRDF basis (picks N_b). Each preset's value is
@@ -108,6 +113,7 @@ impl Preset {
             Preset::Draft => PresetValues {
                 spp: 4,
                 light_samples: 2,
+                bounce_light_samples: 1,
                 indirect_samples: 2,
                 sampling: IndirectSampling::Mixture,
                 basis_tolerance: 0.045,
@@ -126,6 +132,7 @@ impl Preset {
             Preset::Preview => PresetValues {
                 spp: 16,
                 light_samples: 4,
+                bounce_light_samples: 1,
                 indirect_samples: 4,
                 sampling: IndirectSampling::Guided,
                 basis_tolerance: 0.028,
@@ -144,6 +151,7 @@ impl Preset {
             Preset::Final => PresetValues {
                 spp: 128,
                 light_samples: 4,
+                bounce_light_samples: 1,
                 indirect_samples: 2,
                 sampling: IndirectSampling::Guided,
                 basis_tolerance: 0.009,
@@ -171,6 +179,7 @@ impl Preset {
         let v = self.values();
         settings.spp = v.spp;
         settings.light_samples = v.light_samples;
+        settings.bounce_light_samples = Some(v.bounce_light_samples);
         settings.indirect_samples = v.indirect_samples;
         settings.sampling = v.sampling;
         settings.basis.count = BasisCount::Tolerance(v.basis_tolerance);

@@ -12,8 +12,16 @@ use crate::scene::Resolution;
 pub struct BakeSettings {
     /// Eye samples per pixel (anti-aliasing; the eye region is in the layer key).
     pub spp: u32,
-    /// Samples per light (and for the world) at every shading point.
+    /// Samples per light (and for the world) at the eye's shading point, and at every
+    /// vertex past it unless `bounce_light_samples` says otherwise.
     pub light_samples: u32,
+    /// Samples per light at the vertices past the eye (the bounces); `None`: as many as
+    /// `light_samples`. A bounce vertex's direct light reaches the image through a BRDF and
+    /// an indirect sample's weight, so one sample there costs a shadow ray and the basis'
+    /// values per light for light that the indirect samples average anyway — Cycles takes one
+    /// per vertex too. The presets set 1.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bounce_light_samples: Option<u32>,
     /// Indirect directions per eye hit.
     pub indirect_samples: u32,
     /// Indirect bounces, as Cycles' Max Bounces counts them: 0 direct light only, 1 one
@@ -191,6 +199,7 @@ impl Default for BakeSettings {
         BakeSettings {
             spp: 16,
             light_samples: 4,
+            bounce_light_samples: None,
             indirect_samples: 1,
             bounces: 1,
             bounce_budget: 0.0,
@@ -228,6 +237,15 @@ pub const MAX_THREADS: usize = 1024;
 pub const MAX_DENOISE_ITERATIONS: u32 = 8;
 
 impl BakeSettings {
+    /// Light samples per light at a path vertex: the eye's (`eye`) or one past it.
+    #[inline]
+    pub fn light_samples_at(&self, eye: bool) -> u32 {
+        match (eye, self.bounce_light_samples) {
+            (false, Some(n)) => n,
+            _ => self.light_samples,
+        }
+    }
+
     /// The one set of rules every front end (command line, Python, add-on) applies, with
     /// the same words, each error naming the setting by its key in [`super::fields`]:
     /// sample counts ≥ 1 (light and indirect samples at most
@@ -240,6 +258,7 @@ impl BakeSettings {
         for (what, v) in [
             ("spp", self.spp),
             ("light_samples", self.light_samples),
+            ("bounce_light_samples", self.light_samples_at(false)),
             ("indirect_samples", self.indirect_samples),
             ("subsurface_samples", self.subsurface_samples),
         ] {
@@ -249,6 +268,7 @@ impl BakeSettings {
         }
         for (what, v) in [
             ("light_samples", self.light_samples),
+            ("bounce_light_samples", self.light_samples_at(false)),
             ("indirect_samples", self.indirect_samples),
         ] {
             if v > MAX_VERTEX_SAMPLES {

@@ -147,6 +147,7 @@ impl TailRefiner {
             .unwrap_or(defaults.subsurface_samples);
         let settings = BakeSettings {
             light_samples: header.light_samples,
+            bounce_light_samples: header.bounce_light_samples,
             sampling,
             light_grouping,
             threads,

@@ -38,6 +38,7 @@ fn header(width: u32, height: u32) -> StackHeader {
         camera,
         spp: 1,
         light_samples: 1,
+        bounce_light_samples: None,
         bounces: 1,
         sampling: "uniform".into(),
         seed: 0,

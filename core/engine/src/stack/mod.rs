@@ -26,6 +26,10 @@ pub struct StackHeader {
     pub camera: Camera,
     pub spp: u32,
     pub light_samples: u32,
+    /// Light samples at the vertices past the eye; `None` (and stacks written before it was
+    /// recorded): `light_samples`. A refinement traces its tails with it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bounce_light_samples: Option<u32>,
     pub bounces: u32,
     /// Indirect sampling: "uniform" (the paper), "mixture" or "guided".
     pub sampling: String,

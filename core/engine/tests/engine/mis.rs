@@ -296,6 +296,59 @@ fn the_weights_keep_the_image_unbiased_whatever_the_light_sampling() {
     assert!(diff <= 4.0 * noise, "{diff} vs noise {noise}");
 }
 
+/// The light samples a bounce vertex takes (`bounce_light_samples`) change only the noise:
+/// its next-event estimation and the BSDF rays that meet emitters from it are weighed with
+/// that vertex's own count, so the image's mean is the same with one sample past the eye as
+/// with as many as the eye takes, at three bounces where the later vertices carry much of
+/// the light. The two are rendered with the same seeds, so their eye rays and the eye's
+/// light samples coincide and the per-pixel differences measure the change alone (a
+/// paired comparison: weights built with the eye's count at the later vertices put the
+/// means more than twenty standard errors of the differences apart).
+#[test]
+fn light_samples_past_the_eye_change_the_noise_not_the_mean() {
+    let scene = spheres(200.0);
+    let render_at = |later: Option<u32>, seed: u64| {
+        let settings = BakeSettings {
+            light_samples: 4,
+            bounce_light_samples: later,
+            bounces: 3,
+            ..settings(256, seed)
+        };
+        let (ctx, _) = BakeContext::new(&scene, &settings).unwrap();
+        render_with_context(
+            &ctx,
+            &materials(&scene),
+            ReferenceBrdf::True,
+            &Progress::new(),
+        )
+        .unwrap()
+        .rgba
+    };
+    let (mut sum4, mut diffs) = (0.0f64, Vec::new());
+    for seed in 1..=2 {
+        let (a, b) = (render_at(None, seed), render_at(Some(1), seed));
+        for (p, q) in a.chunks(4).zip(b.chunks(4)) {
+            for k in 0..3 {
+                sum4 += p[k] as f64;
+                diffs.push(p[k] as f64 - q[k] as f64);
+            }
+        }
+    }
+    let n = diffs.len() as f64;
+    let m4 = sum4 / n;
+    let d = diffs.iter().sum::<f64>() / n;
+    let var = diffs.iter().map(|x| (x - d).powi(2)).sum::<f64>() / (n - 1.0);
+    let se = (var / n).sqrt();
+    println!(
+        "image mean at three bounces with 4 light samples at every vertex {m4:.5}; with 1 \
+         past the eye {:.3} % lower, standard error of the paired difference {:.3} %",
+        100.0 * d / m4,
+        100.0 * se / m4
+    );
+    assert!(m4 > 0.0 && m4.is_finite() && se.is_finite());
+    assert!(d.abs() <= 4.0 * se, "{d} vs standard error {se}");
+}
+
 /// A converged image robust to the fireflies of the estimator itself: the per-pixel median
 /// of `renders` independent renders of `spp` samples each (a rare huge sample moves one
 /// render, not the median).

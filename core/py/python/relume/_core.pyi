@@ -74,6 +74,7 @@ class BakeSettings:
 
     spp: int
     light_samples: int
+    bounce_light_samples: int | None  # past the eye; None: as many as light_samples
     indirect_samples: int
     bounces: int  # 0..128 as Cycles counts them; the cap when bounce_budget > 0
     bounce_budget: float  # share of the light bounces past the baked count may leave out

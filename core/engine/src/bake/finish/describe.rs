@@ -29,6 +29,7 @@ pub(crate) fn stack_header(
         camera: scene.camera.clone(),
         spp,
         light_samples: settings.light_samples,
+        bounce_light_samples: settings.bounce_light_samples,
         bounces: ctx.settings.bounces,
         bounce_cap: ctx
             .bounce_estimate

@@ -381,6 +381,7 @@ fn trace_path<B: VertexBrdf, S: PathSink, T: Tracer>(
         &hit,
         wo,
         eye_strategy.as_ref(),
+        true,
         &mut stream,
         &mut values,
         &mut eye_light,
@@ -456,6 +457,7 @@ fn trace_path<B: VertexBrdf, S: PathSink, T: Tracer>(
                 wi,
                 density,
                 hit2.as_ref(),
+                true,
                 &mut emitted[..groups],
             )
         {
@@ -485,6 +487,7 @@ fn trace_path<B: VertexBrdf, S: PathSink, T: Tracer>(
             &hit2,
             -wi,
             bounce_strategy.as_ref(),
+            false,
             &mut stream,
             &mut values,
             &mut bounce_light,
@@ -541,7 +544,9 @@ fn trace_path<B: VertexBrdf, S: PathSink, T: Tracer>(
 /// `stream` per emitter, whose children are the light samples, always. With `bsdf` (the
 /// vertex also traces BSDF rays that collect light, [`crate::bake::path::mis`]) each light sample
 /// an emitter can also be met by carries its multiple-importance weight against that
-/// strategy; with `None` every light sample has full weight.
+/// strategy; with `None` every light sample has full weight. `eye` says whether `hit` is
+/// the eye's vertex, which takes its own count
+/// ([`crate::bake::settings::BakeSettings::light_samples_at`]).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn direct_light<B: VertexBrdf, T: Tracer>(
     ctx: &BakeContext,
@@ -550,6 +555,7 @@ pub(crate) fn direct_light<B: VertexBrdf, T: Tracer>(
     hit: &SurfaceHit,
     wo: Vec3,
     bsdf: Option<&BsdfStrategy>,
+    eye: bool,
     stream: &mut SampleStream,
     values: &mut [Rgb; MAX_BASES],
     light: &mut [Rgb; MAX_GROUPS * MAX_BASES],
@@ -558,7 +564,7 @@ pub(crate) fn direct_light<B: VertexBrdf, T: Tracer>(
     let mut count = 0usize;
     let n = hit.shading_normal;
     let ng = hit.geometric_normal;
-    let samples = ctx.settings.light_samples;
+    let samples = ctx.settings.light_samples_at(eye);
     let inv = 1.0 / samples as f32;
     let origin = ctx.geometry.offset(hit.position, ng);
     for emitter in 0..ctx.lights.len() {
@@ -762,7 +768,7 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
         let next = tracer.intersect(ctx, origin, dir, 0.0, f32::INFINITY);
         let emitted = &mut emitted[..out.len()];
         emitted.fill(Rgb::ZERO);
-        if emission_along(ctx, &vertex, dir, pdf, next.as_ref(), emitted) {
+        if emission_along(ctx, &vertex, dir, pdf, next.as_ref(), false, emitted) {
             for (g, (o, e)) in out.iter_mut().zip(emitted.iter()).enumerate() {
                 if *e != Rgb::ZERO {
                     *o += throughput * *e;
@@ -790,6 +796,7 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
             &hit,
             wo,
             strategy.as_ref(),
+            false,
             stream,
             &mut values,
             &mut light,
@@ -966,6 +973,7 @@ pub fn guide_sample<B: VertexBrdf, T: Tracer>(
         &hit2,
         -wi,
         None,
+        false,
         &mut stream,
         &mut values,
         &mut light,

@@ -129,17 +129,19 @@ pub(crate) fn power_heuristic(a: f32, b: f32) -> f32 {
 /// The light, per group, that a BSDF ray from `vertex` along `dir` receives from the
 /// emitters it meets before or at `end` (its first hit, `None` when it escapes), each
 /// weighted by its MIS weight against next-event estimation at `vertex`: `density` is the
-/// BSDF strategy's count × pdf of `dir`. Adds into `out` (one entry per group); returns
-/// whether anything arrived.
+/// BSDF strategy's count × pdf of `dir`; `eye` says whether `vertex` is the eye's, whose
+/// light-sample count differs from the later vertices'. Adds into `out` (one entry per
+/// group); returns whether anything arrived.
 pub(crate) fn emission_along(
     ctx: &BakeContext,
     vertex: &SurfaceHit,
     dir: Vec3,
     density: f32,
     end: Option<&SurfaceHit>,
+    eye: bool,
     out: &mut [Rgb],
 ) -> bool {
-    let light_samples = ctx.settings.light_samples as f32;
+    let light_samples = ctx.settings.light_samples_at(eye) as f32;
     let origin = ctx
         .geometry
         .offset(vertex.position, vertex.geometric_normal);

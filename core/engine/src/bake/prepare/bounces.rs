@@ -100,6 +100,7 @@ fn row(ctx: &BakeContext, cap: u32, gx: u32, gy: u32, y: u32) -> Vec<f64> {
                     &hit,
                     wo,
                     None,
+                    bounce > 0,
                     &mut stream,
                     &mut values,
                     &mut light,

@@ -431,6 +431,9 @@ pub fn estimate(
     // do not depend on how many samples share a vertex), then the settings are restored.
     let settings = ctx.settings.clone();
     ctx.settings.light_samples = settings.light_samples.min(PROBE_MAX_LIGHT_SAMPLES);
+    ctx.settings.bounce_light_samples = settings
+        .bounce_light_samples
+        .map(|n| n.min(PROBE_MAX_LIGHT_SAMPLES));
     ctx.settings.indirect_samples = settings.indirect_samples.min(PROBE_MAX_INDIRECT_SAMPLES);
     let probe = probe(ctx, progress);
     ctx.settings = settings;

@@ -19,6 +19,7 @@ pub fn stack_header(width: u32, height: u32, regions: Vec<RegionInfo>) -> StackH
         camera,
         spp: 1,
         light_samples: 1,
+        bounce_light_samples: None,
         bounces: 1,
         sampling: "uniform".into(),
         seed: 0,
