@@ -148,10 +148,14 @@ def test_default_bake_with_two_editable_materials_is_not_lost(addon, prefs, tmp_
 #: lobe's shape (measured 2.9 % and 4.0 %, ground within 0.4 %); a roughness edit changes
 #: it, as far as the preview's 17-slot basis carries it (measured 2.7 %, the ground's
 #: reflection 1.007 of Cycles; 13 slots gave 4.0 % and 0.941).
+#: The bake's own noise is most of these bounds at 64 px: the preview bake's tile error
+#: between bakes of other seeds is about 2.5 % unedited and 3.4 % with the bunny made metal
+#: (four seeds, `relume bake --preset preview --bounces 1 --resolution 64x64`, 2026-11-30),
+#: so the metal edit's bound sits above that noise by what the basis may add.
 BUNNY_EDITS = {
     "ground_roughness_0.15_to_0.3": ("GroundTile", "Roughness", 0.3, 0.045, 0.03),
     "ground_colour_to_rust": ("GroundTile", "Base Color", (0.55, 0.25, 0.12, 1.0), 0.045, 0.03),
-    "bunny_metallic_0_to_1": ("BunnyTerracotta", "Metallic", 1.0, 0.045, 0.03),
+    "bunny_metallic_0_to_1": ("BunnyTerracotta", "Metallic", 1.0, 0.05, 0.03),
 }
 
 
