@@ -65,8 +65,8 @@ bake_fields! {
     /// `bounce_light_samples` is given; at most 1024.
     light_samples: u32,
     /// Samples per light at the vertices past the eye (the bounces), at most 1024; null: as
-    /// many as `light_samples`. A preset sets 1, as Cycles takes one per vertex: light
-    /// there is averaged by the indirect samples anyway.
+    /// many as `light_samples`. Draft and preview set 1, as Cycles takes one per vertex
+    /// (light there is averaged by the indirect samples anyway); final sets 4.
     bounce_light_samples: Option<u32>,
     /// Indirect directions per eye hit; at most 1024.
     indirect_samples: u32,

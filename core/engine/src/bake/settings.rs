@@ -19,7 +19,7 @@ pub struct BakeSettings {
     /// `light_samples`. A bounce vertex's direct light reaches the image through a BRDF and
     /// an indirect sample's weight, so one sample there costs a shadow ray and the basis'
     /// values per light for light that the indirect samples average anyway — Cycles takes one
-    /// per vertex too. The presets set 1.
+    /// per vertex too. Draft and preview set 1, final as many as the eye.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bounce_light_samples: Option<u32>,
     /// Indirect directions per eye hit.
