@@ -19,7 +19,12 @@ const SCENE: Resolution = Resolution {
 /// A valid value other than the default for each field.
 fn other_value(key: &str) -> Value {
     match key {
-        "spp" | "light_samples" | "indirect_samples" | "bounces" | "threads" => json!(3),
+        "spp"
+        | "light_samples"
+        | "bounce_light_samples"
+        | "indirect_samples"
+        | "bounces"
+        | "threads" => json!(3),
         "bounce_budget" | "drop_budget" => json!(0.01),
         "sampling" => json!("guided"),
         "seed" => json!(7),
