@@ -31,6 +31,8 @@ NOT_A_PREFERENCE = {
     "bounce_budget": "the preset's: the bake measures the bounces the scene needs",
     "sampling": "the preset's",
     "bounce_light_samples": "the preset's (custom: as many as Light Samples)",
+    "diffuse_bounces": "the core's default (none): the bounce cap is min(Max, max(Diffuse, Glossy))",
+    "glossy_bounces": "the core's default (none): the bounce cap is min(Max, max(Diffuse, Glossy))",
     "seed": "the core's default: a bake is reproducible; scripts set it",
     "resolution": "the render resolution, exported with the scene",
     "resolution_scale": "applied to the render resolution when the scene is exported",

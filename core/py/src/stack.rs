@@ -151,6 +151,8 @@ impl Stack {
                 "light_samples": h.light_samples,
                 "bounce_light_samples": h.bounce_light_samples.unwrap_or(h.light_samples),
                 "bounces": h.bounces,
+                "diffuse_bounces": h.diffuse_bounces,
+                "glossy_bounces": h.glossy_bounces,
                 "sampling": h.sampling,
                 "seed": h.seed,
                 "precision": h.precision,

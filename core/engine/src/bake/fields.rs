@@ -76,6 +76,13 @@ bake_fields! {
     /// 128. With a bounce budget it is the cap, and
     /// the bake measures how many the scene needs; a preset sets 12, Blender's default.
     bounces: u32,
+    /// Most diffuse bounces a path takes, as Cycles' Diffuse light path limit (Blender's
+    /// default 4); null: only `bounces` limits them. With `glossy_bounces`, a path that
+    /// alternates glossy and diffuse surfaces goes on past either alone, as in Cycles.
+    diffuse_bounces: Option<u32>,
+    /// Most glossy bounces a path takes, as Cycles' Glossy light path limit (Blender's
+    /// default 4); null: only `bounces` limits them.
+    glossy_bounces: Option<u32>,
     /// Share of the image's light the bounces past the baked count may leave out, in
     /// [0, 1) (0: bake exactly `bounces`).
     bounce_budget: f32,
@@ -188,6 +195,8 @@ impl BakeFields {
             bounce_light_samples: s.bounce_light_samples,
             indirect_samples: s.indirect_samples,
             bounces: s.bounces,
+            diffuse_bounces: s.diffuse_bounces,
+            glossy_bounces: s.glossy_bounces,
             bounce_budget: s.bounce_budget,
             sampling: s.sampling,
             seed: s.seed,
@@ -236,6 +245,8 @@ impl BakeFields {
             bounce_light_samples: self.bounce_light_samples,
             indirect_samples: self.indirect_samples,
             bounces: self.bounces,
+            diffuse_bounces: self.diffuse_bounces,
+            glossy_bounces: self.glossy_bounces,
             bounce_budget: self.bounce_budget,
             sampling: self.sampling,
             seed: self.seed,

@@ -31,6 +31,16 @@ pub struct BakeSettings {
     /// measures how many the scene needs ([`crate::bake::prepare::bounces`]). At most
     /// [`MAX_BOUNCES`].
     pub bounces: u32,
+    /// Most diffuse bounces a path takes, as Cycles' Diffuse light path limit counts them
+    /// (Blender's default 4); `None`: only `bounces` limits them. With a glossy limit this
+    /// lets a path that alternates glossy and diffuse surfaces go on past either limit alone,
+    /// up to `bounces` in all ([`crate::bake::path::bounce_kinds`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub diffuse_bounces: Option<u32>,
+    /// Most glossy bounces a path takes, as Cycles' Glossy light path limit counts them
+    /// (Blender's default 4); `None`: only `bounces` limits them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub glossy_bounces: Option<u32>,
     /// Relative share of the image's light that bounces beyond the chosen count may leave
     /// out (e.g. 0.005); 0 bakes exactly `bounces`. The presets set it.
     #[serde(default)]
@@ -202,6 +212,8 @@ impl Default for BakeSettings {
             bounce_light_samples: None,
             indirect_samples: 1,
             bounces: 1,
+            diffuse_bounces: None,
+            glossy_bounces: None,
             bounce_budget: 0.0,
             sampling: IndirectSampling::Uniform,
             seed: 0,
@@ -288,6 +300,17 @@ impl BakeSettings {
                     self.bounces
                 ),
             );
+        }
+        for (what, v) in [
+            ("diffuse_bounces", self.diffuse_bounces),
+            ("glossy_bounces", self.glossy_bounces),
+        ] {
+            if let Some(v) = v.filter(|v| *v > MAX_BOUNCES) {
+                return bad(
+                    what,
+                    format!("{v} asked; this build bakes 0 to {MAX_BOUNCES}"),
+                );
+            }
         }
         if self.threads > MAX_THREADS {
             return bad(

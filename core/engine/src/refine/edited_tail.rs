@@ -89,6 +89,22 @@ impl VertexBrdf for EditedTailBrdf<'_> {
         }
     }
 
+    /// Bounces are labelled by the edited materials, as the edited tail sees them: an edit
+    /// that makes a region glossy lets paths go on past the diffuse limit as Cycles does.
+    #[inline]
+    fn glossy_share(&self, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3) -> f32 {
+        let ctx = self.basis.ctx;
+        let r = &ctx.regions[region as usize];
+        match &r.model {
+            RegionModel::Editable { index, .. } => crate::bake::path::bounce_kinds::glossy_share(
+                self.edited[*index as usize].parts(albedo_at(r, uv), n, wi, wo),
+            ),
+            RegionModel::Fixed { .. } => {
+                crate::bake::path::frozen::frozen_glossy_share(ctx, region, uv, n, wi, wo)
+            }
+        }
+    }
+
     #[inline]
     fn eval(
         &self,

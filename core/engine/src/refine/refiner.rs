@@ -148,6 +148,8 @@ impl TailRefiner {
         let settings = BakeSettings {
             light_samples: header.light_samples,
             bounce_light_samples: header.bounce_light_samples,
+            diffuse_bounces: header.diffuse_bounces,
+            glossy_bounces: header.glossy_bounces,
             sampling,
             light_grouping,
             threads,

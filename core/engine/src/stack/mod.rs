@@ -31,6 +31,13 @@ pub struct StackHeader {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bounce_light_samples: Option<u32>,
     pub bounces: u32,
+    /// Cycles' per-kind light path limits the bake counted ([`crate::bake::path::bounce_kinds`]);
+    /// `None` (and stacks written before they were recorded): only `bounces`. A refinement
+    /// traces its tails with them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub diffuse_bounces: Option<u32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub glossy_bounces: Option<u32>,
     /// Indirect sampling: "uniform" (the paper), "mixture" or "guided".
     pub sampling: String,
     pub seed: u64,

@@ -9,6 +9,7 @@ mod adaptive_sampling;
 mod area_sampling;
 mod assets_scenes;
 mod bake_physics;
+mod bounce_kinds;
 mod denoise;
 mod emitters;
 mod env_sampling;

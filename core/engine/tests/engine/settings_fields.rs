@@ -22,6 +22,8 @@ fn other_value(key: &str) -> Value {
         "spp"
         | "light_samples"
         | "bounce_light_samples"
+        | "diffuse_bounces"
+        | "glossy_bounces"
         | "indirect_samples"
         | "bounces"
         | "threads" => json!(3),

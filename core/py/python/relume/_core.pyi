@@ -77,6 +77,8 @@ class BakeSettings:
     bounce_light_samples: int | None  # past the eye; None: as many as light_samples
     indirect_samples: int
     bounces: int  # 0..128 as Cycles counts them; the cap when bounce_budget > 0
+    diffuse_bounces: int | None  # Cycles' Diffuse limit; None: only bounces
+    glossy_bounces: int | None  # Cycles' Glossy limit; None: only bounces
     bounce_budget: float  # share of the light bounces past the baked count may leave out
     sampling: Literal["uniform", "mixture", "guided"]
     seed: int

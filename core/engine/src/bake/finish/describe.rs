@@ -31,6 +31,8 @@ pub(crate) fn stack_header(
         light_samples: settings.light_samples,
         bounce_light_samples: settings.bounce_light_samples,
         bounces: ctx.settings.bounces,
+        diffuse_bounces: settings.diffuse_bounces,
+        glossy_bounces: settings.glossy_bounces,
         bounce_cap: ctx
             .bounce_estimate
             .as_ref()

@@ -41,6 +41,22 @@ pub fn frozen_value(ctx: &BakeContext, region: u32, uv: Vec2, n: Vec3, wi: Vec3,
     r.frozen.value(albedo_at(r, uv), n, wi, wo)
 }
 
+/// The probability that a bounce along `wi` from region `region` is a glossy one at its
+/// bake-time material ([`crate::bake::path::bounce_kinds`]): the glossy part of
+/// [`frozen_value`] over the whole, by Cycles' own split of the material (not the basis').
+#[inline]
+pub fn frozen_glossy_share(
+    ctx: &BakeContext,
+    region: u32,
+    uv: Vec2,
+    n: Vec3,
+    wi: Vec3,
+    wo: Vec3,
+) -> f32 {
+    let r = &ctx.regions[region as usize];
+    crate::bake::path::bounce_kinds::glossy_share(r.frozen.parts(albedo_at(r, uv), n, wi, wo))
+}
+
 /// [`frozen_value`] of an editable region as its diffuse and glossy parts, with the
 /// region's editable index; `None` for a fixed region (its material is never edited). The
 /// diffuse part is the diffuse basis slot's bake-time coefficient over π (times the

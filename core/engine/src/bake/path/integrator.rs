@@ -44,6 +44,7 @@
 use glam::{Vec2, Vec3};
 use std::f32::consts::PI;
 
+use crate::bake::path::bounce_kinds::{BounceKinds, KindLimits};
 use crate::bake::path::guide::GUIDE_WEIGHT;
 use crate::bake::path::guide_tree::DirectionTree;
 use crate::bake::path::mis::{
@@ -121,6 +122,11 @@ pub trait VertexBrdf: Sync {
         false
     }
 
+    /// The probability that a bounce leaving region `region` along `wi` is a glossy one, for
+    /// Cycles' per-kind light path limits ([`crate::bake::path::bounce_kinds`]): the glossy
+    /// part of the tail BRDF there over the whole. Only called when such a limit binds.
+    fn glossy_share(&self, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3) -> f32;
+
     /// The last bounce a path reaches, for a bake of `baked` bounces: the bake's own and
     /// the reference renderer's stop there; a refinement's edited tail goes on to the
     /// bake's cap (the bounces a bounce budget left out at the bake-time materials).
@@ -162,6 +168,10 @@ impl<B: VertexBrdf> VertexBrdf for TailBrdf<'_, B> {
     #[inline]
     fn tail(&self, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3) -> Rgb {
         self.0.tail(region, uv, n, wi, wo)
+    }
+    #[inline]
+    fn glossy_share(&self, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3) -> f32 {
+        self.0.glossy_share(region, uv, n, wi, wo)
     }
 }
 
@@ -419,6 +429,7 @@ fn trace_path<B: VertexBrdf, S: PathSink, T: Tracer>(
     }
     let n = hit.shading_normal;
     let inv_indirect = 1.0 / settings.indirect_samples as f32;
+    let limits = KindLimits::of(settings, brdf.bounces(settings.bounces));
     let mut eye_values = [Rgb::ZERO; MAX_BASES];
     let mut bounce_light = [Rgb::ZERO; MAX_GROUPS * MAX_BASES];
     let indirect = stream.branch();
@@ -447,6 +458,12 @@ fn trace_path<B: VertexBrdf, S: PathSink, T: Tracer>(
         );
         let (eye_first, eye_count) = brdf.eval(hit.region, hit.uv, n, wi, wo, &mut eye_values);
         let weight = cos_i / pdf * inv_indirect;
+        // Cycles' per-kind limits: the path's split of its bounces after the eye's one.
+        let kinds = limits.map(|l| {
+            let mut k = BounceKinds::new(l);
+            k.bounce(brdf.glossy_share(hit.region, hit.uv, n, wi, wo));
+            k
+        });
         // The light this BSDF ray meets is direct light at the eye (the second strategy).
         let mut emitted = [Rgb::ZERO; MAX_GROUPS];
         let density = settings.indirect_samples as f32 * pdf;
@@ -492,6 +509,15 @@ fn trace_path<B: VertexBrdf, S: PathSink, T: Tracer>(
             &mut values,
             &mut bounce_light,
         );
+        if let Some(within) = kinds.as_ref().map(BounceKinds::within) {
+            if within < 1.0 {
+                for g in 0..groups {
+                    for l in &mut bounce_light[g * MAX_BASES..g * MAX_BASES + bounce_count] {
+                        *l *= within;
+                    }
+                }
+            }
+        }
         if bounce_rays {
             let mut tail = stream.branch();
             let mut edits =
@@ -507,6 +533,7 @@ fn trace_path<B: VertexBrdf, S: PathSink, T: Tracer>(
                 &mut bounce_light,
                 (&mut bounce_first, &mut bounce_count),
                 edits.as_mut(),
+                kinds,
             );
             if let (Some(edits), Some(bounce_parts)) = (&edits, bounce_parts) {
                 emit_tail_edits(sink, brdf, &hit, wi, wo, weight, edits, &bounce_parts);
@@ -631,9 +658,11 @@ fn frozen_tail<B: VertexBrdf, T: Tracer>(
     light: &mut [Rgb; MAX_GROUPS * MAX_BASES],
     (first, count): (&mut u32, &mut usize),
     edits: Option<&mut TailEdits>,
+    kinds: Option<BounceKinds>,
 ) -> Option<BounceParts> {
     let n = hit.shading_normal;
     let (wi, cos, pdf) = continuation(ctx, hit, wo, stream)?;
+    let kinds = kinds.map(|k| (k, brdf.glossy_share(hit.region, hit.uv, n, wi, wo)));
     let groups = ctx.lights.groups.len();
     let mut radiance = [Rgb::ZERO; MAX_GROUPS];
     let tracking = edits.is_some();
@@ -647,6 +676,7 @@ fn frozen_tail<B: VertexBrdf, T: Tracer>(
         stream,
         &mut radiance[..groups],
         edits,
+        kinds,
     ) {
         return None;
     }
@@ -747,8 +777,19 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
     stream: &mut SampleStream,
     out: &mut [Rgb],
     mut edits: Option<&mut TailEdits>,
+    kinds: Option<(BounceKinds, f32)>,
 ) -> bool {
     let tail = TailBrdf(brdf, edits.is_some());
+    // Cycles' per-kind limits: the probability the path is within them at the vertex the
+    // current segment leaves (`leaving`), and the split of its bounces after that segment.
+    let (mut kinds, mut leaving) = match kinds {
+        Some((mut k, share)) => {
+            let leaving = k.within();
+            k.bounce(share);
+            (Some(k), leaving)
+        }
+        None => (None, 1.0),
+    };
     let max_bounce = brdf.bounces(ctx.settings.bounces);
     let mut values = [Rgb::ZERO; MAX_BASES];
     let mut light = [Rgb::ZERO; MAX_GROUPS * MAX_BASES];
@@ -768,13 +809,14 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
         let next = tracer.intersect(ctx, origin, dir, 0.0, f32::INFINITY);
         let emitted = &mut emitted[..out.len()];
         emitted.fill(Rgb::ZERO);
-        if emission_along(ctx, &vertex, dir, pdf, next.as_ref(), false, emitted) {
+        if leaving > 0.0 && emission_along(ctx, &vertex, dir, pdf, next.as_ref(), false, emitted) {
             for (g, (o, e)) in out.iter_mut().zip(emitted.iter()).enumerate() {
                 if *e != Rgb::ZERO {
-                    *o += throughput * *e;
+                    let e = throughput * *e * leaving;
+                    *o += e;
                     any = true;
                     if let Some(edits) = edits.as_deref_mut() {
-                        edits.record(g, throughput * *e);
+                        edits.record(g, e);
                     }
                 }
             }
@@ -784,6 +826,10 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
         };
         if bounce > max_bounce {
             break; // the last vertex's segment, for emitters only
+        }
+        let here = kinds.as_ref().map_or(1.0, BounceKinds::within);
+        if here <= 0.0 {
+            break; // past a per-kind limit on every split: nothing more reaches the image
         }
         let wo = -dir;
         let last = bounce == max_bounce;
@@ -802,6 +848,7 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
             &mut light,
         );
         if c > 0 {
+            let throughput = throughput * here;
             for (g, o) in out.iter_mut().enumerate() {
                 let l = light[g * MAX_BASES];
                 if l != Rgb::ZERO {
@@ -831,6 +878,10 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
             break;
         };
         let w = cos / next_pdf;
+        if let Some(k) = kinds.as_mut() {
+            leaving = here;
+            k.bounce(brdf.glossy_share(hit.region, hit.uv, n, wi, wo));
+        }
         let value = match edits.as_deref_mut() {
             Some(edits) => {
                 let (value, parts) = brdf.tail_with_parts(hit.region, hit.uv, n, wi, wo);

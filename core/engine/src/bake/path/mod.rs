@@ -12,12 +12,15 @@
 //! - [`mixture`], [`guide`] and [`guide_tree`]: how indirect directions are drawn (cosine
 //!   and lobes, or the guide pass's per-tile trees); [`mis`]: how light samples and
 //!   BSDF-sampled rays are weighed against each other.
+//! - [`bounce_kinds`]: Cycles' per-kind light path limits (diffuse, glossy), as the
+//!   probability that a path is still within them at each vertex.
 //!
 //! Apart from the other stages because it is per sample and knows nothing of tiles,
 //! passes, files or stacks: the schedulers, the preparation's probe, pre-pass and guide
 //! pass, and the reference render all trace through it, and random numbers are drawn in
 //! the same order whoever calls it.
 
+pub mod bounce_kinds;
 pub mod frozen;
 pub mod guide;
 pub mod guide_tree;

@@ -6,6 +6,7 @@ use glam::{Vec2, Vec3};
 use crate::bake::path::frozen::{albedo_at, cos_half_angle};
 pub use crate::bake::path::frozen::{blinn_phong_value, frozen_value};
 use crate::bake::path::integrator::VertexBrdf;
+use crate::bake::path::surface_brdf::SurfaceBrdf;
 use crate::bake::prepare::context::{BakeContext, RegionModel};
 use crate::brdf::{BlinnPhong, RegionBasis};
 use crate::options::MAX_BASES;
@@ -57,6 +58,12 @@ impl VertexBrdf for BasisBrdf<'_> {
     #[inline]
     fn tail_is_frozen(&self) -> bool {
         true
+    }
+
+    /// Bounces are labelled by the bake-time materials, as the tail sees them.
+    #[inline]
+    fn glossy_share(&self, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3) -> f32 {
+        crate::bake::path::frozen::frozen_glossy_share(self.ctx, region, uv, n, wi, wo)
     }
 
     #[inline]
@@ -161,6 +168,20 @@ impl VertexBrdf for MaterialBrdf<'_> {
                 cos_half_angle(n, wi, wo),
             ),
         }
+    }
+
+    /// Bounces are labelled by the given materials, as its tail sees them.
+    #[inline]
+    fn glossy_share(&self, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3) -> f32 {
+        let r = &self.ctx.regions[region as usize];
+        let parts = match &r.model {
+            RegionModel::Fixed { material } => material.parts(albedo_at(r, uv), n, wi, wo),
+            RegionModel::Editable { index, .. } => SurfaceBrdf::BlinnPhong(
+                self.materials[*index as usize],
+            )
+            .parts(albedo_at(r, uv), n, wi, wo),
+        };
+        crate::bake::path::bounce_kinds::glossy_share(parts)
     }
 
     #[inline]

@@ -14,7 +14,8 @@
 
 use rayon::prelude::*;
 
-use crate::bake::path::frozen::frozen_value;
+use crate::bake::path::bounce_kinds::{BounceKinds, KindLimits};
+use crate::bake::path::frozen::{frozen_glossy_share, frozen_value};
 use crate::bake::path::integrator::Tracer;
 use crate::bake::path::integrator::{continuation, direct_light, CountingTracer};
 use crate::bake::path::vertex_brdf::BasisBrdf;
@@ -74,6 +75,7 @@ fn row(ctx: &BakeContext, cap: u32, gx: u32, gy: u32, y: u32) -> Vec<f64> {
     let mut light = [Rgb::ZERO; MAX_GROUPS * MAX_BASES];
     let tints: Vec<Rgb> = ctx.lights.groups.iter().map(|g| g.tint).collect();
     let seed = ctx.settings.seed ^ 0xB0C7_CE5E_57A1_u64;
+    let limits = KindLimits::of(&ctx.settings, cap);
     for x in 0..gx {
         let px = ((x as f32 + 0.5) * res.width as f32 / gx as f32) as u32;
         let py = ((y as f32 + 0.5) * res.height as f32 / gy as f32) as u32;
@@ -84,6 +86,8 @@ fn row(ctx: &BakeContext, cap: u32, gx: u32, gy: u32, y: u32) -> Vec<f64> {
             let (mut origin, mut dir) = ctx.camera.ray(px as f32 + jx, py as f32 + jy);
             let mut throughput = Rgb::ONE;
             let mut tmax = ctx.clip_end;
+            // Cycles' per-kind limits, as the bake counts them.
+            let mut kinds = limits.map(BounceKinds::new);
             #[allow(clippy::needless_range_loop)] // `bounce` also counts the path's length
             for bounce in 0..=cap as usize {
                 let Some(hit) = tracer.intersect(ctx, origin, dir, 0.0, tmax) else {
@@ -105,12 +109,16 @@ fn row(ctx: &BakeContext, cap: u32, gx: u32, gy: u32, y: u32) -> Vec<f64> {
                     &mut values,
                     &mut light,
                 );
+                let within = kinds.as_ref().map_or(1.0, BounceKinds::within);
+                if within <= 0.0 {
+                    break;
+                }
                 if c > 0 {
                     let mut sum = Rgb::ZERO;
                     for (g, t) in tints.iter().enumerate() {
                         sum += light[g * MAX_BASES] * *t;
                     }
-                    energy[bounce] += crate::luminance(throughput * sum) as f64;
+                    energy[bounce] += (crate::luminance(throughput * sum) * within) as f64;
                 }
                 if bounce == cap as usize {
                     break;
@@ -119,6 +127,9 @@ fn row(ctx: &BakeContext, cap: u32, gx: u32, gy: u32, y: u32) -> Vec<f64> {
                 let Some((wi, cos, pdf)) = continuation(ctx, &hit, wo, &mut stream) else {
                     break;
                 };
+                if let Some(k) = kinds.as_mut() {
+                    k.bounce(frozen_glossy_share(ctx, hit.region, hit.uv, n, wi, wo));
+                }
                 throughput *= frozen_value(ctx, hit.region, hit.uv, n, wi, wo) * (cos / pdf);
                 if throughput == Rgb::ZERO {
                     break;
@@ -159,5 +170,15 @@ impl crate::bake::path::integrator::VertexBrdf for FrozenOnly<'_> {
     }
     fn tail_is_frozen(&self) -> bool {
         true
+    }
+    fn glossy_share(
+        &self,
+        region: u32,
+        uv: glam::Vec2,
+        n: glam::Vec3,
+        wi: glam::Vec3,
+        wo: glam::Vec3,
+    ) -> f32 {
+        crate::bake::path::frozen::frozen_glossy_share(self.0.ctx, region, uv, n, wi, wo)
     }
 }

@@ -20,6 +20,8 @@ pub fn stack_header(width: u32, height: u32, regions: Vec<RegionInfo>) -> StackH
         spp: 1,
         light_samples: 1,
         bounce_light_samples: None,
+        diffuse_bounces: None,
+        glossy_bounces: None,
         bounces: 1,
         sampling: "uniform".into(),
         seed: 0,
