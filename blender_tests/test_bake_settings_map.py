@@ -46,6 +46,9 @@ def test_the_preferences_become_keywords_by_the_table():
     preset, kw = m.settings_keywords(prefs, bounces=4)
     assert preset == "final" and not m.CUSTOM_ONLY & set(kw)
     assert kw["memory_budget_mb"] == 512.0
+    # Bounces from Cycles: its Diffuse and Glossy limits go with the cap.
+    preset, kw = m.settings_keywords(prefs, bounces=8, kinds=(4, 3))
+    assert (kw["bounces"], kw["diffuse_bounces"], kw["glossy_bounces"]) == (8, 4, 3)
 
 
 def test_the_stubs_declare_every_bake_setting():

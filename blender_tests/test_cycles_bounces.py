@@ -4,10 +4,11 @@ Glossy 4): every bounce, not just the first.
 Relume bakes the first bounce exactly (layers keyed by region and basis) and the later ones
 with the bake-time materials, folded into the one-bounce layers, beside tail-edit layers that
 carry albedo edits to them (core/engine/src/bake/path/integrator.rs, tail_edits.rs). The
-add-on caps the bounce count at what Cycles gives
-the scene's surfaces (`cycles_bounce_cap`: Max Bounces limited by the larger of Diffuse and
-Glossy, 4 at the defaults) and the final preset bakes as many as the scene needs up to that
-(its 0.5 % light budget, measured by a pre-pass). Relit at the bake-time materials, the
+add-on bakes with the scene's Cycles light paths
+(`cycles_light_paths`: Max Bounces, no more than Diffuse + Glossy, 8 at the defaults, with
+each path's diffuse and glossy bounces counted against their own limits of 4) and the final
+preset bakes as many as the scene needs up to that (its 0.5 % light budget, measured by a
+pre-pass). Relit at the bake-time materials, the
 image must then look like the user's Cycles render:
 
 - the assets' Cornell box (diffuse version), lit by its area light;
@@ -98,6 +99,7 @@ def _check(addon, prefs, tmp: pathlib.Path, name: str) -> dict:
         print(f"  pre-pass energy per bounce: {[round(e, 5) for e in est.get('energy', [])]}, "
               f"left out {est.get('left_out', 0):.4%}")
     assert figures["relume_cap"] == cy_cap(scene)
+    assert (settings.diffuse_bounces, settings.glossy_bounces) == (c.diffuse_bounces, c.glossy_bounces)
     lo, hi = MEAN_RATIO
     assert lo <= figures["mean_ratio"] <= hi, figures
     assert tiles <= TILE_TOLERANCE, figures
@@ -108,7 +110,7 @@ def _check(addon, prefs, tmp: pathlib.Path, name: str) -> dict:
 
 def cy_cap(scene) -> int:
     c = scene.cycles
-    return min(c.max_bounces, max(c.diffuse_bounces, c.glossy_bounces))
+    return min(c.max_bounces, c.diffuse_bounces + c.glossy_bounces)
 
 
 def test_cornell_box_at_default_bounces(addon, prefs, blend_dir, results_file):

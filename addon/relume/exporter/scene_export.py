@@ -130,15 +130,23 @@ def _camera(scene, warnings: WarningList) -> dict:
 MAX_BOUNCES = 128
 
 
-def cycles_bounce_cap(scene) -> int:
-    """The bounces Cycles gives this scene's surfaces: Max Bounces, limited by the larger of
-    the Diffuse and Glossy limits (Relume's Blinn–Phong vertices are both at once; Blender's
-    defaults, 12 / 4 / 4, give 4), at most `MAX_BOUNCES`. Blender's defaults when the scene
-    has no Cycles settings."""
+def cycles_light_paths(scene) -> tuple[int, int, int]:
+    """(cap, diffuse, glossy): the scene's Cycles light path limits as Relume bakes them. The
+    cap is Max Bounces, and no more than a path can take within both the Diffuse and the
+    Glossy limit (their sum; Blender's defaults, 12 / 4 / 4, give 8), at most `MAX_BOUNCES`;
+    the bake then counts each kind against its own limit as Cycles does (the core's
+    `diffuse_bounces`, `glossy_bounces`), so a path that meets only diffuse surfaces still
+    stops at 4. Blender's defaults when the scene has no Cycles settings."""
     c = getattr(scene, "cycles", None)
     total = int(getattr(c, "max_bounces", 12))
-    surface = max(int(getattr(c, "diffuse_bounces", 4)), int(getattr(c, "glossy_bounces", 4)))
-    return max(0, min(total, surface, MAX_BOUNCES))
+    diffuse = max(0, min(int(getattr(c, "diffuse_bounces", 4)), MAX_BOUNCES))
+    glossy = max(0, min(int(getattr(c, "glossy_bounces", 4)), MAX_BOUNCES))
+    return max(0, min(total, diffuse + glossy, MAX_BOUNCES)), diffuse, glossy
+
+
+def cycles_bounce_cap(scene) -> int:
+    """The bounce cap of `cycles_light_paths`."""
+    return cycles_light_paths(scene)[0]
 
 
 def bake_resolution(scene, scale: float) -> tuple[int, int]:

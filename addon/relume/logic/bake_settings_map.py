@@ -31,8 +31,8 @@ NOT_A_PREFERENCE = {
     "bounce_budget": "the preset's: the bake measures the bounces the scene needs",
     "sampling": "the preset's",
     "bounce_light_samples": "the preset's (custom: as many as Light Samples)",
-    "diffuse_bounces": "the core's default (none): the bounce cap is min(Max, max(Diffuse, Glossy))",
-    "glossy_bounces": "the core's default (none): the bounce cap is min(Max, max(Diffuse, Glossy))",
+    "diffuse_bounces": "the scene's Cycles Diffuse limit with Bounces from Cycles (else none)",
+    "glossy_bounces": "the scene's Cycles Glossy limit with Bounces from Cycles (else none)",
     "seed": "the core's default: a bake is reproducible; scripts set it",
     "resolution": "the render resolution, exported with the scene",
     "resolution_scale": "applied to the render resolution when the scene is exported",
@@ -53,9 +53,10 @@ NOT_A_PREFERENCE = {
     "adaptive_min_spp": "the core's default (automatic); scripts set it",
 }
 
-def settings_keywords(prefs, bounces: int) -> tuple[str | None, dict]:
+def settings_keywords(prefs, bounces: int, kinds: tuple[int, int] | None = None) -> tuple[str | None, dict]:
     """(preset name or None for custom, keywords) for `relume.BakeSettings` from `prefs`
-    (any object with the preferences' attributes) and the bounce cap to bake with."""
+    (any object with the preferences' attributes), the bounce cap to bake with and, when the
+    bounces come from Cycles' light paths, its (Diffuse, Glossy) limits."""
     custom = prefs.preset == "custom"
     keywords = {}
     for setting, pref in PREFERENCE_OF.items():
@@ -63,6 +64,8 @@ def settings_keywords(prefs, bounces: int) -> tuple[str | None, dict]:
             continue
         keywords[setting] = getattr(prefs, pref)
     keywords["bounces"] = bounces
+    if kinds is not None:
+        keywords["diffuse_bounces"], keywords["glossy_bounces"] = kinds
     keywords["light_grouping"] = GROUPING_OF_PREF[keywords["light_grouping"]]
     # 0 MiB is the preference's "no budget of my own": the core's default.
     if not keywords["memory_budget_mb"] or keywords["memory_budget_mb"] <= 0.0:

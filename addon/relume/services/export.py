@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import bpy
 
-from ..exporter.scene_export import ExportOptions, ExportResult, cycles_bounce_cap, export_scene
+from ..exporter.scene_export import ExportOptions, ExportResult, cycles_light_paths, export_scene
 from ..logic.bake_settings_map import settings_keywords
 from ..runtime import RUNTIME
 from ..stack_location import stack_location
@@ -60,11 +60,13 @@ def bake_settings(context=None):
     import relume
 
     prefs = get_prefs(context)
+    kinds = None
     if getattr(prefs, "bounces_from_scene", False):
-        bounces = cycles_bounce_cap((context or bpy.context).scene)
+        bounces, diffuse, glossy = cycles_light_paths((context or bpy.context).scene)
+        kinds = (diffuse, glossy)
     else:
         bounces = int(prefs.bounces)
-    preset, keywords = settings_keywords(prefs, bounces)
+    preset, keywords = settings_keywords(prefs, bounces, kinds)
     if preset is not None:
         return relume.BakeSettings.preset(preset, **keywords)
     return relume.BakeSettings(**keywords)

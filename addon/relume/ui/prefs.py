@@ -41,9 +41,9 @@ class RelumePreferences(bpy.types.AddonPreferences):
     indirect_samples: IntProperty(name="Indirect Samples", min=1, max=1024, default=1)
     bounces_from_scene: BoolProperty(
         name="Bounces from Cycles", default=True,
-        description="Cap the bounces at the scene's Cycles light paths (Max Bounces limited by "
-                    "Diffuse/Glossy; 4 at Blender's defaults); the preset bakes as many as the "
-                    "scene needs up to that")
+        description="Bake with the scene's Cycles light paths: Max Bounces, each path's "
+                    "diffuse and glossy bounces counted against their own limits (4 and 4 "
+                    "at Blender's defaults); the preset bakes as many as the scene needs")
     bounces: IntProperty(name="Bounces", min=0, max=128, default=12,
                          description="Bounce cap when not taken from Cycles. 0: direct light "
                                      "only; 1: one bounce, exact under edits; more: later "
