@@ -106,6 +106,32 @@ impl VertexBrdf for EditedTailBrdf<'_> {
     }
 
     #[inline]
+    fn tail_and_share(
+        &self,
+        region: u32,
+        uv: Vec2,
+        n: Vec3,
+        wi: Vec3,
+        wo: Vec3,
+        share: bool,
+    ) -> (Rgb, f32) {
+        let ctx = self.basis.ctx;
+        let r = &ctx.regions[region as usize];
+        match &r.model {
+            RegionModel::Editable { index, .. } if share => {
+                crate::bake::path::bounce_kinds::value_and_share(
+                    self.edited[*index as usize].parts(albedo_at(r, uv), n, wi, wo),
+                    true,
+                )
+            }
+            RegionModel::Editable { .. } => (self.tail(region, uv, n, wi, wo), 0.0),
+            RegionModel::Fixed { .. } => {
+                crate::bake::path::frozen::frozen_value_and_share(ctx, region, uv, n, wi, wo, share)
+            }
+        }
+    }
+
+    #[inline]
     fn eval(
         &self,
         region: u32,

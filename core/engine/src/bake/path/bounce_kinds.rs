@@ -61,6 +61,15 @@ pub fn glossy_share([diffuse, glossy]: [Rgb; 2]) -> f32 {
     }
 }
 
+/// A BRDF's value from its diffuse and glossy parts (their sum, as
+/// [`crate::bake::path::surface_brdf::SurfaceBrdf::value`] adds them) with its
+/// [`glossy_share`], when `share`, from the one evaluation that gave the parts.
+#[inline]
+pub fn value_and_share(parts: [Rgb; 2], share: bool) -> (Rgb, f32) {
+    let value = parts[1] + parts[0];
+    (value, if share { glossy_share(parts) } else { 0.0 })
+}
+
 /// The probability of each count of diffuse bounces among the `bounces` a path has taken
 /// (the rest glossy), for the splits still within the limits.
 #[derive(Clone, Debug)]

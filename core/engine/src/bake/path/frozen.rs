@@ -57,6 +57,28 @@ pub fn frozen_glossy_share(
     crate::bake::path::bounce_kinds::glossy_share(r.frozen.parts(albedo_at(r, uv), n, wi, wo))
 }
 
+/// [`frozen_value`] and, when `share`, [`frozen_glossy_share`] (0 otherwise) from one
+/// evaluation of the material: a tail vertex needs both where a per-kind limit binds.
+#[inline]
+pub fn frozen_value_and_share(
+    ctx: &BakeContext,
+    region: u32,
+    uv: Vec2,
+    n: Vec3,
+    wi: Vec3,
+    wo: Vec3,
+    share: bool,
+) -> (Rgb, f32) {
+    let r = &ctx.regions[region as usize];
+    if !share {
+        return (r.frozen.value(albedo_at(r, uv), n, wi, wo), 0.0);
+    }
+    crate::bake::path::bounce_kinds::value_and_share(
+        r.frozen.parts(albedo_at(r, uv), n, wi, wo),
+        true,
+    )
+}
+
 /// [`frozen_value`] of an editable region as its diffuse and glossy parts, with the
 /// region's editable index; `None` for a fixed region (its material is never edited). The
 /// diffuse part is the diffuse basis slot's bake-time coefficient over π (times the
@@ -89,14 +111,35 @@ pub fn frozen_value_and_parts(
     wi: Vec3,
     wo: Vec3,
 ) -> (Rgb, Option<(u16, [Rgb; 2])>) {
+    let (value, parts, _) = frozen_labelled(ctx, region, uv, n, wi, wo, false);
+    (value, parts)
+}
+
+/// [`frozen_value_and_parts`] and, when `share`, [`frozen_glossy_share`] (0 otherwise), all
+/// from one evaluation of the material.
+#[inline]
+#[allow(clippy::type_complexity)]
+pub fn frozen_labelled(
+    ctx: &BakeContext,
+    region: u32,
+    uv: Vec2,
+    n: Vec3,
+    wi: Vec3,
+    wo: Vec3,
+    share: bool,
+) -> (Rgb, Option<(u16, [Rgb; 2])>, f32) {
     let r = &ctx.regions[region as usize];
     let albedo = albedo_at(r, uv);
-    let value = r.frozen.value(albedo, n, wi, wo);
+    let (value, share) = if share {
+        crate::bake::path::bounce_kinds::value_and_share(r.frozen.parts(albedo, n, wi, wo), true)
+    } else {
+        (r.frozen.value(albedo, n, wi, wo), 0.0)
+    };
     match r.model {
         RegionModel::Editable { index, .. } => {
             let diffuse = r.tail_diffuse * albedo * FRAC_1_PI;
-            (value, Some((index, [diffuse, value - diffuse])))
+            (value, Some((index, [diffuse, value - diffuse])), share)
         }
-        RegionModel::Fixed { .. } => (value, None),
+        RegionModel::Fixed { .. } => (value, None, share),
     }
 }

@@ -127,6 +127,51 @@ pub trait VertexBrdf: Sync {
     /// part of the tail BRDF there over the whole. Only called when such a limit binds.
     fn glossy_share(&self, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3) -> f32;
 
+    /// [`Self::tail`] and, when a per-kind limit binds (`share`), [`Self::glossy_share`] of
+    /// one vertex (0 otherwise): BRDFs that get both from one evaluation of the material
+    /// override it, since a tail vertex past the first needs both and the material's
+    /// evaluation is its costliest part after its rays.
+    #[inline]
+    fn tail_and_share(
+        &self,
+        region: u32,
+        uv: Vec2,
+        n: Vec3,
+        wi: Vec3,
+        wo: Vec3,
+        share: bool,
+    ) -> (Rgb, f32) {
+        let value = self.tail(region, uv, n, wi, wo);
+        let share = if share {
+            self.glossy_share(region, uv, n, wi, wo)
+        } else {
+            0.0
+        };
+        (value, share)
+    }
+
+    /// [`Self::tail_with_parts`] and, when `share`, [`Self::glossy_share`] of one vertex,
+    /// the same way.
+    #[inline]
+    #[allow(clippy::too_many_arguments, clippy::type_complexity)]
+    fn tail_with_parts_and_share(
+        &self,
+        region: u32,
+        uv: Vec2,
+        n: Vec3,
+        wi: Vec3,
+        wo: Vec3,
+        share: bool,
+    ) -> (Rgb, Option<(u16, [Rgb; 2])>, f32) {
+        let (value, parts) = self.tail_with_parts(region, uv, n, wi, wo);
+        let share = if share {
+            self.glossy_share(region, uv, n, wi, wo)
+        } else {
+            0.0
+        };
+        (value, parts, share)
+    }
+
     /// The last bounce a path reaches, for a bake of `baked` bounces: the bake's own and
     /// the reference renderer's stop there; a refinement's edited tail goes on to the
     /// bake's cap (the bounces a bounce budget left out at the bake-time materials).
@@ -662,10 +707,30 @@ fn frozen_tail<B: VertexBrdf, T: Tracer>(
 ) -> Option<BounceParts> {
     let n = hit.shading_normal;
     let (wi, cos, pdf) = continuation(ctx, hit, wo, stream)?;
-    let kinds = kinds.map(|k| (k, brdf.glossy_share(hit.region, hit.uv, n, wi, wo)));
+    // With tail-edit layers the bounce vertex's value, parts and glossy share come from one
+    // evaluation of its material.
+    let labelled = kinds.is_some();
+    let record = edits.is_some().then(|| {
+        let (value, parts, share) =
+            brdf.tail_with_parts_and_share(hit.region, hit.uv, n, wi, wo, labelled);
+        (
+            BounceParts {
+                parts,
+                value,
+                weight: cos / pdf,
+            },
+            share,
+        )
+    });
+    let kinds = kinds.map(|k| {
+        let share = match &record {
+            Some((_, share)) => *share,
+            None => brdf.glossy_share(hit.region, hit.uv, n, wi, wo),
+        };
+        (k, share)
+    });
     let groups = ctx.lights.groups.len();
     let mut radiance = [Rgb::ZERO; MAX_GROUPS];
-    let tracking = edits.is_some();
     if !tail_radiance(
         ctx,
         brdf,
@@ -696,14 +761,7 @@ fn frozen_tail<B: VertexBrdf, T: Tracer>(
             *l += *v * *r * w;
         }
     }
-    tracking.then(|| {
-        let (value, parts) = brdf.tail_with_parts(hit.region, hit.uv, n, wi, wo);
-        BounceParts {
-            parts,
-            value,
-            weight: w,
-        }
-    })
+    record.map(|(bounce, _)| bounce)
 }
 
 /// The bounce vertex's bake-time BRDF along the tail's first direction, for the tail-edit
@@ -878,20 +936,22 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
             break;
         };
         let w = cos / next_pdf;
-        if let Some(k) = kinds.as_mut() {
-            leaving = here;
-            k.bounce(brdf.glossy_share(hit.region, hit.uv, n, wi, wo));
-        }
-        let value = match edits.as_deref_mut() {
+        let labelled = kinds.is_some();
+        let (value, share) = match edits.as_deref_mut() {
             Some(edits) => {
-                let (value, parts) = brdf.tail_with_parts(hit.region, hit.uv, n, wi, wo);
+                let (value, parts, share) =
+                    brdf.tail_with_parts_and_share(hit.region, hit.uv, n, wi, wo, labelled);
                 if let Some((index, parts)) = parts {
                     edits.label(index, parts);
                 }
-                value
+                (value, share)
             }
-            None => brdf.tail(hit.region, hit.uv, n, wi, wo),
+            None => brdf.tail_and_share(hit.region, hit.uv, n, wi, wo, labelled),
         };
+        if let Some(k) = kinds.as_mut() {
+            leaving = here;
+            k.bounce(share);
+        }
         throughput *= value * w;
         let bake_time = if brdf.tail_is_frozen() {
             value

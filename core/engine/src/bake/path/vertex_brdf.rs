@@ -67,6 +67,32 @@ impl VertexBrdf for BasisBrdf<'_> {
     }
 
     #[inline]
+    fn tail_and_share(
+        &self,
+        region: u32,
+        uv: Vec2,
+        n: Vec3,
+        wi: Vec3,
+        wo: Vec3,
+        share: bool,
+    ) -> (Rgb, f32) {
+        crate::bake::path::frozen::frozen_value_and_share(self.ctx, region, uv, n, wi, wo, share)
+    }
+
+    #[inline]
+    fn tail_with_parts_and_share(
+        &self,
+        region: u32,
+        uv: Vec2,
+        n: Vec3,
+        wi: Vec3,
+        wo: Vec3,
+        share: bool,
+    ) -> (Rgb, Option<(u16, [Rgb; 2])>, f32) {
+        crate::bake::path::frozen::frozen_labelled(self.ctx, region, uv, n, wi, wo, share)
+    }
+
+    #[inline]
     fn eval(
         &self,
         region: u32,
@@ -154,6 +180,22 @@ impl<'a> MaterialBrdf<'a> {
     }
 }
 
+impl MaterialBrdf<'_> {
+    /// The diffuse and glossy parts of the given material at a vertex (their sum is
+    /// [`VertexBrdf::tail`]).
+    #[inline]
+    fn parts(&self, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3) -> [Rgb; 2] {
+        let r = &self.ctx.regions[region as usize];
+        match &r.model {
+            RegionModel::Fixed { material } => material.parts(albedo_at(r, uv), n, wi, wo),
+            RegionModel::Editable { index, .. } => SurfaceBrdf::BlinnPhong(
+                self.materials[*index as usize],
+            )
+            .parts(albedo_at(r, uv), n, wi, wo),
+        }
+    }
+}
+
 impl VertexBrdf for MaterialBrdf<'_> {
     /// The reference sees the given materials at every vertex, the exact Blinn–Phong even in
     /// projected mode: the frozen tail is part of what a relight is measured against.
@@ -173,15 +215,23 @@ impl VertexBrdf for MaterialBrdf<'_> {
     /// Bounces are labelled by the given materials, as its tail sees them.
     #[inline]
     fn glossy_share(&self, region: u32, uv: Vec2, n: Vec3, wi: Vec3, wo: Vec3) -> f32 {
-        let r = &self.ctx.regions[region as usize];
-        let parts = match &r.model {
-            RegionModel::Fixed { material } => material.parts(albedo_at(r, uv), n, wi, wo),
-            RegionModel::Editable { index, .. } => SurfaceBrdf::BlinnPhong(
-                self.materials[*index as usize],
-            )
-            .parts(albedo_at(r, uv), n, wi, wo),
-        };
-        crate::bake::path::bounce_kinds::glossy_share(parts)
+        crate::bake::path::bounce_kinds::glossy_share(self.parts(region, uv, n, wi, wo))
+    }
+
+    #[inline]
+    fn tail_and_share(
+        &self,
+        region: u32,
+        uv: Vec2,
+        n: Vec3,
+        wi: Vec3,
+        wo: Vec3,
+        share: bool,
+    ) -> (Rgb, f32) {
+        if !share {
+            return (self.tail(region, uv, n, wi, wo), 0.0);
+        }
+        crate::bake::path::bounce_kinds::value_and_share(self.parts(region, uv, n, wi, wo), true)
     }
 
     #[inline]

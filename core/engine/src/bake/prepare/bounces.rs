@@ -15,7 +15,7 @@
 use rayon::prelude::*;
 
 use crate::bake::path::bounce_kinds::{BounceKinds, KindLimits};
-use crate::bake::path::frozen::{frozen_glossy_share, frozen_value};
+use crate::bake::path::frozen::{frozen_value, frozen_value_and_share};
 use crate::bake::path::integrator::Tracer;
 use crate::bake::path::integrator::{continuation, direct_light, CountingTracer};
 use crate::bake::path::vertex_brdf::BasisBrdf;
@@ -127,10 +127,12 @@ fn row(ctx: &BakeContext, cap: u32, gx: u32, gy: u32, y: u32) -> Vec<f64> {
                 let Some((wi, cos, pdf)) = continuation(ctx, &hit, wo, &mut stream) else {
                     break;
                 };
+                let (value, share) =
+                    frozen_value_and_share(ctx, hit.region, hit.uv, n, wi, wo, kinds.is_some());
                 if let Some(k) = kinds.as_mut() {
-                    k.bounce(frozen_glossy_share(ctx, hit.region, hit.uv, n, wi, wo));
+                    k.bounce(share);
                 }
-                throughput *= frozen_value(ctx, hit.region, hit.uv, n, wi, wo) * (cos / pdf);
+                throughput *= value * (cos / pdf);
                 if throughput == Rgb::ZERO {
                     break;
                 }
