@@ -2,7 +2,8 @@
 
     python3 blender_tests/bench_trade.py [--scenes bunny.blend,cornell_glossy.blend]
         [--presets draft,preview,final] [--ladder 1,2,4,8,16,32,64] [--reference-spp 512]
-        [--sweep-spp 128] [--no-sweep] [--out out/trade] [--scene-dir DIR] [--reuse-cycles OUT]
+        [--sweep-spp 128] [--no-sweep] [--rebake misses|TAG,…] [--out out/trade] [--scene-dir DIR]
+        [--reuse-cycles OUT]
 
 What a user weighs before pressing Bake: Cycles with OpenImageDenoise (in every Blender)
 renders the picture in seconds; Relume bakes once and then shows every edit in milliseconds.
@@ -33,6 +34,11 @@ editable materials ticked as `EDITABLE` says), on this machine, in one run:
    tolerance is the unedited shown image's error against its own Cycles + OIDN render plus
    one point. A denoiser artefact that moves with the edit shows as an edit whose
    shown image is further from Cycles than its relit image is.
+6. **Re-baked edits** (`--rebake misses` or `--rebake TAG,TAG`): each chosen edit of the
+   sweep (`misses`: those outside the tolerance) baked afresh at the same preset with its
+   values as the scene's own, its shown and relit images against the same Cycles + OIDN
+   render. What a user would get by re-baking after the edit: it tells the edit's own
+   error (relit from the one bake) from the preset's error on the edited material.
 
 Errors are relative L2 over 8×8-pixel tile means against the reference, with the
 reference's own noise taken out in quadrature (√(e² − n²); both are measured). Prints JSON
@@ -333,6 +339,8 @@ def bench_scene(addon, prefs, scene_dir: pathlib.Path, name: str, args, folder: 
               f"({cycles['bound']}), ratio {row['first_image_over_cycles_oidn']:.2f}", file=sys.stderr)
         if preset == args.sweep_preset and not args.no_sweep and name in SWEEPS:
             out["sweep"] = sweep(addon, scene, name, folder, args.sweep_spp, args.refine)
+            if args.rebake:
+                rebake(addon, prefs, preset, name, folder, out["sweep"], args.rebake)
         addon.runtime.RUNTIME.live.unload()
     out["relume"] = presets
     return out
@@ -376,6 +384,39 @@ def sweep(addon, scene, name: str, folder: pathlib.Path, spp: int, refine: float
     return {"cycles_oidn_spp": spp, "tolerance": tolerance, "edits": rows}
 
 
+def rebake(addon, prefs, variant: str, name: str, folder: pathlib.Path, result: dict, which: str) -> None:
+    """Bakes each chosen edit of `result` (the sweep's; `which` is "misses" or tags) afresh
+    with its values as the scene's own and adds its shown and relit errors against the
+    sweep's Cycles + OIDN render of the same values to its row (`rebaked_shown`,
+    `rebaked_relit`, `rebaked_mean_ratio`)."""
+    edits = {"unedited": [], **SWEEPS[name]}
+    rows = result["edits"]
+    if which == "misses":
+        tags = [tag for tag, row in rows.items() if not row["within_tolerance"]]
+    else:
+        tags = which.split(",")
+        unknown = [tag for tag in tags if tag not in edits]
+        if unknown:
+            raise SystemExit(f"--rebake: no edit named {', '.join(unknown)} in {name}'s sweep")
+    for tag in tags:
+        undo = _set(edits[tag])
+        try:
+            _bake(addon, prefs, variant)
+            images = _relume_images(addon, folder, f"rebake_{tag}")
+        finally:
+            _set(undo)
+            addon.runtime.RUNTIME.live.unload()
+        target = _read(folder / f"sweep_{tag}_cycles.exr")
+        for kind in ("shown", "relit"):
+            image = cy.at_size_of(images[kind], target.shape)
+            rows[tag][f"rebaked_{kind}"] = cy.rel_l2(_tiles(image), _tiles(target))
+            if kind == "shown":
+                rows[tag]["rebaked_mean_ratio"] = float(image.sum() / target.sum())
+        print(f"[trade] {name} re-baked {tag}: shown {rows[tag]['rebaked_shown']:.4f}, relit "
+              f"{rows[tag]['rebaked_relit']:.4f} (relit from the one bake: shown "
+              f"{rows[tag]['shown']:.4f})", file=sys.stderr)
+
+
 def markdown(results: dict) -> str:
     lines = ["| scene | preset | bake | shown error (relit) | Cycles + OIDN to that error | "
              "bake ÷ Cycles + OIDN | edit raw / settled | edits to pay |", "|---|---|---|---|---|---|---|---|"]
@@ -407,6 +448,13 @@ def markdown(results: dict) -> str:
         for tag, r in sw["edits"].items():
             lines.append(f"| {tag} | {100 * r['shown']:.2f} % | {100 * r['relit']:.2f} % | "
                          f"{r['mean_ratio']:.3f} | {'yes' if r['within_tolerance'] else 'no'} |")
+        rebaked = {tag: r for tag, r in sw["edits"].items() if "rebaked_shown" in r}
+        if rebaked:
+            lines += ["", "| edit | relit from the one bake: shown | baked afresh: shown (relit) | "
+                      "mean ratio |", "|---|---|---|---|"]
+            for tag, r in rebaked.items():
+                lines.append(f"| {tag} | {100 * r['shown']:.2f} % | {100 * r['rebaked_shown']:.2f} % "
+                             f"({100 * r['rebaked_relit']:.2f} %) | {r['rebaked_mean_ratio']:.3f} |")
     return "\n".join(lines) + "\n"
 
 
@@ -453,6 +501,8 @@ def main() -> int:
     ap.add_argument("--no-sweep", action="store_true")
     ap.add_argument("--refine", type=float, default=0.0,
                     help="seconds of refinement for a third image of each edit (api.render(refine=…))")
+    ap.add_argument("--rebake", default="",
+                    help="'misses' or edit names: bake those sweep edits afresh and compare them too")
     ap.add_argument("--out", default=str(ROOT / "out" / "trade"))
     ap.add_argument("--reuse-cycles", type=pathlib.Path, default=None,
                     help="an earlier run's OUT: its reference and Cycles + OIDN ladder, not re-rendered")
