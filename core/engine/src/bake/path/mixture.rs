@@ -10,7 +10,10 @@
 //!   exponent in proportion to the luminance of Kd and Ks, and spreads [`RANGE_SHARE`] over
 //!   lobes log-spaced across its ns range and [`RANGE_SHARE`] on cosine, so a layer of any
 //!   basis keeps a pdf within a factor 1/[`RANGE_SHARE`] = 10 of a lobe-only sampler's;
-//! - a fixed region samples its own BRDF: cosine and its one lobe, by the same luminance split.
+//! - a fixed region samples its own BRDF: cosine and its lobe by the same luminance split,
+//!   of the specular part [`TUNED_SHARE`] at the lobe and [`RANGE_SHARE`] each at a lobe
+//!   [`TAIL_WIDTH`] times wider and on cosine, for the tails of Cycles' microfacet lobes
+//!   (the fixed region is evaluated exactly, sampled by its Blinn–Phong mapping).
 //!
 //! Why per material: the earlier ½ cosine + ½ four range lobes (whatever the material)
 //! wasted half the directions of a diffuse region (editable, Ks = 0) on lobes, and did worse
@@ -36,6 +39,12 @@ pub const TUNED_SHARE: f32 = 0.8;
 pub const RANGE_SHARE: f32 = 0.1;
 /// Lobes across an editable region's ns range, log-spaced from its ns_min to its ns_max.
 pub const RANGE_LOBES: usize = 4;
+
+/// How much wider than a fixed region's own lobe its tail lobe is (the exponent over this):
+/// Cycles' microfacet lobes fall off polynomially where the Blinn–Phong lobe of their
+/// mapping falls off like a Gaussian, so a sampler of the mapped lobe alone draws their
+/// tails too rarely and weighs each tail direction very high.
+pub const TAIL_WIDTH: f32 = 8.0;
 
 /// Cosine weight and Blinn–Phong lobes (exponent, weight); the weights sum to 1.
 #[derive(Clone, Debug, PartialEq)]
@@ -91,8 +100,11 @@ impl DirectionMixture {
         }
         let s = specular_share(material);
         DirectionMixture {
-            cosine: 1.0 - s,
-            lobes: vec![(material.ns, s)],
+            cosine: (1.0 - s) + RANGE_SHARE * s,
+            lobes: vec![
+                (material.ns, TUNED_SHARE * s),
+                ((material.ns / TAIL_WIDTH).max(1.0), RANGE_SHARE * s),
+            ],
         }
     }
 
