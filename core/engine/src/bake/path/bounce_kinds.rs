@@ -61,12 +61,12 @@ pub fn glossy_share([diffuse, glossy]: [Rgb; 2]) -> f32 {
     }
 }
 
-/// A BRDF's value from its diffuse and glossy parts (their sum, as
-/// [`crate::bake::path::surface_brdf::SurfaceBrdf::value`] adds them) with its
-/// [`glossy_share`], when `share`, from the one evaluation that gave the parts.
+/// A BRDF's value from its diffuse and glossy parts
+/// ([`crate::bake::path::surface_brdf::SurfaceBrdf::sum`]) with its [`glossy_share`], when
+/// `share`, from the one evaluation that gave the parts.
 #[inline]
 pub fn value_and_share(parts: [Rgb; 2], share: bool) -> (Rgb, f32) {
-    let value = parts[1] + parts[0];
+    let value = crate::bake::path::surface_brdf::SurfaceBrdf::sum(parts);
     (value, if share { glossy_share(parts) } else { 0.0 })
 }
 

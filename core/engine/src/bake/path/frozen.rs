@@ -70,13 +70,25 @@ pub fn frozen_value_and_share(
     share: bool,
 ) -> (Rgb, f32) {
     let r = &ctx.regions[region as usize];
-    if !share {
-        return (r.frozen.value(albedo_at(r, uv), n, wi, wo), 0.0);
+    value_and_share_at(r, albedo_at(r, uv), n, wi, wo, share)
+}
+
+/// A region's bake-time value and, when `share`, its glossy share (0 otherwise) at a point
+/// whose texture albedo is `albedo`: the value alone costs no split into parts.
+#[inline]
+fn value_and_share_at(
+    r: &PreparedRegion,
+    albedo: Rgb,
+    n: Vec3,
+    wi: Vec3,
+    wo: Vec3,
+    share: bool,
+) -> (Rgb, f32) {
+    if share {
+        crate::bake::path::bounce_kinds::value_and_share(r.frozen.parts(albedo, n, wi, wo), true)
+    } else {
+        (r.frozen.value(albedo, n, wi, wo), 0.0)
     }
-    crate::bake::path::bounce_kinds::value_and_share(
-        r.frozen.parts(albedo_at(r, uv), n, wi, wo),
-        true,
-    )
 }
 
 /// [`frozen_value`] of an editable region as its diffuse and glossy parts, with the
@@ -130,11 +142,7 @@ pub fn frozen_labelled(
 ) -> (Rgb, Option<(u16, [Rgb; 2])>, f32) {
     let r = &ctx.regions[region as usize];
     let albedo = albedo_at(r, uv);
-    let (value, share) = if share {
-        crate::bake::path::bounce_kinds::value_and_share(r.frozen.parts(albedo, n, wi, wo), true)
-    } else {
-        (r.frozen.value(albedo, n, wi, wo), 0.0)
-    };
+    let (value, share) = value_and_share_at(r, albedo, n, wi, wo, share);
     match r.model {
         RegionModel::Editable { index, .. } => {
             let diffuse = r.tail_diffuse * albedo * FRAC_1_PI;

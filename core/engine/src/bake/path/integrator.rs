@@ -708,22 +708,23 @@ fn frozen_tail<B: VertexBrdf, T: Tracer>(
     let n = hit.shading_normal;
     let (wi, cos, pdf) = continuation(ctx, hit, wo, stream)?;
     // With tail-edit layers the bounce vertex's value, parts and glossy share come from one
-    // evaluation of its material.
-    let labelled = kinds.is_some();
-    let record = edits.is_some().then(|| {
+    // evaluation of its material. Where a per-kind limit binds, the share is needed before
+    // the tail is traced, so that evaluation comes first; otherwise it waits until the tail
+    // has found light, and a tail that finds none costs no evaluation.
+    let tracked = edits.is_some();
+    let record = |labelled: bool| {
         let (value, parts, share) =
             brdf.tail_with_parts_and_share(hit.region, hit.uv, n, wi, wo, labelled);
-        (
-            BounceParts {
-                parts,
-                value,
-                weight: cos / pdf,
-            },
-            share,
-        )
-    });
+        let bounce = BounceParts {
+            parts,
+            value,
+            weight: cos / pdf,
+        };
+        (bounce, share)
+    };
+    let early = (tracked && kinds.is_some()).then(|| record(true));
     let kinds = kinds.map(|k| {
-        let share = match &record {
+        let share = match &early {
             Some((_, share)) => *share,
             None => brdf.glossy_share(hit.region, hit.uv, n, wi, wo),
         };
@@ -761,7 +762,10 @@ fn frozen_tail<B: VertexBrdf, T: Tracer>(
             *l += *v * *r * w;
         }
     }
-    record.map(|(bounce, _)| bounce)
+    match early {
+        Some((bounce, _)) => Some(bounce),
+        None => tracked.then(|| record(false).0),
+    }
 }
 
 /// The bounce vertex's bake-time BRDF along the tail's first direction, for the tail-edit

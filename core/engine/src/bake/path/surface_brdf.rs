@@ -43,7 +43,13 @@ impl SurfaceBrdf {
     /// when either direction is below the surface (as Cycles' microfacet closures are).
     #[inline]
     pub fn value(&self, albedo: Rgb, n: Vec3, wi: Vec3, wo: Vec3) -> Rgb {
-        let [diffuse, glossy] = self.parts(albedo, n, wi, wo);
+        SurfaceBrdf::sum(self.parts(albedo, n, wi, wo))
+    }
+
+    /// The value from its [`Self::parts`]: one order of addition for every caller, so a value
+    /// summed from parts evaluated once is bit for bit [`Self::value`].
+    #[inline]
+    pub fn sum([diffuse, glossy]: [Rgb; 2]) -> Rgb {
         glossy + diffuse
     }
 
