@@ -6,10 +6,11 @@
 //! favour the material the region has at bake time — the image the user sees first and the
 //! one the preset table measures — and keep a defensive share for the rest of the range:
 //!
-//! - an editable region splits [`TUNED_SHARE`] between cosine and a lobe at the bake-time
-//!   exponent in proportion to the luminance of Kd and Ks, and spreads [`RANGE_SHARE`] over
-//!   lobes log-spaced across its ns range and [`RANGE_SHARE`] on cosine, so a layer of any
-//!   basis keeps a pdf within a factor 1/[`RANGE_SHARE`] = 10 of a lobe-only sampler's;
+//! - an editable region gives [`TUNED_SHARE`] to its bake-time material, split as a fixed
+//!   region splits its whole (below: cosine, the lobe at the bake-time exponent and its tail
+//!   lobe), and spreads [`RANGE_SHARE`] over lobes log-spaced across its ns range and
+//!   [`RANGE_SHARE`] on cosine, so a layer of any basis keeps a pdf within a factor
+//!   1/[`RANGE_SHARE`] = 10 of a lobe-only sampler's;
 //! - a fixed region samples its own BRDF: cosine and its lobe by the same luminance split,
 //!   of the specular part [`TUNED_SHARE`] at the lobe and [`RANGE_SHARE`] each at a lobe
 //!   [`TAIL_WIDTH`] times wider and on cosine, for the tails of Cycles' microfacet lobes
@@ -86,9 +87,13 @@ impl DirectionMixture {
                 )
             })
             .collect();
-        lobes.push((ns, TUNED_SHARE * s));
+        // The bake-time material's share split as a fixed region's own (lobe, tail, cosine):
+        // the Principled basis' lobes are Cycles' GGX, with the polynomial tails that the
+        // tail lobe is there for.
+        lobes.push((ns, TUNED_SHARE * TUNED_SHARE * s));
+        lobes.push(((ns / TAIL_WIDTH).max(1.0), TUNED_SHARE * RANGE_SHARE * s));
         DirectionMixture {
-            cosine: RANGE_SHARE + TUNED_SHARE * (1.0 - s),
+            cosine: RANGE_SHARE + TUNED_SHARE * ((1.0 - s) + RANGE_SHARE * s),
             lobes,
         }
     }
@@ -199,7 +204,10 @@ mod tests {
         let d = DirectionMixture::editable(&diffuse, 1.0, 200.0);
         assert!((d.cosine - (RANGE_SHARE + TUNED_SHARE)).abs() < 1e-6);
         let g = DirectionMixture::editable(&glossy, 1.0, 200.0);
-        assert!(g.lobes.last().unwrap().1 > 0.7 && g.lobes.last().unwrap().0 == 150.0);
+        // The bake-time lobe, then its tail lobe.
+        let (lobe, tail) = (g.lobes[RANGE_LOBES], g.lobes[RANGE_LOBES + 1]);
+        assert!(lobe.1 > 0.6 && lobe.0 == 150.0, "{g:?}");
+        assert!(tail.1 > 0.07 && tail.0 == 150.0 / TAIL_WIDTH, "{g:?}");
         // Every range lobe keeps its defensive share whatever the material.
         for mix in [&d, &g] {
             for l in &mix.lobes[..RANGE_LOBES] {
