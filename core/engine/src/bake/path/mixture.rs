@@ -41,7 +41,7 @@ pub const RANGE_SHARE: f32 = 0.1;
 /// Lobes across an editable region's ns range, log-spaced from its ns_min to its ns_max.
 pub const RANGE_LOBES: usize = 4;
 
-/// How much wider than a fixed region's own lobe its tail lobe is (the exponent over this):
+/// How much wider than a region's bake-time lobe its tail lobe is (the exponent over this):
 /// Cycles' microfacet lobes fall off polynomially where the Blinn–Phong lobe of their
 /// mapping falls off like a Gaussian, so a sampler of the mapped lobe alone draws their
 /// tails too rarely and weighs each tail direction very high.
@@ -63,6 +63,20 @@ fn specular_share(material: &BlinnPhong) -> f32 {
     } else {
         0.5
     }
+}
+
+/// A material's own directions with specular share `s` and exponent `ns`: the cosine's
+/// weight (of the whole) and the lobe and its tail lobe, their weights times `scale` (the
+/// share of the mixture the material gets). Of the specular share [`TUNED_SHARE`] is the
+/// lobe and [`RANGE_SHARE`] each the tail lobe and the cosine.
+fn own_split(ns: f32, s: f32, scale: f32) -> (f32, [(f32, f32); 2]) {
+    (
+        (1.0 - s) + RANGE_SHARE * s,
+        [
+            (ns, scale * TUNED_SHARE * s),
+            ((ns / TAIL_WIDTH).max(1.0), scale * RANGE_SHARE * s),
+        ],
+    )
 }
 
 impl DirectionMixture {
@@ -90,10 +104,10 @@ impl DirectionMixture {
         // The bake-time material's share split as a fixed region's own (lobe, tail, cosine):
         // the Principled basis' lobes are Cycles' GGX, with the polynomial tails that the
         // tail lobe is there for.
-        lobes.push((ns, TUNED_SHARE * TUNED_SHARE * s));
-        lobes.push(((ns / TAIL_WIDTH).max(1.0), TUNED_SHARE * RANGE_SHARE * s));
+        let (cosine, own) = own_split(ns, s, TUNED_SHARE);
+        lobes.extend(own);
         DirectionMixture {
-            cosine: RANGE_SHARE + TUNED_SHARE * ((1.0 - s) + RANGE_SHARE * s),
+            cosine: RANGE_SHARE + TUNED_SHARE * cosine,
             lobes,
         }
     }
@@ -103,13 +117,10 @@ impl DirectionMixture {
         if material.ks.iter().all(|k| *k <= 0.0) {
             return DirectionMixture::cosine();
         }
-        let s = specular_share(material);
+        let (cosine, lobes) = own_split(material.ns, specular_share(material), 1.0);
         DirectionMixture {
-            cosine: (1.0 - s) + RANGE_SHARE * s,
-            lobes: vec![
-                (material.ns, TUNED_SHARE * s),
-                ((material.ns / TAIL_WIDTH).max(1.0), RANGE_SHARE * s),
-            ],
+            cosine,
+            lobes: lobes.to_vec(),
         }
     }
 
