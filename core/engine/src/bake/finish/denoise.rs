@@ -12,6 +12,12 @@
 //! direct layers with a narrower one or not at all; the report measures the resulting error
 //! against a reference of the true BRDF, bias included.
 //!
+//! Its edge-stops: the region, the normal, the distance from the pixel's tangent plane (where
+//! the geometry changes), and the distance over which indirect light can change on one
+//! surface ([`super::reach`]: near a wall, a box's foot or a corner it changes within a
+//! fraction of the distance to them), so the kernel is wide on open surfaces and narrow where
+//! the light has a reason to change. All come from the geometry.
+//!
 //! Pixels whose eye samples did not all hit the same region (silhouettes), textured regions
 //! (the texture is inside the layers; blurring it would blur the texture) and pixels that see
 //! the world are passed through unfiltered and feed no neighbour.
@@ -22,6 +28,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::bake::finish::drop::RawLayer;
+use crate::bake::finish::reach;
 use crate::bake::prepare::context::BakeContext;
 
 /// Floats per pixel of the records gathered while tracing: see [`EyeFeatures::EMPTY`].
@@ -40,7 +47,16 @@ pub struct EyeFeatures {
     /// World size of one pixel at the hit (the distance between neighbouring camera rays
     /// there): the unit of the position test, so the filter behaves alike at any scene scale.
     footprint: Vec<f32>,
+    /// How far the pixel's indirect light stays alike ([`reach::harmonic_distance`]);
+    /// infinite where nothing is near, and for pixels that are not filtered.
+    reach: Vec<f32>,
 }
+
+/// The fraction of a pixel's [reach](reach::harmonic_distance) at which a neighbour's weight
+/// falls to 1/e. Ward's irradiance cache lets a value stand for points within a few tenths of
+/// it; smaller keeps more of the light's changes and more noise (the stack compresses
+/// less). Chosen by measurement (docs/denoise.md, "The linear denoiser's reach").
+const REACH_SCALE: f32 = 0.25;
 
 impl EyeFeatures {
     /// A pixel's empty record: [`FEATURE_STRIDE`] floats — hit count, lowest and highest
@@ -96,6 +112,47 @@ impl EyeFeatures {
         origin: (usize, usize),
         size: (usize, usize),
     ) -> EyeFeatures {
+        let features = Self::surfaces_from_window_sums(ctx, sums, spp, origin, size);
+        let reach = features.traced_reach(ctx);
+        features.with_reach(reach)
+    }
+
+    /// Each pixel's [reach](reach::harmonic_distance) (infinite where it is not filtered),
+    /// traced. It depends on the pixel's own record only, so a window may gather it from
+    /// its tiles' ([`Self::with_reach`]) instead of tracing it again.
+    pub fn traced_reach(&self, ctx: &BakeContext) -> Vec<f32> {
+        (0..self.region.len())
+            .into_par_iter()
+            .map(|p| match self.region[p] {
+                Some(_) => reach::harmonic_distance(
+                    &ctx.geometry,
+                    self.position[p],
+                    self.normal[p],
+                    self.footprint[p],
+                ),
+                None => f32::INFINITY,
+            })
+            .collect()
+    }
+
+    /// These features with every pixel's reach given (row-major, one per pixel).
+    pub fn with_reach(mut self, reach: Vec<f32>) -> EyeFeatures {
+        assert_eq!(reach.len(), self.region.len(), "one reach a pixel");
+        self.reach = reach;
+        self
+    }
+
+    /// [`Self::from_window_sums`] without the pixels' [reach](reach::harmonic_distance)
+    /// (left infinite): what [`Self::surface`] needs, which segments the stack's lattice
+    /// entries, at none of the rays the reach costs. Filter with it only once
+    /// [`Self::with_reach`] has given the reach.
+    pub fn surfaces_from_window_sums(
+        ctx: &BakeContext,
+        sums: &[f32],
+        spp: u32,
+        origin: (usize, usize),
+        size: (usize, usize),
+    ) -> EyeFeatures {
         let (width, height) = size;
         let n = width * height;
         let mut region = vec![None; n];
@@ -136,6 +193,7 @@ impl EyeFeatures {
             normal[p] = nm;
             position[p] = x;
         }
+        let reach = vec![f32::INFINITY; n];
         EyeFeatures {
             width,
             height,
@@ -144,6 +202,7 @@ impl EyeFeatures {
             normal,
             position,
             footprint,
+            reach,
         }
     }
 
@@ -163,7 +222,12 @@ impl EyeFeatures {
                     return;
                 };
                 let (x, y) = ((p % self.width) as isize, (p / self.width) as isize);
-                let (np, xp, fp) = (self.normal[p], self.position[p], self.footprint[p]);
+                let (np, xp, fp, rp) = (
+                    self.normal[p],
+                    self.position[p],
+                    self.footprint[p],
+                    self.reach[p],
+                );
                 let mut sum = 0.0;
                 for j in 0..5 {
                     for i in 0..5 {
@@ -187,7 +251,12 @@ impl EyeFeatures {
                             .max(1.0);
                         let plane = np.dot(self.position[q] - xp).abs() / (fp * pixels);
                         let w_plane = (-plane * plane * 4.0).exp();
-                        let v = H[i] * H[j] * w_normal * w_plane;
+                        // The nearer pixel's reach bounds both: light may change that fast
+                        // anywhere between them. Infinite reach gives 0 here, weight 1.
+                        let apart = (self.position[q] - xp).length()
+                            / (REACH_SCALE * rp.min(self.reach[q]));
+                        let w_reach = (-apart * apart).exp();
+                        let v = H[i] * H[j] * w_normal * w_plane * w_reach;
                         // Bounded by construction: a scene so large that the plane
                         // distance overflows (inf − inf) gives this tap no weight instead
                         // of a NaN that would spread through the window.
@@ -328,6 +397,7 @@ pub(in crate::bake) mod tests {
             normal: vec![Vec3::ZERO; n],
             position: vec![Vec3::ZERO; n],
             footprint: vec![0.01; n],
+            reach: vec![f32::INFINITY; n],
         };
         for p in 0..n {
             let (x, y) = (p % w, p / w);
@@ -407,6 +477,29 @@ pub(in crate::bake) mod tests {
                 assert!((l.data[p] - 1.0).abs() < 1e-5, "pixel {p}: {}", l.data[p]);
             }
         }
+    }
+
+    #[test]
+    fn light_changing_within_a_short_reach_keeps_its_step() {
+        // A step in light across one flat wall (the left one): the tangent-plane test sees
+        // no edge. Where the geometry says light can change fast (a reach of one pixel, as
+        // at a wall's foot) the step stays; where it cannot (infinite reach) it is blurred.
+        let (w, h) = (64, 32);
+        let data: Vec<f32> = (0..w * h)
+            .map(|p| if p % w < w / 4 { 0.0 } else { 1.0 })
+            .collect();
+        let at_step = |reach: f32| {
+            let mut f = two_walls(w, h);
+            f.reach = vec![reach; w * h];
+            let mut l = layer(data.clone(), 1);
+            f.filter(&mut [&mut l], 3);
+            let y = h / 2;
+            (l.data[y * w + w / 4 - 1], l.data[y * w + w / 4])
+        };
+        let (dark, lit) = at_step(f32::INFINITY);
+        assert!(dark > 0.1 && lit < 0.9, "no reach limit: {dark} {lit}");
+        let (dark, lit) = at_step(0.01);
+        assert!(dark < 0.01 && lit > 0.99, "short reach: {dark} {lit}");
     }
 
     #[test]

@@ -2,6 +2,8 @@
 //!
 //! - [`denoise`]: the linear edge-avoiding filter whose weights come from the eye features
 //!   only, never from the layers, so that it commutes with every relight.
+//! - [`reach`]: how far a pixel's indirect light stays alike, from the geometry — the
+//!   denoiser's edge-stop where light changes on one surface.
 //! - [`finalise`]: one tile at a time, the denoised layers become entries of the tiled stack
 //!   (lattice entries where the settings ask for them), and the statistics that layer
 //!   dropping needs are gathered on the way.
@@ -17,3 +19,4 @@ pub mod denoise;
 pub mod describe;
 pub mod drop;
 pub mod finalise;
+pub mod reach;

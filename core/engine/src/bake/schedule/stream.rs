@@ -165,6 +165,27 @@ pub(crate) fn finish_streaming(
             let upto = (traced + band).max(needed).min(ty);
             let band_tiles = &all[traced * tx..upto * tx];
             let mut done = source(band_tiles)?;
+            if apron > 0 {
+                // The denoiser's reach, traced once per tile for every window it is in.
+                let start = Instant::now();
+                pool.install(|| {
+                    done.par_iter_mut().for_each(|t| {
+                        let (x0, y0) = (t.rect.x0 as usize, t.rect.y0 as usize);
+                        let size = (t.rect.width as usize, t.rect.height as usize);
+                        t.reach = EyeFeatures::surfaces_from_window_sums(
+                            ctx,
+                            &t.features,
+                            spp,
+                            (x0, y0),
+                            size,
+                        )
+                        .traced_reach(ctx);
+                    })
+                });
+                let reach_seconds = start.elapsed().as_secs_f64();
+                denoise_seconds += reach_seconds;
+                assembly_seconds += reach_seconds;
+            }
             for t in &done {
                 held_rows += t.bytes();
                 for l in &t.layers {
@@ -307,6 +328,7 @@ impl Window<'_> {
         for _ in 0..self.width * h {
             sums.extend_from_slice(&EyeFeatures::EMPTY);
         }
+        let mut reach = vec![f32::INFINITY; self.width * h];
         for r in self.lo..=self.hi {
             for t in self.row(r) {
                 for py in 0..t.rect.height as usize {
@@ -317,11 +339,19 @@ impl Window<'_> {
                                 * FEATURE_STRIDE;
                         sums[dst..dst + FEATURE_STRIDE]
                             .copy_from_slice(&t.features[src..src + FEATURE_STRIDE]);
+                        reach[dst / FEATURE_STRIDE] = t.reach[src / FEATURE_STRIDE];
                     }
                 }
             }
         }
-        EyeFeatures::from_window_sums(self.ctx, &sums, self.settings.spp, (0, y0), (self.width, h))
+        EyeFeatures::surfaces_from_window_sums(
+            self.ctx,
+            &sums,
+            self.settings.spp,
+            (0, y0),
+            (self.width, h),
+        )
+        .with_reach(reach)
     }
 
     /// Filters what the centre row needs and finalises its tiles: their tallies in raster
@@ -518,7 +548,7 @@ impl Window<'_> {
                     // The tile's own features: per pixel the same as the whole frame's.
                     let surfaces = match self.lattice {
                         Some(_) => tile_surfaces(
-                            &EyeFeatures::from_window_sums(
+                            &EyeFeatures::surfaces_from_window_sums(
                                 self.ctx,
                                 &t.features,
                                 self.settings.spp,

@@ -32,6 +32,10 @@ pub(crate) struct TracedTile {
     pub samples: u32,
     pub features: Vec<f32>,
     pub layers: Vec<TracedLayer>,
+    /// Each pixel's [reach](crate::bake::finish::reach), the denoiser's one feature that
+    /// costs rays: computed once per tile by the stream when it filters (empty until then),
+    /// so the windows that overlap on a tile row do not trace it again.
+    pub reach: Vec<f32>,
 }
 
 impl TracedTile {
@@ -111,6 +115,7 @@ pub(crate) fn trace_sparse(
         samples,
         features,
         layers,
+        reach: Vec::new(),
     })
 }
 
@@ -168,5 +173,6 @@ pub(crate) fn traced_from_sums(
         samples: spp,
         features,
         layers: out,
+        reach: Vec::new(),
     })
 }
