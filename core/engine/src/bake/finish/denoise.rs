@@ -55,7 +55,7 @@ pub struct EyeFeatures {
 /// The fraction of a pixel's [reach](reach::harmonic_distance) at which a neighbour's weight
 /// falls to 1/e. Ward's irradiance cache lets a value stand for points within a few tenths of
 /// it; smaller keeps more of the light's changes and more noise (the stack compresses
-/// less). Chosen by measurement (docs/denoise.md, "The linear denoiser's reach").
+/// less). Chosen by measurement (docs/trade.md, "Trying a retune").
 const REACH_SCALE: f32 = 0.25;
 
 impl EyeFeatures {
