@@ -74,6 +74,14 @@ mod tests {
         SceneGeometry::build(&scene)
     }
 
+    /// A 10 × 10 floor at z = 0 around the origin, facing up.
+    const FLOOR: [[f32; 3]; 4] = [
+        [-5.0, -5.0, 0.0],
+        [5.0, -5.0, 0.0],
+        [5.0, 5.0, 0.0],
+        [-5.0, 5.0, 0.0],
+    ];
+
     /// A closed cube of half-size `h` around the origin.
     fn cube(h: f32) -> Vec<[[f32; 3]; 4]> {
         let mut faces = Vec::new();
@@ -94,13 +102,7 @@ mod tests {
 
     #[test]
     fn an_open_plane_reaches_forever() {
-        let floor = [
-            [-5.0, -5.0, 0.0],
-            [5.0, -5.0, 0.0],
-            [5.0, 5.0, 0.0],
-            [-5.0, 5.0, 0.0],
-        ];
-        let g = geometry(&[floor]);
+        let g = geometry(&[FLOOR]);
         let r = harmonic_distance(&g, Vec3::ZERO, Vec3::Z, 1e-3);
         assert_eq!(r, f32::INFINITY);
     }
@@ -122,19 +124,13 @@ mod tests {
 
     #[test]
     fn the_floor_at_a_walls_foot_reaches_less_far_than_away_from_it() {
-        let floor = [
-            [-5.0, -5.0, 0.0],
-            [5.0, -5.0, 0.0],
-            [5.0, 5.0, 0.0],
-            [-5.0, 5.0, 0.0],
-        ];
         let wall = [
             [0.0, -5.0, 0.0],
             [0.0, 5.0, 0.0],
             [0.0, 5.0, 5.0],
             [0.0, -5.0, 5.0],
         ];
-        let g = geometry(&[floor, wall]);
+        let g = geometry(&[FLOOR, wall]);
         let at = |d: f32| harmonic_distance(&g, Vec3::new(-d, 0.0, 0.0), Vec3::Z, 1e-3);
         let (near, mid, far) = (at(0.05), at(0.5), at(2.0));
         assert!(near < mid && mid < far, "{near} {mid} {far}");
