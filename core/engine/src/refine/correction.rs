@@ -60,19 +60,25 @@ impl TailRefiner {
         refinement.sum.iter().map(|d| *d * inv).collect()
     }
 
-    /// The bake's linear denoiser for this refinement's pixels (weights built once), or
-    /// nothing where the stack was baked without it.
+    /// The bake's linear denoiser for this refinement's pixels (weights built once, the
+    /// reach the refiner's), or nothing where the stack was baked without it.
     fn smoother(&self, refinement: &Refinement) -> impl Fn(Vec<Rgb>) -> Vec<Rgb> {
         let iterations = self.header.denoise.bounce_iterations;
         let filter = (iterations > 0).then(|| {
             let (w, h) = (refinement.width as usize, refinement.height as usize);
-            let features = EyeFeatures::from_window_sums(
+            let surfaces = EyeFeatures::surfaces_from_window_sums(
                 &self.ctx,
                 &refinement.features,
                 refinement.passes,
                 (0, 0),
                 (w, h),
             );
+            // Set by the first pass; traced here only for a refinement with none.
+            let reach = match self.reach.get() {
+                Some(reach) => reach.clone(),
+                None => surfaces.traced_reach(&self.ctx),
+            };
+            let features = surfaces.with_reach(reach);
             let weights = features.weights_for(iterations);
             (features, weights)
         });

@@ -95,6 +95,14 @@ impl TailRefiner {
                 EyeFeatures::add(rec, r, n, x);
             }
         }
+        if sample == 0 {
+            // The first pass's eye hits, whichever edit traced them: the same for all.
+            self.reach.get_or_init(|| {
+                let size = (width, res.height as usize);
+                EyeFeatures::surfaces_from_window_sums(ctx, &refinement.features, 1, (0, 0), size)
+                    .traced_reach(ctx)
+            });
+        }
         refinement.passes += 1;
         Ok(())
     }

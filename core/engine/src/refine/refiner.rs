@@ -1,6 +1,8 @@
 //! What refines the edits of one stack: the scene prepared for tracing as the bake traced
 //! it, checked against the stack's header, and a new refinement per edit.
 
+use std::sync::OnceLock;
+
 use super::edited_tail::EditedTailBrdf;
 use super::refinement::Refinement;
 use super::weighted_sink::dense_weights;
@@ -27,6 +29,13 @@ pub struct TailRefiner {
     pub(super) header: StackHeader,
     bases: StackBases,
     part_scales: PartScales,
+    /// Each pixel's [reach](crate::bake::finish::reach::harmonic_distance) for the
+    /// correction's denoiser, traced once per stack from the eye hits of the first pass
+    /// any refinement traces. Eye hits do not depend on the materials, so that pass is the
+    /// same for every edit and the reach is the same whichever edit refined first; tracing
+    /// it at every correction would cost rays of the whole frame each time an image is
+    /// shown.
+    pub(super) reach: OnceLock<Vec<f32>>,
 }
 
 impl TailRefiner {
@@ -77,6 +86,7 @@ impl TailRefiner {
             header: header.clone(),
             bases: StackBases::from_header(header)?,
             part_scales: PartScales::for_header(header)?,
+            reach: OnceLock::new(),
         })
     }
 

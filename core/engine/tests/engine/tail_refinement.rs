@@ -12,7 +12,7 @@ use crate::common;
 use std::sync::Arc;
 
 use relume_engine::bake::reference::{render_reference, ReferenceBrdf};
-use relume_engine::bake::{bake, BakeSettings, IndirectSampling};
+use relume_engine::bake::{bake, BakeSettings, Denoise, IndirectSampling};
 use relume_engine::brdf::{BlinnPhong, MaterialSpec};
 use relume_engine::image_io::compare_rgb;
 use relume_engine::progress::Progress;
@@ -278,6 +278,42 @@ fn refined_edits_match_the_projected_reference() {
             shown[3]
         );
     }
+}
+
+#[test]
+fn the_denoised_correction_does_not_depend_on_which_edit_refined_first() {
+    // The correction's denoiser stops at each pixel's reach, traced once per refiner from
+    // the first pass any edit traces: eye hits do not depend on the materials, so an
+    // edit's correction is the same whether another edit was refined (and shown) first.
+    let scene = common::cornell(24);
+    let s = BakeSettings {
+        denoise: Denoise {
+            direct_iterations: 0,
+            bounce_iterations: 2,
+        },
+        ..settings(4, 6)
+    };
+    let (stack, _) = bake(&scene, &s, &Progress::new()).unwrap();
+    let edits = common::cornell_edits();
+    let (first, second) = (&edits[2].1, &edits[1].1);
+    let correction_of_second = |refine_first: bool| {
+        let refiner = TailRefiner::new(&scene, &s, &stack.header).unwrap();
+        if refine_first {
+            let mut r = refiner.start(&specs(first), None).unwrap();
+            refiner
+                .refine_for(&mut r, f64::INFINITY, 2, &Progress::new())
+                .unwrap();
+            assert!(refiner.correction(&r).iter().all(|d| d.is_finite()));
+        }
+        let mut r = refiner.start(&specs(second), None).unwrap();
+        refiner
+            .refine_for(&mut r, f64::INFINITY, 3, &Progress::new())
+            .unwrap();
+        refiner.correction(&r)
+    };
+    let alone = correction_of_second(false);
+    assert!(alone.iter().any(|d| d.x != 0.0), "a correction to compare");
+    assert_eq!(alone, correction_of_second(true));
 }
 
 #[test]

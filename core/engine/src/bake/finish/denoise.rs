@@ -99,24 +99,6 @@ impl EyeFeatures {
         }
     }
 
-    /// Features of a window of the frame: `sums` holds the records of the `size.0 × size.1`
-    /// pixels whose top-left pixel is `origin` (global coordinates: camera rays and
-    /// footprints are the frame's). The filter treats the window's edges like the image's,
-    /// so on a window its output is exact at pixels farther than the filter's footprint
-    /// radius ([`footprint_radius`]) from every edge that is not the image's: a streaming
-    /// bake filters a band of tile rows and keeps its centre.
-    pub fn from_window_sums(
-        ctx: &BakeContext,
-        sums: &[f32],
-        spp: u32,
-        origin: (usize, usize),
-        size: (usize, usize),
-    ) -> EyeFeatures {
-        let features = Self::surfaces_from_window_sums(ctx, sums, spp, origin, size);
-        let reach = features.traced_reach(ctx);
-        features.with_reach(reach)
-    }
-
     /// Each pixel's [reach](reach::harmonic_distance) (infinite where it is not filtered),
     /// traced. It depends on the pixel's own record only, so a window may gather it from
     /// its tiles' ([`Self::with_reach`]) instead of tracing it again.
@@ -142,10 +124,17 @@ impl EyeFeatures {
         self
     }
 
-    /// [`Self::from_window_sums`] without the pixels' [reach](reach::harmonic_distance)
-    /// (left infinite): what [`Self::surface`] needs, which segments the stack's lattice
-    /// entries, at none of the rays the reach costs. Filter with it only once
-    /// [`Self::with_reach`] has given the reach.
+    /// Features of a window of the frame: `sums` holds the records of the `size.0 × size.1`
+    /// pixels whose top-left pixel is `origin` (global coordinates: camera rays and
+    /// footprints are the frame's). The filter treats the window's edges like the image's,
+    /// so on a window its output is exact at pixels farther than the filter's footprint
+    /// radius ([`footprint_radius`]) from every edge that is not the image's: a streaming
+    /// bake filters a band of tile rows and keeps its centre.
+    ///
+    /// The pixels' [reach](reach::harmonic_distance) is left infinite: this is what
+    /// [`Self::surface`] needs, which segments the stack's lattice entries, at none of the
+    /// rays the reach costs. Filter only once [`Self::with_reach`] has given the reach
+    /// ([`Self::traced_reach`], or one traced before for the same pixels).
     pub fn surfaces_from_window_sums(
         ctx: &BakeContext,
         sums: &[f32],
