@@ -52,6 +52,11 @@ pub struct EnvSampler {
     /// levels[k] is 2^k × 2^k sums, row-major with row 0 the top (the zenith); levels[log2 N]
     /// is the finest grid, normalised so the whole pyramid sums to 1 at its top.
     levels: Vec<Vec<f64>>,
+    /// [`row_z`] of each finest row boundary (N + 1) and the solid angle Δφ·Δz of a cell of
+    /// each finest row (N): kept so that a sample or a pdf costs no sines (every world light
+    /// sample and every BSDF ray that escapes asks for one).
+    edge_z: Vec<f64>,
+    row_area: Vec<f64>,
 }
 
 impl std::fmt::Debug for EnvSampler {
@@ -140,7 +145,16 @@ impl EnvSampler {
             side = half;
         }
         levels.reverse();
-        Some(EnvSampler { n, levels })
+        let edge_z: Vec<f64> = (0..=n).map(|edge| row_z(edge, n)).collect();
+        let row_area = (0..n)
+            .map(|row| 2.0 * PI / n as f64 * (edge_z[row] - edge_z[row + 1]).abs())
+            .collect();
+        Some(EnvSampler {
+            n,
+            levels,
+            edge_z,
+            row_area,
+        })
     }
 
     /// Side of the finest grid.
@@ -193,7 +207,7 @@ impl EnvSampler {
         // φ = (½ − u)·2π with u = (col + x)/N (Blender's mapping inverted).
         let u = (col as f64 + x) / n as f64;
         let phi = (0.5 - u) * 2.0 * PI;
-        let (z_top, z_bottom) = (row_z(row, n), row_z(row + 1, n));
+        let (z_top, z_bottom) = (self.edge_z[row], self.edge_z[row + 1]);
         let z = (z_bottom + (z_top - z_bottom) * y).clamp(-1.0, 1.0);
         let r = (1.0 - z * z).max(0.0).sqrt();
         let dir = Vec3::new((r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32);
@@ -202,10 +216,8 @@ impl EnvSampler {
 
     /// Solid-angle pdf of cell (`row`, `col`) of the finest grid.
     fn cell_pdf(&self, row: usize, col: usize) -> f32 {
-        let n = self.n;
-        let p = self.levels[self.levels.len() - 1][row * n + col];
-        let dz = (row_z(row, n) - row_z(row + 1, n)).abs();
-        let area = 2.0 * PI / n as f64 * dz;
+        let p = self.levels[self.levels.len() - 1][row * self.n + col];
+        let area = self.row_area[row];
         if area > 0.0 {
             (p / area) as f32
         } else {
@@ -223,9 +235,9 @@ impl EnvSampler {
         let v = 0.5 + dz.clamp(-1.0, 1.0).asin() / PI;
         let mut row = (((1.0 - v) * n as f64) as usize).min(n - 1);
         // Round-off at a row boundary: keep the row whose z interval holds dz.
-        if row > 0 && dz > row_z(row, n) {
+        if row > 0 && dz > self.edge_z[row] {
             row -= 1;
-        } else if row + 1 < n && dz < row_z(row + 1, n) {
+        } else if row + 1 < n && dz < self.edge_z[row + 1] {
             row += 1;
         }
         self.cell_pdf(row, col)
