@@ -95,8 +95,9 @@ impl TailRefiner {
                 EyeFeatures::add(rec, r, n, x);
             }
         }
-        if sample == 0 {
-            // The first pass's eye hits, whichever edit traced them: the same for all.
+        if sample == 0 && self.header.denoise.bounce_iterations > 0 {
+            // The first pass's eye hits, whichever edit traced them: the same for all. Only
+            // a stack baked with the denoiser smooths its corrections with it.
             self.reach.get_or_init(|| {
                 let size = (width, res.height as usize);
                 EyeFeatures::surfaces_from_window_sums(ctx, &refinement.features, 1, (0, 0), size)
