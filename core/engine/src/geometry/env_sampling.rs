@@ -87,7 +87,10 @@ impl EnvSampler {
         }
         let n = w.max(h).next_power_of_two().clamp(1, MAX_GRID);
         let mut fine = vec![0.0f64; n * n];
-        let dphi = 2.0 * PI / n as f64;
+        let edge_z: Vec<f64> = (0..=n).map(|edge| row_z(edge, n)).collect();
+        let row_area: Vec<f64> = (0..n)
+            .map(|row| 2.0 * PI / n as f64 * (edge_z[row] - edge_z[row + 1]).abs())
+            .collect();
         // Texel luminance, computed once.
         let lum: Vec<f64> = (0..h)
             .flat_map(|y| (0..w).map(move |x| (x, y)))
@@ -106,7 +109,7 @@ impl EnvSampler {
             // y = (1 − v)·H − ½ with (1 − v) ∈ [row/N, (row+1)/N].
             let y_lo = ((row as f64 / n as f64) * h as f64 - 0.5).floor() as isize;
             let y_hi = (((row + 1) as f64 / n as f64) * h as f64 - 0.5).floor() as isize + 1;
-            let solid_angle = dphi * (row_z(row, n) - row_z(row + 1, n)).abs();
+            let solid_angle = row_area[row];
             for col in 0..n {
                 let x_lo = ((col as f64 / n as f64) * w as f64 - 0.5).floor() as isize;
                 let x_hi = (((col + 1) as f64 / n as f64) * w as f64 - 0.5).floor() as isize + 1;
@@ -145,10 +148,6 @@ impl EnvSampler {
             side = half;
         }
         levels.reverse();
-        let edge_z: Vec<f64> = (0..=n).map(|edge| row_z(edge, n)).collect();
-        let row_area = (0..n)
-            .map(|row| 2.0 * PI / n as f64 * (edge_z[row] - edge_z[row + 1]).abs())
-            .collect();
         Some(EnvSampler {
             n,
             levels,

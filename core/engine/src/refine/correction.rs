@@ -73,11 +73,10 @@ impl TailRefiner {
                 (0, 0),
                 (w, h),
             );
-            // Set by the first pass; traced here only for a refinement with none.
-            let reach = match self.reach.get() {
-                Some(reach) => reach.clone(),
-                None => surfaces.traced_reach(&self.ctx),
-            };
+            // The first pass of any refinement sets it, and a refinement is smoothed only
+            // after a pass; tracing it here is the fallback should that ever not hold.
+            let reach =
+                (self.reach.get().cloned()).unwrap_or_else(|| surfaces.traced_reach(&self.ctx));
             let features = surfaces.with_reach(reach);
             let weights = features.weights_for(iterations);
             (features, weights)
