@@ -161,3 +161,83 @@ def test_scene_file_written_for_the_command_line(addon, prefs, blend_dir):
     assert bpy.ops.relume.export_scene(filepath=str(path)) == {"FINISHED"}
     loaded = relume.Scene.load(str(path))
     assert loaded.hash() == addon.api.export().scene.hash()
+
+
+def test_split_vertices_number_as_np_unique_does(addon, blend_dir):
+    """The exporter's split of vertices by (vertex, normal, uv) numbers them exactly as
+    `np.unique(axis=0)` did, so stacks baked before it still match their scene's hash:
+    on Blender's own corners (a shaded sphere with flat faces and UV seams) and on keys with
+    many ties and a negative zero."""
+    from importlib import import_module
+
+    split_vertices = import_module(addon.__name__ + ".exporter.geometry").split_vertices
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=24, ring_count=12)
+    obj = bpy.context.active_object
+    for i, poly in enumerate(obj.data.polygons):
+        poly.use_smooth = i % 3 != 0
+    mesh = obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).to_mesh()
+    mesh.calc_loop_triangles()
+    nt, nl = len(mesh.loop_triangles), len(mesh.loops)
+    tv = np.empty(nt * 3, np.int64)
+    mesh.loop_triangles.foreach_get("vertices", tv)
+    tl = np.empty(nt * 3, np.int64)
+    mesh.loop_triangles.foreach_get("loops", tl)
+    cn = np.empty(nl * 3, np.float32)
+    mesh.corner_normals.foreach_get("vector", cn)
+    uv = np.empty(nl * 2, np.float32)
+    mesh.uv_layers.active.data.foreach_get("uv", uv)
+    keys = np.hstack([tv[:, None].astype(np.float64), cn.reshape(nl, 3)[tl].astype(np.float64),
+                      uv.reshape(nl, 2)[tl].astype(np.float64)])
+    rng = np.random.default_rng(7)
+    ties = rng.integers(0, 4, size=(5000, 6)).astype(np.float64)
+    ties[::5, 3] = -0.0
+    for k in (keys, ties):
+        _, first, inverse = np.unique(k, axis=0, return_index=True, return_inverse=True)
+        got_first, got_inverse = split_vertices(k)
+        assert np.array_equal(got_first, first)
+        assert np.array_equal(got_inverse, inverse.reshape(-1))
+    assert len(np.unique(keys, axis=0)) > len(mesh.vertices)  # the sphere's corners do split
+    first, inverse = split_vertices(np.zeros((0, 6)))
+    assert len(first) == len(inverse) == 0
+
+
+def test_world_image_written_once_per_content(addon, prefs, blend_dir):
+    """Each export (a bake, every stale check) writes the world's environment image only when
+    its pixels or the file changed: the same pixels leave the file untouched, new pixels or a
+    deleted file write it again, and the scene's hash follows the pixels."""
+    import os
+    import time
+
+    box_scene(resolution=16)
+    image = bpy.data.images.new("sky", 32, 16, float_buffer=True)
+    image.pixels.foreach_set(np.full(32 * 16 * 4, 0.5, np.float32))
+    world = bpy.context.scene.world or bpy.data.worlds.new("World")
+    bpy.context.scene.world = world
+    world.use_nodes = True
+    nodes = world.node_tree.nodes
+    env = nodes.new("ShaderNodeTexEnvironment")
+    env.image = image
+    world.node_tree.links.new(env.outputs["Color"], nodes["Background"].inputs["Color"])
+
+    first = addon.api.export().scene.hash()
+    paths = [p for p in (blend_dir / "relume").rglob("*.exr")]
+    assert len(paths) == 1, paths
+    stamp = os.stat(paths[0]).st_mtime_ns
+    time.sleep(0.05)  # past the file system's clock tick: a rewrite would change the mtime
+    assert addon.api.export().scene.hash() == first
+    assert os.stat(paths[0]).st_mtime_ns == stamp, "unchanged pixels were written again"
+    # A file touched since (another program, a copy) is written again.
+    touched = stamp - 10**9
+    os.utime(paths[0], ns=(touched, touched))
+    assert addon.api.export().scene.hash() == first
+    stamp = os.stat(paths[0]).st_mtime_ns
+    assert stamp != touched, "a file changed since it was written was not written again"
+
+    image.pixels.foreach_set(np.full(32 * 16 * 4, 0.25, np.float32))
+    changed = addon.api.export().scene.hash()
+    assert changed != first
+    assert os.stat(paths[0]).st_mtime_ns != stamp
+
+    paths[0].unlink()
+    assert addon.api.export().scene.hash() == changed
+    assert paths[0].exists()

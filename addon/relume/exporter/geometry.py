@@ -41,6 +41,25 @@ class _LocalMesh:
     slot_of_triangle: np.ndarray  # (m,) material slot index
 
 
+def split_vertices(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct rows of `keys` (one per triangle corner): for each, in the rows' sorted
+    order, the index of its first corner, and for each corner its row's number — what
+    `np.unique(keys, axis=0, return_index=True, return_inverse=True)` returns, found with a
+    stable sort on the columns (`np.lexsort`) rather than `np.unique`'s sort of whole rows,
+    which is several times slower. The order is the same, so a scene exports the same
+    vertex numbering (and matches stacks baked before) either way."""
+    n = len(keys)
+    if n == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    order = np.lexsort(keys.T[::-1])
+    ordered = keys[order]
+    starts = np.ones(n, bool)
+    starts[1:] = np.any(ordered[1:] != ordered[:-1], axis=1)
+    inverse = np.empty(n, np.int64)
+    inverse[order] = np.cumsum(starts) - 1
+    return order[starts], inverse
+
+
 def _read_local(mesh) -> _LocalMesh | None:
     mesh.calc_loop_triangles()
     nt = len(mesh.loop_triangles)
@@ -69,9 +88,7 @@ def _read_local(mesh) -> _LocalMesh | None:
     parts = [tri_verts[:, None].astype(np.float64), cn[tri_loops].astype(np.float64)]
     if uv is not None:
         parts.append(uv[tri_loops].astype(np.float64))
-    keys = np.hstack(parts)
-    unique, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
-    corner = first  # index into the triangle-corner arrays of each split vertex
+    corner, inverse = split_vertices(np.hstack(parts))  # corner: into the corner arrays
     return _LocalMesh(
         corner_pos=co[tri_verts[corner]],
         corner_nrm=cn[tri_loops[corner]],

@@ -14,6 +14,7 @@ grouping keeps them apart (logic/light_groups.py says what happens to lights in 
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 from dataclasses import dataclass, field
@@ -64,12 +65,32 @@ def _sanitize(name: str) -> str:
     return "".join(c if c.isalnum() or c in "-_." else "_" for c in name) or "image"
 
 
+#: path → (digest of the pixels, size, mtime) of each image this session wrote: every export
+#: (a bake, each stale check, each batch render's check) would otherwise write the same
+#: images again, the largest share of its time after the meshes.
+_WRITTEN: dict[str, tuple[bytes, int, int]] = {}
+
+
 def _write_image(rgb: np.ndarray, texture_dir: str, stem: str) -> str:
+    """Write `rgb` as `texture_dir/stem.exr`, unless this session wrote those very pixels
+    there and the file is as it left it (same size and modification time)."""
     import relume
 
     os.makedirs(texture_dir, exist_ok=True)
     path = os.path.join(texture_dir, _sanitize(stem) + ".exr")
-    relume.write_exr(path, rgb)
+    pixels = np.ascontiguousarray(rgb)
+    digest = hashlib.blake2b(pixels.view(np.uint8).reshape(-1), digest_size=16)
+    digest.update(repr((pixels.shape, pixels.dtype.str)).encode())
+    key = digest.digest()
+    try:
+        st = os.stat(path)
+        if _WRITTEN.get(path) == (key, st.st_size, st.st_mtime_ns):
+            return path
+    except OSError:
+        pass
+    relume.write_exr(path, pixels)
+    st = os.stat(path)
+    _WRITTEN[path] = (key, st.st_size, st.st_mtime_ns)
     return path
 
 

@@ -42,6 +42,7 @@
 //! the BSDF rays that hit them, MIS-weighted.
 
 use glam::{Vec2, Vec3};
+use smallvec::{smallvec, SmallVec};
 use std::f32::consts::PI;
 
 use crate::bake::path::bounce_kinds::{BounceKinds, KindLimits};
@@ -428,7 +429,7 @@ fn trace_path<B: VertexBrdf, S: PathSink, T: Tracer>(
         count: settings.indirect_samples,
     });
     let mut values = [Rgb::ZERO; MAX_BASES];
-    let mut eye_light = [Rgb::ZERO; MAX_GROUPS * MAX_BASES];
+    let mut eye_light = group_light(groups);
     let (first, count) = direct_light(
         ctx,
         brdf,
@@ -476,7 +477,7 @@ fn trace_path<B: VertexBrdf, S: PathSink, T: Tracer>(
     let inv_indirect = 1.0 / settings.indirect_samples as f32;
     let limits = KindLimits::of(settings, brdf.bounces(settings.bounces));
     let mut eye_values = [Rgb::ZERO; MAX_BASES];
-    let mut bounce_light = [Rgb::ZERO; MAX_GROUPS * MAX_BASES];
+    let mut bounce_light = group_light(groups);
     let indirect = stream.branch();
     for i in 0..settings.indirect_samples {
         let mut stream = indirect.child(i, settings.indirect_samples);
@@ -630,7 +631,7 @@ pub(crate) fn direct_light<B: VertexBrdf, T: Tracer>(
     eye: bool,
     stream: &mut SampleStream,
     values: &mut [Rgb; MAX_BASES],
-    light: &mut [Rgb; MAX_GROUPS * MAX_BASES],
+    light: &mut [Rgb],
 ) -> (u32, usize) {
     let mut first = 0u32;
     let mut count = 0usize;
@@ -700,7 +701,7 @@ fn frozen_tail<B: VertexBrdf, T: Tracer>(
     wo: Vec3,
     stream: &mut SampleStream,
     values: &mut [Rgb; MAX_BASES],
-    light: &mut [Rgb; MAX_GROUPS * MAX_BASES],
+    light: &mut [Rgb],
     (first, count): (&mut u32, &mut usize),
     edits: Option<&mut TailEdits>,
     kinds: Option<BounceKinds>,
@@ -854,7 +855,7 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
     };
     let max_bounce = brdf.bounces(ctx.settings.bounces);
     let mut values = [Rgb::ZERO; MAX_BASES];
-    let mut light = [Rgb::ZERO; MAX_GROUPS * MAX_BASES];
+    let mut light = group_light(ctx.lights.groups.len());
     let mut emitted = [Rgb::ZERO; MAX_GROUPS];
     let mut throughput = Rgb::ONE;
     let mut frozen = Rgb::ONE;
@@ -983,6 +984,17 @@ pub(crate) fn tail_radiance<B: VertexBrdf, T: Tracer>(
     any
 }
 
+/// Per light group, the light a vertex gathers for each of its basis values, `MAX_BASES`
+/// apart ([`direct_light`]'s layout). On the stack for one light group, the usual case, and
+/// on the heap for several: a buffer sized for every possible group would be zeroed at each
+/// eye sample and bounce vertex, which the bake's profile showed as time in `memset`.
+pub(crate) type GroupLight = SmallVec<[Rgb; MAX_BASES]>;
+
+/// A zeroed [`GroupLight`] for `groups` light groups.
+pub(crate) fn group_light(groups: usize) -> GroupLight {
+    smallvec![Rgb::ZERO; groups.max(1) * MAX_BASES]
+}
+
 /// The direction a path continues in from vertex `hit` (seen from `wo`) beyond the first
 /// bounce: one draw from the region's cosine-and-lobes mixture, kept only above both the
 /// shading and the geometric surface and with a positive pdf. Returns the direction, its
@@ -1080,7 +1092,7 @@ pub fn guide_sample<B: VertexBrdf, T: Tracer>(
         f32::INFINITY,
     )?;
     let mut values = [Rgb::ZERO; MAX_BASES];
-    let mut light = [Rgb::ZERO; MAX_GROUPS * MAX_BASES];
+    let mut light = group_light(ctx.lights.groups.len());
     let (_, count) = direct_light(
         ctx,
         brdf,

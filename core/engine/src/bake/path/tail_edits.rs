@@ -25,6 +25,8 @@
 //! s_d^a s_g^b − 1 instead, one layer each, so the layers are weighted as before and still
 //! weigh exactly 0 at the bake-time materials.
 
+use smallvec::SmallVec;
+
 use crate::options::MAX_GROUPS;
 use crate::Rgb;
 
@@ -103,11 +105,14 @@ pub struct TailEdits {
     n: usize,
     /// Per tracked region, the weight of each (i, j) pair of diffuse and glossy counts among
     /// the tail vertices so far on it, per channel (they sum to 1).
-    dist: [[Rgb; PAIRS]; MAX_TRACKED],
+    dist: SmallVec<[[Rgb; PAIRS]; MAX_TRACKED]>,
     /// Light groups in use.
     groups: usize,
-    /// Per group, tracked region and bin, the light that arrived with that pair of counts.
-    sums: [[[Rgb; TAIL_BINS]; MAX_TRACKED]; MAX_GROUPS],
+    /// Per tracked region and group (row `k · groups + g`), per bin, the light that arrived
+    /// with that pair of counts. Rows are added as regions are met: a record is made for
+    /// every indirect sample, and one sized for every possible group and region was mostly
+    /// zeroing (it showed in the bake's profile).
+    sums: SmallVec<[[Rgb; TAIL_BINS]; MAX_TRACKED]>,
 }
 
 impl TailEdits {
@@ -116,9 +121,9 @@ impl TailEdits {
         TailEdits {
             ids: [0; MAX_TRACKED],
             n: 0,
-            dist: [[Rgb::ZERO; PAIRS]; MAX_TRACKED],
+            dist: SmallVec::new(),
             groups: groups.min(MAX_GROUPS),
-            sums: [[[Rgb::ZERO; TAIL_BINS]; MAX_TRACKED]; MAX_GROUPS],
+            sums: SmallVec::new(),
         }
     }
 
@@ -133,8 +138,12 @@ impl TailEdits {
         }
         let k = self.n;
         self.ids[k] = id;
-        self.dist[k] = [Rgb::ZERO; PAIRS];
-        self.dist[k][0] = Rgb::ONE;
+        let mut start = [Rgb::ZERO; PAIRS];
+        start[0] = Rgb::ONE;
+        self.dist.push(start);
+        for _ in 0..self.groups {
+            self.sums.push([Rgb::ZERO; TAIL_BINS]);
+        }
         self.n += 1;
         Some(k)
     }
@@ -153,7 +162,10 @@ impl TailEdits {
             return;
         }
         for k in 0..self.n {
-            for (s, d) in self.sums[group][k].iter_mut().zip(&self.dist[k][1..]) {
+            for (s, d) in self.sums[k * self.groups + group]
+                .iter_mut()
+                .zip(&self.dist[k][1..])
+            {
                 *s += piece * *d;
             }
         }
@@ -170,7 +182,7 @@ impl TailEdits {
         let total = pieces[0] + pieces[1];
         for k in 0..self.n {
             let d = &self.dist[k];
-            let sums = &mut self.sums[group][k];
+            let sums = &mut self.sums[k * self.groups + group];
             if own == Some(k) {
                 let with_d = split(d, Rgb::ONE);
                 let with_g = split(d, Rgb::ZERO);
@@ -189,7 +201,7 @@ impl TailEdits {
     pub fn for_each(&self, mut f: impl FnMut(usize, u16, usize, Rgb)) {
         for g in 0..self.groups {
             for k in 0..self.n {
-                for (b, v) in self.sums[g][k].iter().enumerate() {
+                for (b, v) in self.sums[k * self.groups + g].iter().enumerate() {
                     if *v != Rgb::ZERO {
                         f(g, self.ids[k], b, *v);
                     }

@@ -17,12 +17,12 @@ use rayon::prelude::*;
 use crate::bake::path::bounce_kinds::{BounceKinds, KindLimits};
 use crate::bake::path::frozen::{frozen_value, frozen_value_and_share};
 use crate::bake::path::integrator::Tracer;
-use crate::bake::path::integrator::{continuation, direct_light, CountingTracer};
+use crate::bake::path::integrator::{continuation, direct_light, group_light, CountingTracer};
 use crate::bake::path::vertex_brdf::BasisBrdf;
 use crate::bake::prepare::bounce_budget::{choose, BounceEstimate};
 use crate::bake::prepare::context::BakeContext;
 use crate::geometry::sampling::SampleStream;
-use crate::options::{MAX_BASES, MAX_GROUPS};
+use crate::options::MAX_BASES;
 use crate::Rgb;
 
 /// Pixels per side of the pre-pass grid (fewer when the image is smaller).
@@ -72,7 +72,7 @@ fn row(ctx: &BakeContext, cap: u32, gx: u32, gy: u32, y: u32) -> Vec<f64> {
     let mut tracer = CountingTracer::default();
     let mut energy = vec![0.0f64; cap as usize + 1];
     let mut values = [Rgb::ZERO; MAX_BASES];
-    let mut light = [Rgb::ZERO; MAX_GROUPS * MAX_BASES];
+    let mut light = group_light(ctx.lights.groups.len());
     let tints: Vec<Rgb> = ctx.lights.groups.iter().map(|g| g.tint).collect();
     let seed = ctx.settings.seed ^ 0xB0C7_CE5E_57A1_u64;
     let limits = KindLimits::of(&ctx.settings, cap);
