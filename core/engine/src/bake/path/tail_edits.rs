@@ -100,9 +100,8 @@ pub const fn pair_of(k: usize) -> (usize, usize) {
 /// One path's tail-edit record (see the module docs).
 #[derive(Clone)]
 pub struct TailEdits {
-    /// Editable regions met so far.
-    ids: [u16; MAX_TRACKED],
-    n: usize,
+    /// Editable regions met so far (their tracked slots, in order).
+    ids: SmallVec<[u16; MAX_TRACKED]>,
     /// Per tracked region, the weight of each (i, j) pair of diffuse and glossy counts among
     /// the tail vertices so far on it, per channel (they sum to 1).
     dist: SmallVec<[[Rgb; PAIRS]; MAX_TRACKED]>,
@@ -119,8 +118,7 @@ impl TailEdits {
     /// An empty record for `groups` light groups.
     pub fn new(groups: usize) -> Self {
         TailEdits {
-            ids: [0; MAX_TRACKED],
-            n: 0,
+            ids: SmallVec::new(),
             dist: SmallVec::new(),
             groups: groups.min(MAX_GROUPS),
             sums: SmallVec::new(),
@@ -130,21 +128,20 @@ impl TailEdits {
     /// The tracked slot of region `id`, added (no vertex on it yet) when new; `None` when
     /// [`MAX_TRACKED`] regions are tracked already.
     fn slot(&mut self, id: u16) -> Option<usize> {
-        if let Some(k) = self.ids[..self.n].iter().position(|&i| i == id) {
+        if let Some(k) = self.ids.iter().position(|&i| i == id) {
             return Some(k);
         }
-        if self.n == MAX_TRACKED {
+        if self.ids.len() == MAX_TRACKED {
             return None;
         }
-        let k = self.n;
-        self.ids[k] = id;
+        let k = self.ids.len();
+        self.ids.push(id);
         let mut start = [Rgb::ZERO; PAIRS];
         start[0] = Rgb::ONE;
         self.dist.push(start);
         for _ in 0..self.groups {
             self.sums.push([Rgb::ZERO; TAIL_BINS]);
         }
-        self.n += 1;
         Some(k)
     }
 
@@ -161,7 +158,7 @@ impl TailEdits {
         if piece == Rgb::ZERO || group >= self.groups {
             return;
         }
-        for k in 0..self.n {
+        for k in 0..self.ids.len() {
             for (s, d) in self.sums[k * self.groups + group]
                 .iter_mut()
                 .zip(&self.dist[k][1..])
@@ -180,7 +177,7 @@ impl TailEdits {
         }
         let own = self.slot(region);
         let total = pieces[0] + pieces[1];
-        for k in 0..self.n {
+        for k in 0..self.ids.len() {
             let d = &self.dist[k];
             let sums = &mut self.sums[k * self.groups + group];
             if own == Some(k) {
@@ -200,7 +197,7 @@ impl TailEdits {
     /// Every (group, region, bin, light) with light, for the bounce vertex to weigh.
     pub fn for_each(&self, mut f: impl FnMut(usize, u16, usize, Rgb)) {
         for g in 0..self.groups {
-            for k in 0..self.n {
+            for k in 0..self.ids.len() {
                 for (b, v) in self.sums[k * self.groups + g].iter().enumerate() {
                     if *v != Rgb::ZERO {
                         f(g, self.ids[k], b, *v);
